@@ -1,0 +1,58 @@
+//! Library errors: one enum, with the variants a caller can fix (bad input data or
+//! configuration) kept apart from internal invariant failures.
+
+use std::path::PathBuf;
+
+/// Errors returned by the isoline library.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum Error {
+    /// The point set is empty.
+    #[error("the point set is empty")]
+    EmptyPointSet,
+    /// A coordinate is NaN or infinite; `index` is the point's position in the input.
+    #[error("point {index} has a non-finite coordinate ({x}, {y})")]
+    NonFinitePoint { index: usize, x: f64, y: f64 },
+    /// A coordinate is so large that squared distances would overflow.
+    #[error("point {index} has a coordinate of magnitude {magnitude:e}, above the supported 1e150")]
+    HugeCoordinate { index: usize, magnitude: f64 },
+    /// A text input could not be parsed; `line` is 1-based.
+    #[error("{source_name}, line {line}: {message}")]
+    Parse {
+        source_name: String,
+        line: usize,
+        message: String,
+    },
+    /// A parameter is out of its allowed range.
+    #[error("invalid parameter {name} = {value}: {reason}")]
+    InvalidParameter {
+        name: &'static str,
+        value: String,
+        reason: String,
+    },
+    /// Reading or writing a file failed.
+    #[error("{path}: {source}")]
+    Io {
+        path: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+    /// The configuration file is invalid; every problem found is listed.
+    #[error("invalid configuration {path}:\n  {}", problems.join("\n  "))]
+    Config { path: String, problems: Vec<String> },
+    /// An internal invariant failed: a bug in isoline, not in the input.
+    #[error("internal error: {0}")]
+    Internal(String),
+}
+
+/// `Result` with the library's [`Error`].
+pub type Result<T> = std::result::Result<T, Error>;
+
+impl Error {
+    pub(crate) fn io(path: impl Into<PathBuf>, source: std::io::Error) -> Self {
+        Error::Io {
+            path: path.into(),
+            source,
+        }
+    }
+}

@@ -1,0 +1,319 @@
+//! Plain 2D geometry: points as `[f64; 2]`, exact orientation, bounding boxes, segment
+//! distances and symmetric 2x2 tensors (metrics and Hessians).
+
+/// A point or vector in the plane.
+pub type Point = [f64; 2];
+
+/// `a - b`.
+#[inline]
+pub fn sub(a: Point, b: Point) -> Point {
+    [a[0] - b[0], a[1] - b[1]]
+}
+
+/// `a + b`.
+#[inline]
+pub fn add(a: Point, b: Point) -> Point {
+    [a[0] + b[0], a[1] + b[1]]
+}
+
+/// `s * a`.
+#[inline]
+pub fn scale(a: Point, s: f64) -> Point {
+    [a[0] * s, a[1] * s]
+}
+
+/// Dot product.
+#[inline]
+pub fn dot(a: Point, b: Point) -> f64 {
+    a[0] * b[0] + a[1] * b[1]
+}
+
+/// z-component of the cross product.
+#[inline]
+pub fn cross(a: Point, b: Point) -> f64 {
+    a[0] * b[1] - a[1] * b[0]
+}
+
+/// Euclidean norm.
+#[inline]
+pub fn norm(a: Point) -> f64 {
+    a[0].hypot(a[1])
+}
+
+/// Squared distance.
+#[inline]
+pub fn dist2(a: Point, b: Point) -> f64 {
+    let d = sub(a, b);
+    dot(d, d)
+}
+
+/// Distance.
+#[inline]
+pub fn dist(a: Point, b: Point) -> f64 {
+    dist2(a, b).sqrt()
+}
+
+/// Midpoint of `a` and `b`.
+#[inline]
+pub fn mid(a: Point, b: Point) -> Point {
+    [0.5 * (a[0] + b[0]), 0.5 * (a[1] + b[1])]
+}
+
+/// Twice the signed area of `(a, b, c)`, computed exactly in sign: positive when the
+/// triangle is counter-clockwise. Topology decisions use this, never a float cross product.
+#[inline]
+pub fn orient(a: Point, b: Point, c: Point) -> f64 {
+    robust::orient2d(
+        robust::Coord { x: a[0], y: a[1] },
+        robust::Coord { x: b[0], y: b[1] },
+        robust::Coord { x: c[0], y: c[1] },
+    )
+}
+
+/// Signed area of triangle `(a, b, c)` (positive when counter-clockwise), in floats.
+#[inline]
+pub fn area(a: Point, b: Point, c: Point) -> f64 {
+    0.5 * cross(sub(b, a), sub(c, a))
+}
+
+/// Squared distance from `p` to the segment `[a, b]`, and the parameter in [0, 1] of the
+/// closest point.
+#[inline]
+pub fn point_segment_dist2(p: Point, a: Point, b: Point) -> (f64, f64) {
+    let ab = sub(b, a);
+    let ap = sub(p, a);
+    let len2 = dot(ab, ab);
+    let t = if len2 > 0.0 {
+        (dot(ap, ab) / len2).clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    let q = add(a, scale(ab, t));
+    (dist2(p, q), t)
+}
+
+/// An axis-aligned bounding box.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BBox {
+    /// Lower-left corner.
+    pub min: Point,
+    /// Upper-right corner.
+    pub max: Point,
+}
+
+impl BBox {
+    /// The bounding box of `points`, or `None` when there are none.
+    pub fn of(points: &[Point]) -> Option<BBox> {
+        let first = *points.first()?;
+        let mut b = BBox {
+            min: first,
+            max: first,
+        };
+        for p in points {
+            b.min = [b.min[0].min(p[0]), b.min[1].min(p[1])];
+            b.max = [b.max[0].max(p[0]), b.max[1].max(p[1])];
+        }
+        Some(b)
+    }
+
+    /// Width and height.
+    pub fn size(&self) -> Point {
+        sub(self.max, self.min)
+    }
+
+    /// Length of the diagonal.
+    pub fn diag(&self) -> f64 {
+        norm(self.size())
+    }
+
+    /// Centre.
+    pub fn center(&self) -> Point {
+        mid(self.min, self.max)
+    }
+
+    /// The box grown by `margin` on every side.
+    pub fn padded(&self, margin: f64) -> BBox {
+        BBox {
+            min: [self.min[0] - margin, self.min[1] - margin],
+            max: [self.max[0] + margin, self.max[1] + margin],
+        }
+    }
+
+    /// Whether `p` lies in the closed box.
+    pub fn contains(&self, p: Point) -> bool {
+        p[0] >= self.min[0] && p[0] <= self.max[0] && p[1] >= self.min[1] && p[1] <= self.max[1]
+    }
+}
+
+/// A polyline; `closed` means the last point connects back to the first (which is not
+/// repeated).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Polyline {
+    /// Whether the last point joins the first.
+    pub closed: bool,
+    /// The vertices, in order.
+    pub points: Vec<Point>,
+}
+
+impl Polyline {
+    /// The segments, including the closing one of a closed polyline.
+    pub fn segments(&self) -> impl Iterator<Item = (Point, Point)> + '_ {
+        let n = self.points.len();
+        let count = match (self.closed, n) {
+            (_, 0 | 1) => 0,
+            (true, 2) => 1,
+            (true, _) => n,
+            (false, _) => n - 1,
+        };
+        (0..count).map(move |i| (self.points[i], self.points[(i + 1) % n]))
+    }
+
+    /// Total length.
+    pub fn length(&self) -> f64 {
+        self.segments().map(|(a, b)| dist(a, b)).sum()
+    }
+
+    /// Signed area (positive when counter-clockwise); zero for an open polyline.
+    pub fn signed_area(&self) -> f64 {
+        if !self.closed {
+            return 0.0;
+        }
+        0.5 * self.segments().map(|(a, b)| cross(a, b)).sum::<f64>()
+    }
+}
+
+/// A symmetric 2x2 tensor `[[xx, xy], [xy, yy]]`: a metric or a Hessian.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Sym2 {
+    /// Entry (0, 0).
+    pub xx: f64,
+    /// Entries (0, 1) and (1, 0).
+    pub xy: f64,
+    /// Entry (1, 1).
+    pub yy: f64,
+}
+
+impl Sym2 {
+    /// `s * I`.
+    pub fn iso(s: f64) -> Sym2 {
+        Sym2 {
+            xx: s,
+            xy: 0.0,
+            yy: s,
+        }
+    }
+
+    /// `v v^T`.
+    pub fn outer(v: Point) -> Sym2 {
+        Sym2 {
+            xx: v[0] * v[0],
+            xy: v[0] * v[1],
+            yy: v[1] * v[1],
+        }
+    }
+
+    /// `l1 e e^T + l2 e_perp e_perp^T` for a unit vector `e`.
+    pub fn from_eigen(l1: f64, l2: f64, e: Point) -> Sym2 {
+        let p = [-e[1], e[0]];
+        Sym2::outer(e).scaled(l1).plus(Sym2::outer(p).scaled(l2))
+    }
+
+    /// `self + o`.
+    pub fn plus(self, o: Sym2) -> Sym2 {
+        Sym2 {
+            xx: self.xx + o.xx,
+            xy: self.xy + o.xy,
+            yy: self.yy + o.yy,
+        }
+    }
+
+    /// `s * self`.
+    pub fn scaled(self, s: f64) -> Sym2 {
+        Sym2 {
+            xx: self.xx * s,
+            xy: self.xy * s,
+            yy: self.yy * s,
+        }
+    }
+
+    /// `v^T self v`.
+    #[inline]
+    pub fn quad(&self, v: Point) -> f64 {
+        self.xx * v[0] * v[0] + 2.0 * self.xy * v[0] * v[1] + self.yy * v[1] * v[1]
+    }
+
+    /// Determinant.
+    pub fn det(&self) -> f64 {
+        self.xx * self.yy - self.xy * self.xy
+    }
+
+    /// Trace.
+    pub fn trace(&self) -> f64 {
+        self.xx + self.yy
+    }
+
+    /// Eigenvalues `(l1, l2)` with `l1 >= l2` and the unit eigenvector of `l1`.
+    pub fn eigen(&self) -> (f64, f64, Point) {
+        let half_tr = 0.5 * (self.xx + self.yy);
+        let half_diff = 0.5 * (self.xx - self.yy);
+        let r = half_diff.hypot(self.xy);
+        let (l1, l2) = (half_tr + r, half_tr - r);
+        // The eigenvector angle of the larger eigenvalue: tan(2 theta) = 2 xy / (xx - yy).
+        let theta = 0.5 * self.xy.atan2(half_diff);
+        (l1, l2, [theta.cos(), theta.sin()])
+    }
+
+    /// The SPD tensor with the same eigenvectors and eigenvalues `|l|` clamped to
+    /// `[lo, hi]`: how the paper's metric is made usable.
+    pub fn abs_clamped(&self, lo: f64, hi: f64) -> Sym2 {
+        let (l1, l2, e) = self.eigen();
+        Sym2::from_eigen(l1.abs().clamp(lo, hi), l2.abs().clamp(lo, hi), e)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn eigen_matches_nalgebra() {
+        let cases = [
+            Sym2 { xx: 3.0, xy: 1.0, yy: -2.0 },
+            Sym2 { xx: 1.0, xy: 0.0, yy: 1.0 },
+            Sym2 { xx: 0.0, xy: 5.0, yy: 0.0 },
+            Sym2 { xx: 1e6, xy: -3e3, yy: 2.0 },
+        ];
+        for s in cases {
+            let (l1, l2, e) = s.eigen();
+            let m = nalgebra::Matrix2::new(s.xx, s.xy, s.xy, s.yy);
+            let eig = m.symmetric_eigen();
+            let (mut a, mut b) = (eig.eigenvalues[0], eig.eigenvalues[1]);
+            if a < b {
+                std::mem::swap(&mut a, &mut b);
+            }
+            let tol = 1e-12 * (1.0 + a.abs().max(b.abs()));
+            assert!((l1 - a).abs() < tol && (l2 - b).abs() < tol, "{s:?}");
+            // e is an eigenvector of l1.
+            let me = [s.xx * e[0] + s.xy * e[1], s.xy * e[0] + s.yy * e[1]];
+            assert!(dist(me, scale(e, l1)) < tol, "{s:?}");
+            let back = Sym2::from_eigen(l1, l2, e);
+            assert!((back.xx - s.xx).abs() < tol && (back.xy - s.xy).abs() < tol);
+        }
+    }
+
+    #[test]
+    fn segment_distance_and_polyline_area() {
+        let (d2, t) = point_segment_dist2([0.5, 1.0], [0.0, 0.0], [1.0, 0.0]);
+        assert_eq!((d2, t), (1.0, 0.5));
+        let (d2, t) = point_segment_dist2([2.0, 0.0], [0.0, 0.0], [1.0, 0.0]);
+        assert_eq!((d2, t), (1.0, 1.0));
+        let sq = Polyline {
+            closed: true,
+            points: vec![[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]],
+        };
+        assert_eq!(sq.signed_area(), 1.0);
+        assert_eq!(sq.length(), 4.0);
+        assert!(orient([0.0, 0.0], [1.0, 0.0], [0.0, 1.0]) > 0.0);
+        assert_eq!(orient([0.0, 0.0], [1.0, 1.0], [2.0, 2.0]), 0.0);
+    }
+}

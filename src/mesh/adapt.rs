@@ -1,0 +1,522 @@
+//! Metric-driven mesh adaptation by local operations (paper section 3.3, ref. 24):
+//! split edges longer than `sqrt 2` in the metric, collapse edges shorter than
+//! `1/sqrt 2`, flip edges to improve the worse of two triangles, and move interior
+//! vertices towards positions where their edges have unit metric length.
+//!
+//! Every operation is checked with the exact orientation predicate before it is
+//! applied, so no step can invert a triangle; the mesh invariants are re-checked after
+//! every pass in debug builds. [`Adapter`] owns its scratch space: a warm re-adaptation
+//! of a similar mesh reuses it.
+
+use rayon::prelude::*;
+
+use super::metric::MetricSource;
+use super::quality::{edge_length, quality};
+use super::{local_index, Mesh, VertexTag, INVALID};
+use crate::geom::{add, mid, orient, scale, sub, Point, Sym2};
+
+const SPLIT_ABOVE: f64 = std::f64::consts::SQRT_2;
+const COLLAPSE_BELOW: f64 = std::f64::consts::FRAC_1_SQRT_2;
+/// A collapse may not create an edge longer than this (it would only be split again).
+const COLLAPSE_MAX_NEW: f64 = 1.3;
+
+/// Options of [`Adapter::adapt`].
+#[derive(Clone, Debug, PartialEq)]
+#[non_exhaustive]
+pub struct AdaptOptions {
+    /// Upper bound on split/collapse/flip/smooth passes.
+    pub max_passes: usize,
+    /// Smoothing sweeps per pass.
+    pub smoothing_sweeps: usize,
+    /// Refinement stops once the mesh has this many vertices (reported, not an error).
+    pub max_vertices: usize,
+}
+
+impl Default for AdaptOptions {
+    fn default() -> Self {
+        AdaptOptions {
+            max_passes: 24,
+            smoothing_sweeps: 2,
+            max_vertices: 2_000_000,
+        }
+    }
+}
+
+impl AdaptOptions {
+    /// Sets [`AdaptOptions::max_passes`].
+    pub fn with_max_passes(mut self, n: usize) -> Self {
+        self.max_passes = n;
+        self
+    }
+    /// Sets [`AdaptOptions::max_vertices`].
+    pub fn with_max_vertices(mut self, n: usize) -> Self {
+        self.max_vertices = n;
+        self
+    }
+}
+
+/// What one adaptation did.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct AdaptReport {
+    /// Passes run.
+    pub passes: usize,
+    /// Edge splits.
+    pub splits: usize,
+    /// Edge collapses.
+    pub collapses: usize,
+    /// Edge flips.
+    pub flips: usize,
+    /// Accepted vertex moves.
+    pub moves: usize,
+    /// Whether refinement stopped at [`AdaptOptions::max_vertices`].
+    pub vertex_cap_reached: bool,
+    /// Whether the last pass changed (almost) nothing.
+    pub converged: bool,
+}
+
+/// Adapts meshes to metrics, keeping its scratch buffers between calls.
+#[derive(Debug, Default)]
+pub struct Adapter {
+    metrics: Vec<Sym2>,
+    ball: Vec<u32>,
+    ball2: Vec<u32>,
+    ring: Vec<u32>,
+    ring2: Vec<u32>,
+    free_tris: Vec<u32>,
+    candidates: Vec<(f64, u32, u32)>,
+}
+
+impl Adapter {
+    /// A new adapter with empty scratch space.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// The metric at each vertex of the mesh last adapted (same numbering).
+    pub fn metrics(&self) -> &[Sym2] {
+        &self.metrics
+    }
+
+    /// Adapts `mesh` in place until its edges have length about 1 in `metric`, then
+    /// renumbers it for locality. The mesh stays valid throughout.
+    pub fn adapt(
+        &mut self,
+        mesh: &mut Mesh,
+        metric: &impl MetricSource,
+        opts: &AdaptOptions,
+    ) -> AdaptReport {
+        let _span = tracing::debug_span!("adapt", vertices = mesh.num_vertices()).entered();
+        self.free_tris.clear();
+        self.metrics.clear();
+        mesh.coords
+            .par_iter()
+            .map(|&p| metric.metric(p))
+            .collect_into_vec(&mut self.metrics);
+        let mut report = AdaptReport::default();
+        for _ in 0..opts.max_passes {
+            report.passes += 1;
+            let splits = self.split_pass(mesh, metric, opts.max_vertices, &mut report);
+            report.flips += self.flip_pass(mesh);
+            let collapses = self.collapse_pass(mesh);
+            report.flips += self.flip_pass(mesh);
+            for _ in 0..opts.smoothing_sweeps {
+                report.moves += self.smooth_pass(mesh, metric);
+            }
+            report.flips += self.flip_pass(mesh);
+            report.splits += splits;
+            report.collapses += collapses;
+            debug_assert_eq!(mesh.sanity_check(), Ok(()));
+            let live = mesh.num_vertices().max(1);
+            if (splits + collapses) * 1000 <= live {
+                report.converged = true;
+                break;
+            }
+        }
+        mesh.renumber_spatially();
+        mesh.coords
+            .par_iter()
+            .map(|&p| metric.metric(p))
+            .collect_into_vec(&mut self.metrics);
+        tracing::debug!(?report, vertices = mesh.num_vertices(), "adapted");
+        report
+    }
+
+    fn len_of(&self, mesh: &Mesh, a: u32, b: u32) -> f64 {
+        let e = sub(mesh.coords[b as usize], mesh.coords[a as usize]);
+        edge_length(&self.metrics[a as usize], &self.metrics[b as usize], e)
+    }
+
+    fn tri_quality(&self, mesh: &Mesh, tri: [u32; 3]) -> f64 {
+        let p = tri.map(|v| mesh.coords[v as usize]);
+        let m = tri.map(|v| &self.metrics[v as usize]);
+        quality(p, m)
+    }
+
+    fn collect_edges(&mut self, mesh: &Mesh, keep: impl Fn(f64) -> bool + Sync) {
+        let metrics = &self.metrics;
+        let edges = mesh.edges();
+        self.candidates = edges
+            .par_iter()
+            .filter_map(|&(t, i)| {
+                let (a, b) = mesh.edge_vertices(t, i as usize);
+                let e = sub(mesh.coords[b as usize], mesh.coords[a as usize]);
+                let l = edge_length(&metrics[a as usize], &metrics[b as usize], e);
+                keep(l).then_some((l, a, b))
+            })
+            .collect();
+    }
+
+    fn alloc_tri(&mut self, mesh: &mut Mesh) -> u32 {
+        if let Some(t) = self.free_tris.pop() {
+            t
+        } else {
+            mesh.tris.push([INVALID; 3]);
+            mesh.adj.push([INVALID; 3]);
+            (mesh.tris.len() - 1) as u32
+        }
+    }
+
+    fn split_pass(
+        &mut self,
+        mesh: &mut Mesh,
+        metric: &impl MetricSource,
+        max_vertices: usize,
+        report: &mut AdaptReport,
+    ) -> usize {
+        self.collect_edges(mesh, |l| l > SPLIT_ABOVE);
+        let mut cands = std::mem::take(&mut self.candidates);
+        cands.sort_unstable_by(|x, y| y.0.total_cmp(&x.0));
+        let mut count = 0;
+        for &(_, a, b) in &cands {
+            if mesh.num_vertices() >= max_vertices {
+                report.vertex_cap_reached = true;
+                break;
+            }
+            let Some((t, i)) = mesh.find_edge(a, b, &mut self.ball) else {
+                continue;
+            };
+            if self.split_edge(mesh, t, i, metric) {
+                count += 1;
+            }
+        }
+        self.candidates = cands;
+        count
+    }
+
+    /// Splits edge `i` of `t` at its midpoint; false (and no change) if rounding would
+    /// make a new triangle degenerate.
+    fn split_edge(&mut self, mesh: &mut Mesh, t: u32, i: usize, metric: &impl MetricSource) -> bool {
+        let tri = mesh.tris[t as usize];
+        let (a, p, q) = (tri[i], tri[(i + 1) % 3], tri[(i + 2) % 3]);
+        let o = mesh.adj[t as usize][i];
+        let xm = mid(mesh.coords[p as usize], mesh.coords[q as usize]);
+        let c = |v: u32| mesh.coords[v as usize];
+        if orient(c(a), c(p), xm) <= 0.0 || orient(c(a), xm, c(q)) <= 0.0 {
+            return false;
+        }
+        let od = if o != INVALID {
+            let otri = mesh.tris[o as usize];
+            let j = 3 - local_index(otri, p).unwrap() - local_index(otri, q).unwrap();
+            let d = otri[j];
+            if orient(c(d), c(q), xm) <= 0.0 || orient(c(d), xm, c(p)) <= 0.0 {
+                return false;
+            }
+            Some((j, d))
+        } else {
+            None
+        };
+        let m = mesh.coords.len() as u32;
+        mesh.coords.push(xm);
+        mesh.vert_tri.push(t);
+        mesh.tag.push(if o == INVALID {
+            VertexTag::Boundary
+        } else {
+            VertexTag::Interior
+        });
+        self.metrics.push(metric.metric(xm));
+        let n_qa = mesh.adj[t as usize][(i + 1) % 3];
+        let n_ap = mesh.adj[t as usize][(i + 2) % 3];
+        let t1 = self.alloc_tri(mesh);
+        let o1 = if od.is_some() { self.alloc_tri(mesh) } else { INVALID };
+        mesh.tris[t as usize] = [a, p, m];
+        mesh.adj[t as usize] = [o1, t1, n_ap];
+        mesh.tris[t1 as usize] = [a, m, q];
+        mesh.adj[t1 as usize] = [o, n_qa, t];
+        replace_adj(mesh, n_qa, t, t1);
+        mesh.vert_tri[q as usize] = t1;
+        mesh.vert_tri[a as usize] = t;
+        mesh.vert_tri[p as usize] = t;
+        if let Some((j, d)) = od {
+            let otri = mesh.tris[o as usize];
+            // o = [d, q, p] up to rotation; its edge opposite p is (d, q), opposite q is (p, d).
+            let n_dq = mesh.adj[o as usize][local_index(otri, p).unwrap()];
+            let n_pd = mesh.adj[o as usize][local_index(otri, q).unwrap()];
+            debug_assert_eq!(otri[(j + 1) % 3], q);
+            mesh.tris[o as usize] = [d, q, m];
+            mesh.adj[o as usize] = [t1, o1, n_dq];
+            mesh.tris[o1 as usize] = [d, m, p];
+            mesh.adj[o1 as usize] = [t, n_pd, o];
+            replace_adj(mesh, n_pd, o, o1);
+            mesh.vert_tri[d as usize] = o;
+        }
+        true
+    }
+
+    fn collapse_pass(&mut self, mesh: &mut Mesh) -> usize {
+        self.collect_edges(mesh, |l| l < COLLAPSE_BELOW);
+        let mut cands = std::mem::take(&mut self.candidates);
+        cands.sort_unstable_by(|x, y| x.0.total_cmp(&y.0));
+        let mut count = 0;
+        for &(_, a, b) in &cands {
+            if mesh.vert_tri[a as usize] == INVALID || mesh.vert_tri[b as usize] == INVALID {
+                continue;
+            }
+            if mesh.find_edge(a, b, &mut self.ball).is_none() || self.len_of(mesh, a, b) >= COLLAPSE_BELOW {
+                continue;
+            }
+            if self.try_collapse(mesh, a, b) || self.try_collapse(mesh, b, a) {
+                count += 1;
+            }
+        }
+        self.candidates = cands;
+        count
+    }
+
+    /// Removes vertex `v` by merging it into its neighbour `w`, if that keeps the mesh
+    /// valid, its boundary in place, and its quality acceptable.
+    fn try_collapse(&mut self, mesh: &mut Mesh, v: u32, w: u32) -> bool {
+        let tag_v = mesh.tag[v as usize];
+        if tag_v == VertexTag::Corner {
+            return false;
+        }
+        let Some((te, ie)) = mesh.find_edge(v, w, &mut self.ball) else {
+            return false;
+        };
+        let on_boundary_edge = mesh.adj[te as usize][ie] == INVALID;
+        if tag_v == VertexTag::Boundary && !on_boundary_edge {
+            return false;
+        }
+        mesh.ring(v, &mut self.ball, &mut self.ring);
+        mesh.ring(w, &mut self.ball2, &mut self.ring2);
+        // Link condition: the common neighbours of v and w are exactly the apexes of the
+        // triangles on edge (v, w).
+        let mut apexes = 0;
+        for &t in &self.ball {
+            let tri = mesh.tris[t as usize];
+            if let (Some(kv), Some(kw)) = (local_index(tri, v), local_index(tri, w)) {
+                apexes += 1;
+                // Removing a triangle whose two other edges are both on the boundary
+                // would leave its apex without a triangle.
+                if mesh.adj[t as usize][kv] == INVALID && mesh.adj[t as usize][kw] == INVALID {
+                    return false;
+                }
+            }
+        }
+        let common = self.ring.iter().filter(|x| self.ring2.contains(x)).count();
+        if common != apexes {
+            return false;
+        }
+        // Geometry and quality of the triangles that keep v, with v moved onto w.
+        let xw = mesh.coords[w as usize];
+        let mut old_min = f64::INFINITY;
+        let mut new_min = f64::INFINITY;
+        for &t in &self.ball {
+            let tri = mesh.tris[t as usize];
+            old_min = old_min.min(self.tri_quality(mesh, tri));
+            if local_index(tri, w).is_some() {
+                continue;
+            }
+            let nt = tri.map(|x| if x == v { w } else { x });
+            let p = nt.map(|x| mesh.coords[x as usize]);
+            if orient(p[0], p[1], p[2]) <= 0.0 {
+                return false;
+            }
+            new_min = new_min.min(self.tri_quality(mesh, nt));
+        }
+        if new_min < 0.5 * old_min.min(0.6) {
+            return false;
+        }
+        for &x in &self.ring {
+            if x != w && !self.ring2.contains(&x) {
+                let e = sub(mesh.coords[x as usize], xw);
+                if edge_length(&self.metrics[x as usize], &self.metrics[w as usize], e) > COLLAPSE_MAX_NEW {
+                    return false;
+                }
+            }
+        }
+        // Apply: drop the triangles on (v, w), stitching their outer neighbours together.
+        // A triangle of v's ball without w survives (relabelled) and is w's new
+        // vert_tri; if there is none, the neighbour across (w, x) is (checked above).
+        let ball = std::mem::take(&mut self.ball);
+        let mut w_tri = INVALID;
+        for &t in &ball {
+            let tri = mesh.tris[t as usize];
+            let (Some(kv), Some(kw)) = (local_index(tri, v), local_index(tri, w)) else {
+                w_tri = t;
+                continue;
+            };
+            let x = tri[3 - kv - kw];
+            let n_wx = mesh.adj[t as usize][kv];
+            let n_xv = mesh.adj[t as usize][kw];
+            replace_adj(mesh, n_wx, t, n_xv);
+            replace_adj(mesh, n_xv, t, n_wx);
+            mesh.vert_tri[x as usize] = if n_wx != INVALID { n_wx } else { n_xv };
+            if w_tri == INVALID && n_wx != INVALID {
+                w_tri = n_wx;
+            }
+            mesh.tris[t as usize] = [INVALID; 3];
+            mesh.adj[t as usize] = [INVALID; 3];
+            self.free_tris.push(t);
+        }
+        for &t in &ball {
+            if let Some(k) = local_index(mesh.tris[t as usize], v) {
+                mesh.tris[t as usize][k] = w;
+                w_tri = t;
+            }
+        }
+        mesh.vert_tri[w as usize] = w_tri;
+        mesh.vert_tri[v as usize] = INVALID;
+        self.ball = ball;
+        true
+    }
+
+    fn flip_pass(&mut self, mesh: &mut Mesh) -> usize {
+        let mut flips = 0;
+        for _sweep in 0..4 {
+            let mut this = 0;
+            for t in 0..mesh.tris.len() as u32 {
+                if mesh.is_dead_tri(t) {
+                    continue;
+                }
+                for i in 0..3 {
+                    let o = mesh.adj[t as usize][i];
+                    if o == INVALID || o < t {
+                        continue;
+                    }
+                    if self.try_flip(mesh, t, i) {
+                        this += 1;
+                    }
+                }
+            }
+            flips += this;
+            if this == 0 {
+                break;
+            }
+        }
+        flips
+    }
+
+    /// Flips edge `i` of `t` if the quad is strictly convex and the worse of the two
+    /// triangles gets better.
+    fn try_flip(&mut self, mesh: &mut Mesh, t: u32, i: usize) -> bool {
+        let tri = mesh.tris[t as usize];
+        let (a, p, q) = (tri[i], tri[(i + 1) % 3], tri[(i + 2) % 3]);
+        let o = mesh.adj[t as usize][i];
+        let otri = mesh.tris[o as usize];
+        let (kp, kq) = (local_index(otri, p).unwrap(), local_index(otri, q).unwrap());
+        let j = 3 - kp - kq;
+        let d = otri[j];
+        let c = |v: u32| mesh.coords[v as usize];
+        if orient(c(a), c(p), c(d)) <= 0.0 || orient(c(a), c(d), c(q)) <= 0.0 {
+            return false;
+        }
+        let old = self.tri_quality(mesh, [a, p, q]).min(self.tri_quality(mesh, otri));
+        let new = self
+            .tri_quality(mesh, [a, p, d])
+            .min(self.tri_quality(mesh, [a, d, q]));
+        if new <= old * 1.01 + 1e-12 {
+            return false;
+        }
+        let n_qa = mesh.adj[t as usize][(i + 1) % 3];
+        let n_ap = mesh.adj[t as usize][(i + 2) % 3];
+        let n_pd = mesh.adj[o as usize][kq];
+        let n_dq = mesh.adj[o as usize][kp];
+        mesh.tris[t as usize] = [a, p, d];
+        mesh.adj[t as usize] = [n_pd, o, n_ap];
+        mesh.tris[o as usize] = [a, d, q];
+        mesh.adj[o as usize] = [n_dq, n_qa, t];
+        replace_adj(mesh, n_pd, o, t);
+        replace_adj(mesh, n_qa, t, o);
+        mesh.vert_tri[p as usize] = t;
+        mesh.vert_tri[q as usize] = o;
+        true
+    }
+
+    /// One Gauss-Seidel sweep of metric smoothing over interior vertices.
+    fn smooth_pass(&mut self, mesh: &mut Mesh, metric: &impl MetricSource) -> usize {
+        let mut moves = 0;
+        for v in 0..mesh.coords.len() as u32 {
+            if mesh.vert_tri[v as usize] == INVALID || mesh.tag[v as usize] != VertexTag::Interior {
+                continue;
+            }
+            mesh.ring(v, &mut self.ball, &mut self.ring);
+            let xv = mesh.coords[v as usize];
+            let mv = self.metrics[v as usize];
+            // Each neighbour proposes the point at unit metric length from it towards v.
+            let mut target = [0.0, 0.0];
+            for &j in &self.ring {
+                let xj = mesh.coords[j as usize];
+                let e = sub(xv, xj);
+                let l = edge_length(&mv, &self.metrics[j as usize], e).max(1e-12);
+                target = add(target, add(xj, scale(e, 1.0 / l)));
+            }
+            target = scale(target, 1.0 / self.ring.len() as f64);
+            let old_min = self
+                .ball
+                .iter()
+                .map(|&t| self.tri_quality(mesh, mesh.tris[t as usize]))
+                .fold(f64::INFINITY, f64::min);
+            for omega in [0.5, 0.2] {
+                let xn = add(xv, scale(sub(target, xv), omega));
+                let ok = self.ball.iter().all(|&t| {
+                    let tri = mesh.tris[t as usize];
+                    let p = tri.map(|x| if x == v { xn } else { mesh.coords[x as usize] });
+                    orient(p[0], p[1], p[2]) > 0.0
+                });
+                if !ok {
+                    continue;
+                }
+                let mn = metric.metric(xn);
+                let saved = (mesh.coords[v as usize], self.metrics[v as usize]);
+                mesh.coords[v as usize] = xn;
+                self.metrics[v as usize] = mn;
+                let new_min = self
+                    .ball
+                    .iter()
+                    .map(|&t| self.tri_quality(mesh, mesh.tris[t as usize]))
+                    .fold(f64::INFINITY, f64::min);
+                if new_min > old_min {
+                    moves += 1;
+                    break;
+                }
+                (mesh.coords[v as usize], self.metrics[v as usize]) = saved;
+            }
+        }
+        moves
+    }
+}
+
+/// In triangle `t` (if any), points the adjacency entry `old` to `new`.
+#[inline]
+fn replace_adj(mesh: &mut Mesh, t: u32, old: u32, new: u32) {
+    if t == INVALID {
+        return;
+    }
+    for k in 0..3 {
+        if mesh.adj[t as usize][k] == old {
+            mesh.adj[t as usize][k] = new;
+            return;
+        }
+    }
+    debug_assert!(false, "triangle {t} is not adjacent to {old}");
+}
+
+/// Convenience: adapts `mesh` to `metric` with a fresh [`Adapter`].
+pub fn adapt(mesh: &mut Mesh, metric: &impl MetricSource, opts: &AdaptOptions) -> AdaptReport {
+    Adapter::new().adapt(mesh, metric, opts)
+}
+
+/// Helper for tests and tools: the metric at every vertex of `mesh`.
+pub fn vertex_metrics(mesh: &Mesh, metric: &impl MetricSource) -> Vec<Sym2> {
+    mesh.coords.par_iter().map(|&p: &Point| metric.metric(p)).collect()
+}
