@@ -2,12 +2,21 @@
 //! level-set method of Claisse & Frey (2009).
 //!
 //! The crate is layered: [`geom`] → [`distance`] → [`mesh`] → [`fem`], with the file
+//! formats ([`format`], [`ingest`]), configuration ([`config`]), the scanner simulator
+//! ([`synth`]) and accuracy metrics ([`eval`]) beside them. The numerical modules know
 //! nothing of serde, files or threads.
 
+pub mod config;
 pub mod distance;
 pub mod error;
+pub mod eval;
+pub mod export;
 pub mod fem;
+pub mod format;
 pub mod geom;
+pub mod ingest;
 pub mod mesh;
+pub mod meshing;
+pub mod synth;
 
 pub use error::{Error, Result};

@@ -62,7 +62,8 @@ pub struct MetricParams {
 pub struct LocalFrame {
     /// Unit normal of the fitted curve (orientation arbitrary).
     pub normal: Point,
-    /// Curvature of the fitted parabola, smoothed over the neighbours.
+    /// Curvature of the fitted parabola, averaged over the neighbours (raw fits carry the
+    /// sign of their own normal; smoothed frames store the magnitude).
     pub curvature: f64,
     /// RMS residual of the fit: a local noise estimate.
     pub residual: f64,
@@ -160,13 +161,18 @@ impl<'a> CurveMetric<'a> {
             .zip(raw.par_iter())
             .map_init(Vec::new, |idx, (&p, f)| {
                 field.nearest_k(p, k, idx);
+                // Average the signed curvature with each neighbour's normal turned to
+                // agree with this one: averaging |kappa| would turn noise into curvature.
                 let (sum, cnt) = idx
                     .iter()
                     .map(|&i| &raw[i as usize])
                     .filter(|g| g.defined)
-                    .fold((0.0, 0usize), |(s, c), g| (s + g.curvature.abs(), c + 1));
+                    .fold((0.0, 0usize), |(s, c), g| {
+                        let sign = dot(g.normal, f.normal).signum();
+                        (s + sign * g.curvature, c + 1)
+                    });
                 LocalFrame {
-                    curvature: if cnt > 0 { sum / cnt as f64 } else { 0.0 },
+                    curvature: if cnt > 0 { (sum / cnt as f64).abs() } else { 0.0 },
                     ..*f
                 }
             })
@@ -176,6 +182,11 @@ impl<'a> CurveMetric<'a> {
             frames,
             params,
         }
+    }
+
+    /// The same frames under new parameters (e.g. a band derived from the noise estimate).
+    pub fn with_frames(self, params: MetricParams) -> Self {
+        CurveMetric { params, ..self }
     }
 
     /// The per-sample frames, in the distance field's point order.

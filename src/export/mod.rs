@@ -1,0 +1,3 @@
+//! Writers for results: SVG drawings of meshes, points and curves.
+
+pub mod svg;

@@ -1,0 +1,86 @@
+//! The JSON shapes of the file contract (DESIGN.md section 4): frames, polylines, truth
+//! files and result records. Kept apart from the numerical types, which know no serde.
+
+use serde::{Deserialize, Serialize};
+
+use crate::geom::{Point, Polyline};
+
+/// One frame of an NDJSON stream: `{"stream":..,"frame":..,"t":..,"points":[[x,y],..],"origin":[x,y]}`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct FrameRecord {
+    /// Stream id (optional).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub stream: Option<String>,
+    /// Frame number.
+    pub frame: u64,
+    /// Time stamp in seconds (optional).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub t: Option<f64>,
+    /// The points.
+    pub points: Vec<Point>,
+    /// Sensor origin (optional).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub origin: Option<Point>,
+}
+
+/// A polyline on the wire: `{"closed":..,"points":[[x,y],..]}`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct PolylineJson {
+    /// Whether the last point joins the first.
+    pub closed: bool,
+    /// Vertices.
+    pub points: Vec<Point>,
+}
+
+impl From<&Polyline> for PolylineJson {
+    fn from(p: &Polyline) -> Self {
+        PolylineJson {
+            closed: p.closed,
+            points: p.points.clone(),
+        }
+    }
+}
+
+impl From<PolylineJson> for Polyline {
+    fn from(p: PolylineJson) -> Self {
+        Polyline {
+            closed: p.closed,
+            points: p.points,
+        }
+    }
+}
+
+/// The truth of one frame of a multi-frame stream.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct TruthFrame {
+    /// Frame number.
+    pub frame: u64,
+    /// Exact curves of that frame.
+    pub polylines: Vec<PolylineJson>,
+}
+
+/// A truth file: `{"polylines":[..]}` (frame 0, or the only frame), plus `"frames"` with
+/// each frame's curves when the shape moves.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct TruthFile {
+    /// Curves of the first frame.
+    pub polylines: Vec<PolylineJson>,
+    /// Curves of every frame, when there is more than one.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub frames: Option<Vec<TruthFrame>>,
+}
+
+impl TruthFile {
+    /// The truth of frame `frame`: its own entry if listed, else the top-level curves.
+    pub fn for_frame(&self, frame: Option<u64>) -> Vec<Polyline> {
+        let listed = frame.and_then(|f| {
+            self.frames
+                .as_ref()
+                .and_then(|fs| fs.iter().find(|x| x.frame == f))
+        });
+        match listed {
+            Some(f) => f.polylines.iter().cloned().map(Into::into).collect(),
+            None => self.polylines.iter().cloned().map(Into::into).collect(),
+        }
+    }
+}

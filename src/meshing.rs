@@ -1,0 +1,251 @@
+//! The mesh stage as one call: points in, an anisotropic mesh adapted to their distance
+//! field out. Parameters left unset are derived from the data's bounding box, so unit-
+//! scale and kilometre-scale data mesh alike without tuning.
+
+use std::time::Instant;
+
+use crate::distance::DistanceField;
+use crate::error::{Error, Result};
+use crate::geom::{sub, BBox, Point, Sym2};
+use crate::mesh::adapt::{AdaptOptions, AdaptReport, Adapter};
+use crate::mesh::metric::{CurveMetric, MetricParams};
+use crate::mesh::quality::{mesh_stats, MeshStats};
+use crate::mesh::Mesh;
+
+/// Mesh parameters; `None` means "derive from the data" (see each field).
+#[derive(Clone, Debug, PartialEq)]
+#[non_exhaustive]
+pub struct MeshParams {
+    /// Smallest element size, across the data. Default: bounding-box diagonal / 1000.
+    pub hmin: Option<f64>,
+    /// Largest element size. Default: diagonal / 10.
+    pub hmax: Option<f64>,
+    /// Geometric tolerance setting the size along the data, `sqrt(eps / curvature)`.
+    /// Default: `hmin`.
+    pub eps: Option<f64>,
+    /// Half-width of the band around the data meshed at `hmin` across it.
+    /// Default: `max(8 hmin, 4 x estimated noise)`.
+    pub band: Option<f64>,
+    /// Size growth per unit distance outside the band (dimensionless). Default 0.3.
+    pub gradation: f64,
+    /// Samples in each local curve fit of the metric. Default 16.
+    pub neighbours: usize,
+    /// Margin around the data's bounding box, as a fraction of its diagonal. Default 0.2.
+    pub padding: f64,
+    /// Mesh with size `hmin` in every direction in the band (the comparison mesh).
+    pub isotropic: bool,
+    /// Upper bound on adaptation passes. Default 24.
+    pub max_passes: usize,
+    /// Refinement stops at this many vertices. Default 2,000,000.
+    pub max_vertices: usize,
+}
+
+impl Default for MeshParams {
+    fn default() -> Self {
+        MeshParams {
+            hmin: None,
+            hmax: None,
+            eps: None,
+            band: None,
+            gradation: 0.3,
+            neighbours: 16,
+            padding: 0.2,
+            isotropic: false,
+            max_passes: 24,
+            max_vertices: 2_000_000,
+        }
+    }
+}
+
+impl MeshParams {
+    /// Sets `hmin`.
+    pub fn with_hmin(mut self, h: f64) -> Self {
+        self.hmin = Some(h);
+        self
+    }
+    /// Sets `hmax`.
+    pub fn with_hmax(mut self, h: f64) -> Self {
+        self.hmax = Some(h);
+        self
+    }
+    /// Sets `eps`.
+    pub fn with_eps(mut self, e: f64) -> Self {
+        self.eps = Some(e);
+        self
+    }
+    /// Sets `band`.
+    pub fn with_band(mut self, b: f64) -> Self {
+        self.band = Some(b);
+        self
+    }
+    /// Sets `isotropic`.
+    pub fn with_isotropic(mut self, iso: bool) -> Self {
+        self.isotropic = iso;
+        self
+    }
+    /// Sets `max_vertices`.
+    pub fn with_max_vertices(mut self, n: usize) -> Self {
+        self.max_vertices = n;
+        self
+    }
+
+    /// Checks the values that are set; every problem is listed.
+    pub fn validate(&self) -> std::result::Result<(), Vec<String>> {
+        let mut problems = Vec::new();
+        let mut positive = |name: &str, v: Option<f64>| {
+            if let Some(v) = v {
+                if !(v.is_finite() && v > 0.0) {
+                    problems.push(format!("mesh.{name} = {v}: must be a positive finite number"));
+                }
+            }
+        };
+        positive("hmin", self.hmin);
+        positive("hmax", self.hmax);
+        positive("eps", self.eps);
+        positive("band", self.band);
+        positive("gradation", Some(self.gradation));
+        if let (Some(a), Some(b)) = (self.hmin, self.hmax) {
+            if a > b {
+                problems.push(format!("mesh.hmax = {b}: must be at least mesh.hmin = {a}"));
+            }
+        }
+        if !(self.padding.is_finite() && self.padding >= 0.0) {
+            problems.push(format!("mesh.padding = {}: must be >= 0", self.padding));
+        }
+        if !(3..=256).contains(&self.neighbours) {
+            problems.push(format!("mesh.neighbours = {}: must be in 3..=256", self.neighbours));
+        }
+        if !(1..=1000).contains(&self.max_passes) {
+            problems.push(format!("mesh.max_passes = {}: must be in 1..=1000", self.max_passes));
+        }
+        if self.max_vertices < 16 {
+            problems.push(format!("mesh.max_vertices = {}: must be >= 16", self.max_vertices));
+        }
+        if problems.is_empty() {
+            Ok(())
+        } else {
+            Err(problems)
+        }
+    }
+}
+
+/// Milliseconds spent in each part of meshing.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct MeshTimings {
+    /// Building the kd-tree.
+    pub distance: f64,
+    /// Fitting the metric's local frames.
+    pub metric: f64,
+    /// Adapting the mesh.
+    pub adapt: f64,
+    /// Everything.
+    pub total: f64,
+}
+
+/// An adapted mesh and how it was made.
+#[derive(Debug)]
+pub struct AdaptedMesh {
+    /// The mesh, in data coordinates.
+    pub mesh: Mesh,
+    /// The metric at each vertex.
+    pub metrics: Vec<Sym2>,
+    /// The concrete parameters used (derived ones filled in).
+    pub params: MetricParams,
+    /// The meshed domain.
+    pub domain: BBox,
+    /// Median local-fit residual of the data: a noise estimate.
+    pub noise_estimate: f64,
+    /// What adaptation did.
+    pub report: AdaptReport,
+    /// Size and quality in the metric.
+    pub stats: MeshStats,
+    /// Time per part.
+    pub ms: MeshTimings,
+}
+
+/// Adapts a mesh of the padded bounding box of `points` to their distance field.
+///
+/// The computation runs in coordinates centred on the data (so that large offsets cost
+/// no precision in element shapes); the returned mesh is in data coordinates.
+///
+/// ```
+/// use isoline::meshing::{adapt_to_points, MeshParams};
+/// let pts: Vec<[f64; 2]> = (0..200)
+///     .map(|i| {
+///         let a = i as f64 * std::f64::consts::TAU / 200.0;
+///         [0.5 + 0.4 * a.cos(), 0.5 + 0.4 * a.sin()]
+///     })
+///     .collect();
+/// let m = adapt_to_points(&pts, &MeshParams::default().with_hmin(0.01)).unwrap();
+/// assert!(m.stats.min_quality > 0.0);
+/// m.mesh.sanity_check().unwrap();
+/// ```
+pub fn adapt_to_points(points: &[Point], params: &MeshParams) -> Result<AdaptedMesh> {
+    let t0 = Instant::now();
+    crate::distance::validate_points(points)?;
+    params.validate().map_err(|problems| Error::Config {
+        path: "mesh parameters".into(),
+        problems,
+    })?;
+    let bbox = BBox::of(points).ok_or(Error::EmptyPointSet)?;
+    let center = bbox.center();
+    let local: Vec<Point> = points.iter().map(|&p| sub(p, center)).collect();
+    let diag = bbox.diag();
+    let scale = if diag > 0.0 { diag } else { 1.0 };
+    let hmin = params.hmin.unwrap_or(scale / 1000.0);
+    let hmax = params.hmax.unwrap_or(scale / 10.0).max(hmin);
+    let eps = params.eps.unwrap_or(hmin);
+
+    let field = DistanceField::new(&local)?;
+    let t_dist = t0.elapsed();
+    let mut metric_params = MetricParams {
+        hmin,
+        hmax,
+        eps,
+        band: params.band.unwrap_or(0.0),
+        gradation: params.gradation,
+        isotropic: params.isotropic,
+        neighbours: params.neighbours,
+    };
+    let mut metric = CurveMetric::new(&field, metric_params);
+    let noise = metric.noise_estimate();
+    if params.band.is_none() {
+        metric_params.band = (8.0 * hmin).max(4.0 * noise);
+        metric = CurveMetric::with_frames(metric, metric_params);
+    }
+    let t_metric = t0.elapsed();
+
+    let local_box = BBox::of(&local).expect("non-empty").padded(params.padding * scale + 2.0 * hmin);
+    let mut mesh = Mesh::of_box(&local_box, hmax);
+    let opts = AdaptOptions::default()
+        .with_max_passes(params.max_passes)
+        .with_max_vertices(params.max_vertices);
+    let mut adapter = Adapter::new();
+    let report = adapter.adapt(&mut mesh, &metric, &opts);
+    let metrics = adapter.metrics().to_vec();
+    let stats = mesh_stats(&mesh, &metrics);
+    let t_adapt = t0.elapsed();
+    for p in &mut mesh.coords {
+        *p = crate::geom::add(*p, center);
+    }
+    let domain = BBox {
+        min: crate::geom::add(local_box.min, center),
+        max: crate::geom::add(local_box.max, center),
+    };
+    let ms = |d: std::time::Duration| d.as_secs_f64() * 1e3;
+    Ok(AdaptedMesh {
+        mesh,
+        metrics,
+        params: metric_params,
+        domain,
+        noise_estimate: noise,
+        report,
+        stats,
+        ms: MeshTimings {
+            distance: ms(t_dist),
+            metric: ms(t_metric - t_dist),
+            adapt: ms(t_adapt - t_metric),
+            total: ms(t0.elapsed()),
+        },
+    })
+}

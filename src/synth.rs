@@ -1,0 +1,366 @@
+//! Scanner simulator with ground truth: shapes sampled with noise, outliers, uneven
+//! density and rigid motion between frames, all deterministic in the seed.
+
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use rand_distr::{Distribution, Normal};
+use std::f64::consts::{PI, TAU};
+use std::str::FromStr;
+
+use crate::geom::{add, dist, sub, Point, Polyline};
+
+/// Segments per smooth closed curve in the truth polylines (chord error below 1e-6 at
+/// radius 0.4).
+const SMOOTH_SEGMENTS: usize = 4096;
+
+/// The shapes the simulator knows, all inside the unit square around (0.5, 0.5).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Shape {
+    /// Circle of radius 0.4.
+    Circle,
+    /// Ellipse with semi-axes 0.4 and 0.25.
+    Ellipse,
+    /// Square of side 0.6 (sharp corners).
+    Square,
+    /// Smooth five-lobed star `r = 0.3 (1 + 0.3 cos 5t)` (non-convex).
+    Star,
+    /// A 'C': an annular sector with round caps (deeply non-convex).
+    CShape,
+    /// Two disjoint circles of radius 0.18.
+    TwoCircles,
+    /// An annulus: circles of radius 0.4 and 0.2 (a shape with a hole).
+    Annulus,
+}
+
+impl Shape {
+    /// Every shape, for help texts and sweeps.
+    pub const ALL: [Shape; 7] = [
+        Shape::Circle,
+        Shape::Ellipse,
+        Shape::Square,
+        Shape::Star,
+        Shape::CShape,
+        Shape::TwoCircles,
+        Shape::Annulus,
+    ];
+
+    /// The command-line name.
+    pub fn name(self) -> &'static str {
+        match self {
+            Shape::Circle => "circle",
+            Shape::Ellipse => "ellipse",
+            Shape::Square => "square",
+            Shape::Star => "star",
+            Shape::CShape => "c",
+            Shape::TwoCircles => "two-circles",
+            Shape::Annulus => "annulus",
+        }
+    }
+
+    /// The exact curves (smooth ones as fine polygons), counter-clockwise outer loops and
+    /// clockwise holes.
+    pub fn truth(self) -> Vec<Polyline> {
+        let c = [0.5, 0.5];
+        match self {
+            Shape::Circle => vec![ellipse(c, 0.4, 0.4)],
+            Shape::Ellipse => vec![ellipse(c, 0.4, 0.25)],
+            Shape::Square => vec![Polyline {
+                closed: true,
+                points: vec![[0.2, 0.2], [0.8, 0.2], [0.8, 0.8], [0.2, 0.8]],
+            }],
+            Shape::Star => vec![polar(c, |t| 0.3 * (1.0 + 0.3 * (5.0 * t).cos()))],
+            Shape::CShape => vec![c_shape(c)],
+            Shape::TwoCircles => vec![ellipse([0.28, 0.5], 0.18, 0.18), ellipse([0.72, 0.5], 0.18, 0.18)],
+            Shape::Annulus => {
+                let mut hole = ellipse(c, 0.2, 0.2);
+                hole.points.reverse();
+                vec![ellipse(c, 0.4, 0.4), hole]
+            }
+        }
+    }
+}
+
+impl FromStr for Shape {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        Shape::ALL
+            .into_iter()
+            .find(|sh| sh.name() == s)
+            .ok_or_else(|| {
+                let names: Vec<_> = Shape::ALL.iter().map(|s| s.name()).collect();
+                format!("unknown shape '{s}' (known: {})", names.join(", "))
+            })
+    }
+}
+
+fn polar(c: Point, r: impl Fn(f64) -> f64) -> Polyline {
+    let points = (0..SMOOTH_SEGMENTS)
+        .map(|i| {
+            let t = TAU * i as f64 / SMOOTH_SEGMENTS as f64;
+            add(c, [r(t) * t.cos(), r(t) * t.sin()])
+        })
+        .collect();
+    Polyline {
+        closed: true,
+        points,
+    }
+}
+
+fn ellipse(c: Point, a: f64, b: f64) -> Polyline {
+    let points = (0..SMOOTH_SEGMENTS)
+        .map(|i| {
+            let t = TAU * i as f64 / SMOOTH_SEGMENTS as f64;
+            add(c, [a * t.cos(), b * t.sin()])
+        })
+        .collect();
+    Polyline {
+        closed: true,
+        points,
+    }
+}
+
+/// Outer arc radius 0.38 and inner 0.22 over angles [45, 315] degrees, joined by
+/// semicircular caps, traversed counter-clockwise.
+fn c_shape(c: Point) -> Polyline {
+    let (ro, ri) = (0.38, 0.22);
+    let (a0, a1) = (PI / 4.0, 7.0 * PI / 4.0);
+    let rc = 0.5 * (ro - ri);
+    let rm = 0.5 * (ro + ri);
+    let n = SMOOTH_SEGMENTS / 4;
+    let at = |r: f64, a: f64| add(c, [r * a.cos(), r * a.sin()]);
+    let mut pts = Vec::new();
+    for i in 0..n {
+        pts.push(at(ro, a0 + (a1 - a0) * i as f64 / n as f64));
+    }
+    // Cap at a1: from the outer to the inner arc, around the cap centre.
+    let cc = at(rm, a1);
+    for i in 0..n / 4 {
+        let t = a1 + PI * i as f64 / (n / 4) as f64;
+        pts.push(add(cc, [rc * t.cos(), rc * t.sin()]));
+    }
+    for i in 0..n {
+        pts.push(at(ri, a1 - (a1 - a0) * i as f64 / n as f64));
+    }
+    let cc = at(rm, a0);
+    for i in 0..n / 4 {
+        let t = a0 + PI + PI * i as f64 / (n / 4) as f64;
+        pts.push(add(cc, [rc * t.cos(), rc * t.sin()]));
+    }
+    Polyline {
+        closed: true,
+        points: pts,
+    }
+}
+
+/// Simulator options.
+#[derive(Clone, Debug, PartialEq)]
+#[non_exhaustive]
+pub struct SynthParams {
+    /// The shape.
+    pub shape: Shape,
+    /// Points per frame (outliers included).
+    pub points: usize,
+    /// Standard deviation of the Gaussian noise on each coordinate.
+    pub noise: f64,
+    /// Fraction of points replaced by outliers uniform over the shape's padded box.
+    pub outliers: f64,
+    /// Sampling density varies along the curve by a factor `(1 + a) / (1 - a)`; 0 is
+    /// uniform, must be in [0, 1).
+    pub density_variation: f64,
+    /// Number of frames.
+    pub frames: usize,
+    /// Largest displacement of a curve point between frames (rotation about the shape's
+    /// centre plus a translation along a slowly turning direction).
+    pub motion: f64,
+    /// Seed.
+    pub seed: u64,
+    /// Frame rate written in the `t` field.
+    pub rate_hz: f64,
+}
+
+impl SynthParams {
+    /// Defaults for `shape`: 2,000 points, no noise, one frame, seed 1.
+    pub fn new(shape: Shape) -> Self {
+        SynthParams {
+            shape,
+            points: 2000,
+            noise: 0.0,
+            outliers: 0.0,
+            density_variation: 0.0,
+            frames: 1,
+            motion: 0.0,
+            seed: 1,
+            rate_hz: 20.0,
+        }
+    }
+
+    /// Checks the options.
+    pub fn validate(&self) -> Result<(), String> {
+        if self.points == 0 {
+            return Err("--points must be at least 1".into());
+        }
+        if !(self.noise.is_finite() && self.noise >= 0.0) {
+            return Err(format!("--noise {} must be >= 0", self.noise));
+        }
+        if !(0.0..=1.0).contains(&self.outliers) {
+            return Err(format!("--outliers {} must be in [0, 1]", self.outliers));
+        }
+        if !(0.0..1.0).contains(&self.density_variation) {
+            return Err(format!("--density {} must be in [0, 1)", self.density_variation));
+        }
+        if !(self.motion.is_finite() && self.motion >= 0.0) {
+            return Err(format!("--motion {} must be >= 0", self.motion));
+        }
+        if self.frames == 0 {
+            return Err("--frames must be at least 1".into());
+        }
+        Ok(())
+    }
+}
+
+/// One simulated frame.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SynthFrame {
+    /// Frame number, from 0.
+    pub frame: u64,
+    /// Time stamp in seconds.
+    pub t: f64,
+    /// The points, in random order.
+    pub points: Vec<Point>,
+    /// The exact curves of this frame.
+    pub truth: Vec<Polyline>,
+}
+
+/// The rigid motion of frame `k`: rotation about `c` then translation.
+fn motion_of(k: usize, motion: f64, c: Point) -> impl Fn(Point) -> Point {
+    // A point at radius 0.4 moves by `motion / 2` from the rotation and the centre by
+    // `motion / 2` along a direction turning 0.05 rad per frame, so the shape circles
+    // within 10 * motion of where it started instead of drifting away.
+    let angle = k as f64 * 0.5 * motion / 0.4;
+    let (s, co) = angle.sin_cos();
+    let step = 0.5 * motion;
+    let shift = (0..k).fold([0.0, 0.0], |acc, j| {
+        let th = 0.05 * j as f64;
+        add(acc, [step * th.cos(), step * th.sin()])
+    });
+    move |p: Point| {
+        let q = sub(p, c);
+        add(add(c, [co * q[0] - s * q[1], s * q[0] + co * q[1]]), shift)
+    }
+}
+
+/// Generates the frames.
+pub fn generate(params: &SynthParams) -> Result<Vec<SynthFrame>, String> {
+    params.validate()?;
+    let base = params.shape.truth();
+    let center = [0.5, 0.5];
+    // Cumulative arc length over all segments of all components.
+    let segs: Vec<(Point, Point)> = base.iter().flat_map(|pl| pl.segments().collect::<Vec<_>>()).collect();
+    let mut cum = Vec::with_capacity(segs.len() + 1);
+    cum.push(0.0);
+    for (a, b) in &segs {
+        cum.push(cum.last().unwrap() + dist(*a, *b));
+    }
+    let total = *cum.last().unwrap();
+    let normal = Normal::new(0.0, params.noise.max(f64::MIN_POSITIVE)).expect("valid sigma");
+    let a = params.density_variation;
+    let mut frames = Vec::with_capacity(params.frames);
+    for k in 0..params.frames {
+        let mut rng = ChaCha8Rng::seed_from_u64(params.seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ k as u64);
+        let mv = motion_of(k, params.motion, center);
+        let n_out = (params.outliers * params.points as f64).round() as usize;
+        let mut points = Vec::with_capacity(params.points);
+        while points.len() < params.points - n_out {
+            let s = rng.random::<f64>() * total;
+            // Density (1 + a sin(6 pi s / L)) / (1 + a), by rejection.
+            if a > 0.0 && rng.random::<f64>() * (1.0 + a) > 1.0 + a * (3.0 * TAU * s / total).sin() {
+                continue;
+            }
+            let i = cum.partition_point(|&c| c <= s).clamp(1, segs.len()) - 1;
+            let (p, q) = segs[i];
+            let len = cum[i + 1] - cum[i];
+            let f = if len > 0.0 { (s - cum[i]) / len } else { 0.0 };
+            let mut x = add(p, [(q[0] - p[0]) * f, (q[1] - p[1]) * f]);
+            if params.noise > 0.0 {
+                x = add(x, [normal.sample(&mut rng), normal.sample(&mut rng)]);
+            }
+            points.push(mv(x));
+        }
+        for _ in 0..n_out {
+            let x = [rng.random::<f64>() * 1.2 - 0.1, rng.random::<f64>() * 1.2 - 0.1];
+            points.push(mv(x));
+        }
+        // Unorganised: no ordering information survives.
+        for i in (1..points.len()).rev() {
+            let j = rng.random_range(0..=i);
+            points.swap(i, j);
+        }
+        let truth = base
+            .iter()
+            .map(|pl| Polyline {
+                closed: pl.closed,
+                points: pl.points.iter().map(|&p| mv(p)).collect(),
+            })
+            .collect();
+        frames.push(SynthFrame {
+            frame: k as u64,
+            t: k as f64 / params.rate_hz,
+            points,
+            truth,
+        });
+    }
+    Ok(frames)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::eval::SegmentIndex;
+
+    #[test]
+    fn deterministic_and_on_the_curve_within_the_noise() {
+        for shape in Shape::ALL {
+            let mut p = SynthParams::new(shape);
+            p.points = 500;
+            p.noise = 0.001;
+            p.frames = 3;
+            p.motion = 0.01;
+            let a = generate(&p).unwrap();
+            assert_eq!(a, generate(&p).unwrap(), "{shape:?} not deterministic");
+            for f in &a {
+                assert_eq!(f.points.len(), 500);
+                let idx = SegmentIndex::new(&f.truth);
+                let worst = f.points.iter().map(|&q| idx.distance(q)).fold(0.0, f64::max);
+                // Gaussian noise in 2D: |offset| > 6 sigma has probability e^-18 per point.
+                assert!(worst < 6.0 * 0.001, "{shape:?} {worst}");
+            }
+        }
+    }
+
+    #[test]
+    fn truth_orientation_and_motion_are_rigid() {
+        let ann = Shape::Annulus.truth();
+        assert!(ann[0].signed_area() > 0.0 && ann[1].signed_area() < 0.0);
+        assert!(Shape::CShape.truth()[0].signed_area() > 0.0);
+        let mut p = SynthParams::new(Shape::Square);
+        p.frames = 5;
+        p.motion = 0.02;
+        let f = generate(&p).unwrap();
+        let side = |pl: &Polyline| dist(pl.points[0], pl.points[1]);
+        assert!((side(&f[4].truth[0]) - 0.6).abs() < 1e-12);
+        let moved = dist(f[0].truth[0].points[0], f[1].truth[0].points[0]);
+        assert!(moved > 0.0 && moved <= 0.02 + 1e-12, "{moved}");
+    }
+
+    #[test]
+    fn outliers_and_bad_options() {
+        let mut p = SynthParams::new(Shape::Circle);
+        p.outliers = 0.1;
+        let f = &generate(&p).unwrap()[0];
+        let idx = SegmentIndex::new(&f.truth);
+        let far = f.points.iter().filter(|&&q| idx.distance(q) > 0.01).count();
+        assert!((150..=200).contains(&far), "{far}");
+        p.density_variation = 1.0;
+        assert!(generate(&p).is_err());
+    }
+}
