@@ -95,13 +95,22 @@ mod tests {
 
     #[test]
     fn unknown_keys_and_bad_values_are_named() {
-        let e = Config::parse("[mesh]\nhmin = 0.001\nhmni = 2\n", "a.toml").unwrap_err().to_string();
+        let e = Config::parse("[mesh]\nhmin = 0.001\nhmni = 2\n", "a.toml")
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("a.toml") && e.contains("hmni"), "{e}");
         let e = Config::parse("[mesh]\nhmin = -1\nhmax = 0.0\nneighbours = 1\n", "b.toml")
             .unwrap_err()
             .to_string();
-        assert!(e.contains("mesh.hmin = -1") && e.contains("mesh.hmax = 0") && e.contains("mesh.neighbours = 1"), "{e}");
-        let e = Config::parse("[mesh]\nhmin = \"small\"\n", "c.toml").unwrap_err().to_string();
+        assert!(
+            e.contains("mesh.hmin = -1")
+                && e.contains("mesh.hmax = 0")
+                && e.contains("mesh.neighbours = 1"),
+            "{e}"
+        );
+        let e = Config::parse("[mesh]\nhmin = \"small\"\n", "c.toml")
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("c.toml") && e.contains("hmin"), "{e}");
         let ok = Config::parse("[mesh]\nhmin = 1e-3\neps = 1e-3\n", "d.toml").unwrap();
         assert_eq!(ok.mesh_params().hmin, Some(1e-3));

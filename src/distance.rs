@@ -149,7 +149,12 @@ mod tests {
             .collect();
         let field = DistanceField::new(&points).unwrap();
         let queries: Vec<Point> = (0..2000)
-            .map(|_| [rng.random::<f64>() * 3.0 - 1.0, rng.random::<f64>() * 3.0 - 1.0])
+            .map(|_| {
+                [
+                    rng.random::<f64>() * 3.0 - 1.0,
+                    rng.random::<f64>() * 3.0 - 1.0,
+                ]
+            })
             .collect();
         let near = field.nearest_all(&queries);
         for (q, n) in queries.iter().zip(&near) {

@@ -14,7 +14,9 @@ pub enum Error {
     #[error("point {index} has a non-finite coordinate ({x}, {y})")]
     NonFinitePoint { index: usize, x: f64, y: f64 },
     /// A coordinate is so large that squared distances would overflow.
-    #[error("point {index} has a coordinate of magnitude {magnitude:e}, above the supported 1e150")]
+    #[error(
+        "point {index} has a coordinate of magnitude {magnitude:e}, above the supported 1e150"
+    )]
     HugeCoordinate { index: usize, magnitude: f64 },
     /// A text input could not be parsed; `line` is 1-based.
     #[error("{source_name}, line {line}: {message}")]

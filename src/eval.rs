@@ -71,7 +71,10 @@ impl SegmentIndex {
         let Some(tree) = &self.tree else {
             return f64::INFINITY;
         };
-        let near = tree.query(&q).nearest_one::<SquaredEuclidean<f64>>().execute();
+        let near = tree
+            .query(&q)
+            .nearest_one::<SquaredEuclidean<f64>>()
+            .execute();
         let s = self.segs[self.piece_seg[near.item as usize] as usize];
         let mut best = point_segment_dist2(q, s.0, s.1).0;
         let r = best.sqrt() + self.half_piece * (1.0 + 1e-9);
@@ -170,7 +173,9 @@ pub fn compare(recon: &[Polyline], truth: &[Polyline], step: Option<f64>) -> Acc
     if ir.is_empty() || it.is_empty() {
         return base;
     }
-    let step = step.unwrap_or_else(|| 0.5 * ir.half_piece.min(it.half_piece)).max(1e-12);
+    let step = step
+        .unwrap_or_else(|| 0.5 * ir.half_piece.min(it.half_piece))
+        .max(1e-12);
     let (rt, mrt) = directed(recon, &it, step);
     let (tr, mtr) = directed(truth, &ir, step);
     Accuracy {
@@ -219,7 +224,10 @@ mod tests {
         pl.closed = false;
         let idx = SegmentIndex::new(std::slice::from_ref(&pl));
         for _ in 0..3000 {
-            let q = [rng.random::<f64>() * 1.4 - 0.2, rng.random::<f64>() * 1.4 - 0.2];
+            let q = [
+                rng.random::<f64>() * 1.4 - 0.2,
+                rng.random::<f64>() * 1.4 - 0.2,
+            ];
             let brute = pl
                 .segments()
                 .map(|(a, b)| point_segment_dist2(q, a, b).0.sqrt())

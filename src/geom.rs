@@ -278,10 +278,26 @@ mod tests {
     #[test]
     fn eigen_matches_nalgebra() {
         let cases = [
-            Sym2 { xx: 3.0, xy: 1.0, yy: -2.0 },
-            Sym2 { xx: 1.0, xy: 0.0, yy: 1.0 },
-            Sym2 { xx: 0.0, xy: 5.0, yy: 0.0 },
-            Sym2 { xx: 1e6, xy: -3e3, yy: 2.0 },
+            Sym2 {
+                xx: 3.0,
+                xy: 1.0,
+                yy: -2.0,
+            },
+            Sym2 {
+                xx: 1.0,
+                xy: 0.0,
+                yy: 1.0,
+            },
+            Sym2 {
+                xx: 0.0,
+                xy: 5.0,
+                yy: 0.0,
+            },
+            Sym2 {
+                xx: 1e6,
+                xy: -3e3,
+                yy: 2.0,
+            },
         ];
         for s in cases {
             let (l1, l2, e) = s.eigen();

@@ -16,7 +16,11 @@ use isoline::meshing::adapt_to_points;
 use isoline::synth::{self, Shape, SynthParams};
 
 #[derive(Parser)]
-#[command(name = "isoline", version, about = "Level-set curve reconstruction from noisy 2D points")]
+#[command(
+    name = "isoline",
+    version,
+    about = "Level-set curve reconstruction from noisy 2D points"
+)]
 struct Cli {
     #[command(subcommand)]
     command: Command,
@@ -138,7 +142,8 @@ fn run(cli: Cli) -> Result<()> {
                 serde_json::to_writer(&mut out, &rec)?;
                 out.write_all(b"\n")?;
             }
-            out.flush().with_context(|| format!("writing {}", output.display()))?;
+            out.flush()
+                .with_context(|| format!("writing {}", output.display()))?;
             if let Some(path) = truth {
                 let pj = |pls: &[Polyline]| pls.iter().map(PolylineJson::from).collect::<Vec<_>>();
                 let file = TruthFile {
@@ -154,7 +159,8 @@ fn run(cli: Cli) -> Result<()> {
                     }),
                 };
                 let w = std::io::BufWriter::new(create(&path)?);
-                serde_json::to_writer(w, &file).with_context(|| format!("writing {}", path.display()))?;
+                serde_json::to_writer(w, &file)
+                    .with_context(|| format!("writing {}", path.display()))?;
             }
             Ok(())
         }
@@ -238,7 +244,8 @@ fn run(cli: Cli) -> Result<()> {
                     },
                     1600.0,
                 );
-                std::fs::write(&path, doc).with_context(|| format!("writing {}", path.display()))?;
+                std::fs::write(&path, doc)
+                    .with_context(|| format!("writing {}", path.display()))?;
             }
             match stats {
                 Some(path) => std::fs::write(&path, format!("{summary:#}\n"))
@@ -292,7 +299,11 @@ fn read_polyline_records(path: &Path) -> Result<Vec<(Option<u64>, Vec<Polyline>)
             .with_context(|| format!("{}, line {line}: not a polyline record", path.display()))?;
         match (r.polylines, r.error) {
             (Some(p), _) => Ok((r.frame, p.into_iter().map(Into::into).collect())),
-            (None, Some(e)) => bail!("{}, line {line}: frame {:?} is an error record: {e}", path.display(), r.frame),
+            (None, Some(e)) => bail!(
+                "{}, line {line}: frame {:?} is an error record: {e}",
+                path.display(),
+                r.frame
+            ),
             (None, None) => bail!("{}, line {line}: no \"polylines\"", path.display()),
         }
     };

@@ -95,7 +95,9 @@ impl MeshParams {
         let mut positive = |name: &str, v: Option<f64>| {
             if let Some(v) = v {
                 if !(v.is_finite() && v > 0.0) {
-                    problems.push(format!("mesh.{name} = {v}: must be a positive finite number"));
+                    problems.push(format!(
+                        "mesh.{name} = {v}: must be a positive finite number"
+                    ));
                 }
             }
         };
@@ -113,13 +115,22 @@ impl MeshParams {
             problems.push(format!("mesh.padding = {}: must be >= 0", self.padding));
         }
         if !(3..=256).contains(&self.neighbours) {
-            problems.push(format!("mesh.neighbours = {}: must be in 3..=256", self.neighbours));
+            problems.push(format!(
+                "mesh.neighbours = {}: must be in 3..=256",
+                self.neighbours
+            ));
         }
         if !(1..=1000).contains(&self.max_passes) {
-            problems.push(format!("mesh.max_passes = {}: must be in 1..=1000", self.max_passes));
+            problems.push(format!(
+                "mesh.max_passes = {}: must be in 1..=1000",
+                self.max_passes
+            ));
         }
         if self.max_vertices < 16 {
-            problems.push(format!("mesh.max_vertices = {}: must be >= 16", self.max_vertices));
+            problems.push(format!(
+                "mesh.max_vertices = {}: must be >= 16",
+                self.max_vertices
+            ));
         }
         if problems.is_empty() {
             Ok(())
@@ -215,7 +226,9 @@ pub fn adapt_to_points(points: &[Point], params: &MeshParams) -> Result<AdaptedM
     }
     let t_metric = t0.elapsed();
 
-    let local_box = BBox::of(&local).expect("non-empty").padded(params.padding * scale + 2.0 * hmin);
+    let local_box = BBox::of(&local)
+        .expect("non-empty")
+        .padded(params.padding * scale + 2.0 * hmin);
     let mut mesh = Mesh::of_box(&local_box, hmax);
     let opts = AdaptOptions::default()
         .with_max_passes(params.max_passes)

@@ -70,7 +70,10 @@ impl Shape {
             }],
             Shape::Star => vec![polar(c, |t| 0.3 * (1.0 + 0.3 * (5.0 * t).cos()))],
             Shape::CShape => vec![c_shape(c)],
-            Shape::TwoCircles => vec![ellipse([0.28, 0.5], 0.18, 0.18), ellipse([0.72, 0.5], 0.18, 0.18)],
+            Shape::TwoCircles => vec![
+                ellipse([0.28, 0.5], 0.18, 0.18),
+                ellipse([0.72, 0.5], 0.18, 0.18),
+            ],
             Shape::Annulus => {
                 let mut hole = ellipse(c, 0.2, 0.2);
                 hole.points.reverse();
@@ -206,7 +209,10 @@ impl SynthParams {
             return Err(format!("--outliers {} must be in [0, 1]", self.outliers));
         }
         if !(0.0..1.0).contains(&self.density_variation) {
-            return Err(format!("--density {} must be in [0, 1)", self.density_variation));
+            return Err(format!(
+                "--density {} must be in [0, 1)",
+                self.density_variation
+            ));
         }
         if !(self.motion.is_finite() && self.motion >= 0.0) {
             return Err(format!("--motion {} must be >= 0", self.motion));
@@ -255,7 +261,10 @@ pub fn generate(params: &SynthParams) -> Result<Vec<SynthFrame>, String> {
     let base = params.shape.truth();
     let center = [0.5, 0.5];
     // Cumulative arc length over all segments of all components.
-    let segs: Vec<(Point, Point)> = base.iter().flat_map(|pl| pl.segments().collect::<Vec<_>>()).collect();
+    let segs: Vec<(Point, Point)> = base
+        .iter()
+        .flat_map(|pl| pl.segments().collect::<Vec<_>>())
+        .collect();
     let mut cum = Vec::with_capacity(segs.len() + 1);
     cum.push(0.0);
     for (a, b) in &segs {
@@ -266,14 +275,16 @@ pub fn generate(params: &SynthParams) -> Result<Vec<SynthFrame>, String> {
     let a = params.density_variation;
     let mut frames = Vec::with_capacity(params.frames);
     for k in 0..params.frames {
-        let mut rng = ChaCha8Rng::seed_from_u64(params.seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ k as u64);
+        let mut rng =
+            ChaCha8Rng::seed_from_u64(params.seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ k as u64);
         let mv = motion_of(k, params.motion, center);
         let n_out = (params.outliers * params.points as f64).round() as usize;
         let mut points = Vec::with_capacity(params.points);
         while points.len() < params.points - n_out {
             let s = rng.random::<f64>() * total;
             // Density (1 + a sin(6 pi s / L)) / (1 + a), by rejection.
-            if a > 0.0 && rng.random::<f64>() * (1.0 + a) > 1.0 + a * (3.0 * TAU * s / total).sin() {
+            if a > 0.0 && rng.random::<f64>() * (1.0 + a) > 1.0 + a * (3.0 * TAU * s / total).sin()
+            {
                 continue;
             }
             let i = cum.partition_point(|&c| c <= s).clamp(1, segs.len()) - 1;
@@ -287,7 +298,10 @@ pub fn generate(params: &SynthParams) -> Result<Vec<SynthFrame>, String> {
             points.push(mv(x));
         }
         for _ in 0..n_out {
-            let x = [rng.random::<f64>() * 1.2 - 0.1, rng.random::<f64>() * 1.2 - 0.1];
+            let x = [
+                rng.random::<f64>() * 1.2 - 0.1,
+                rng.random::<f64>() * 1.2 - 0.1,
+            ];
             points.push(mv(x));
         }
         // Unorganised: no ordering information survives.
@@ -330,7 +344,11 @@ mod tests {
             for f in &a {
                 assert_eq!(f.points.len(), 500);
                 let idx = SegmentIndex::new(&f.truth);
-                let worst = f.points.iter().map(|&q| idx.distance(q)).fold(0.0, f64::max);
+                let worst = f
+                    .points
+                    .iter()
+                    .map(|&q| idx.distance(q))
+                    .fold(0.0, f64::max);
                 // Gaussian noise in 2D: |offset| > 6 sigma has probability e^-18 per point.
                 assert!(worst < 6.0 * 0.001, "{shape:?} {worst}");
             }

@@ -53,7 +53,9 @@ pub fn render(d: &Drawing<'_>, width: f64) -> String {
         out.push_str("\"/>\n");
     }
     if !d.points.is_empty() {
-        out.push_str(r##"<path fill="none" stroke="#d1495b" stroke-width="1.6" stroke-linecap="round" d=""##);
+        out.push_str(
+            r##"<path fill="none" stroke="#d1495b" stroke-width="1.6" stroke-linecap="round" d=""##,
+        );
         for &p in d.points {
             let (x, y) = tx(p);
             let _ = write!(out, "M{x:.2} {y:.2}h0");

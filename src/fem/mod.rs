@@ -206,7 +206,12 @@ impl P1Space {
             // Scale offsets by the ring's size so the normal equations are well conditioned.
             let s = ring
                 .iter()
-                .map(|&j| dot(sub(mesh.coords[j as usize], x), sub(mesh.coords[j as usize], x)))
+                .map(|&j| {
+                    dot(
+                        sub(mesh.coords[j as usize], x),
+                        sub(mesh.coords[j as usize], x),
+                    )
+                })
                 .fold(0.0, f64::max)
                 .sqrt();
             let mut ata = Matrix3::<f64>::zeros();

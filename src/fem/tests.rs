@@ -61,7 +61,9 @@ fn quadratics_are_exact_at_interior_vertices_of_a_structured_mesh() {
         xy: 3.0,
         yy: -4.0,
     };
-    let r = recover(&mesh, |p| p[0] * p[0] + 3.0 * p[0] * p[1] - 2.0 * p[1] * p[1]);
+    let r = recover(&mesh, |p| {
+        p[0] * p[0] + 3.0 * p[0] * p[1] - 2.0 * p[1] * p[1]
+    });
     for v in 0..mesh.num_vertices() {
         if mesh.tag[v] != VertexTag::Interior {
             continue;
@@ -99,7 +101,11 @@ fn observed_orders() -> (f64, f64, f64) {
                 continue;
             }
             let ge = g(p);
-            eg = eg.max((r.grad[v][0] - ge[0]).abs().max((r.grad[v][1] - ge[1]).abs()));
+            eg = eg.max(
+                (r.grad[v][0] - ge[0])
+                    .abs()
+                    .max((r.grad[v][1] - ge[1]).abs()),
+            );
             el2 = el2.max(hess_err(&r.hess_l2[v], &h(p)));
             els = els.max(hess_err(&r.hess_ls[v], &h(p)));
         }

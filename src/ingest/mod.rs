@@ -27,11 +27,15 @@ pub fn parse_points(text: &str, name: &str) -> Result<Vec<Point>> {
             line: i + 1,
             message,
         };
-        let mut fields = line.split(|c: char| c == ',' || c.is_whitespace()).filter(|f| !f.is_empty());
+        let mut fields = line
+            .split(|c: char| c == ',' || c.is_whitespace())
+            .filter(|f| !f.is_empty());
         let mut coord = |axis: &str| -> Result<f64> {
-            let f = fields
-                .next()
-                .ok_or_else(|| err(format!("expected two coordinates, found no {axis}: '{line}'")))?;
+            let f = fields.next().ok_or_else(|| {
+                err(format!(
+                    "expected two coordinates, found no {axis}: '{line}'"
+                ))
+            })?;
             let v: f64 = f
                 .parse()
                 .map_err(|_| err(format!("{axis} coordinate '{f}' is not a number")))?;
@@ -118,13 +122,22 @@ mod tests {
 
     #[test]
     fn errors_name_the_line() {
-        let e = parse_points("0 0\n1 nan\n", "scan.xy").unwrap_err().to_string();
-        assert!(e.contains("scan.xy, line 2") && e.contains("not finite"), "{e}");
+        let e = parse_points("0 0\n1 nan\n", "scan.xy")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("scan.xy, line 2") && e.contains("not finite"),
+            "{e}"
+        );
         let e = parse_points("0 0\n1\n", "s").unwrap_err().to_string();
         assert!(e.contains("line 2") && e.contains("no y"), "{e}");
-        let e = parse_points("# only a comment\n", "s").unwrap_err().to_string();
+        let e = parse_points("# only a comment\n", "s")
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("no points"), "{e}");
-        let e = parse_frame("{\"frame\":1,\"points\":[[0,", "f.ndjson", 7).unwrap_err().to_string();
+        let e = parse_frame("{\"frame\":1,\"points\":[[0,", "f.ndjson", 7)
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("f.ndjson, line 7"), "{e}");
     }
 
@@ -132,7 +145,12 @@ mod tests {
     fn frames_parse_with_optional_fields() {
         let f = parse_frame(r#"{"frame":3,"points":[[0,1],[2,3]]}"#, "s", 1).unwrap();
         assert_eq!((f.frame, f.points.len(), f.stream), (3, 2, None));
-        let f = parse_frame(r#"{"stream":"l","frame":3,"t":0.1,"points":[],"origin":[0,0],"x":1}"#, "s", 1).unwrap();
+        let f = parse_frame(
+            r#"{"stream":"l","frame":3,"t":0.1,"points":[],"origin":[0,0],"x":1}"#,
+            "s",
+            1,
+        )
+        .unwrap();
         assert_eq!(f.origin, Some([0.0, 0.0]));
     }
 }

@@ -125,9 +125,19 @@ impl Adapter {
             report.flips += self.flip_pass(mesh);
             report.splits += splits;
             report.collapses += collapses;
+            tracing::trace!(
+                pass = report.passes,
+                splits,
+                collapses,
+                vertices = mesh.num_vertices(),
+                "adapt pass"
+            );
             debug_assert_eq!(mesh.sanity_check(), Ok(()));
+            // Near the fixed point a few edges keep being split and re-collapsed where the
+            // metric changes fast (a limit cycle of ~0.2% of the vertices on noisy data):
+            // stop once a pass touches at most 0.5% of them.
             let live = mesh.num_vertices().max(1);
-            if (splits + collapses) * 1000 <= live {
+            if (splits + collapses) * 200 <= live {
                 report.converged = true;
                 break;
             }
@@ -205,7 +215,13 @@ impl Adapter {
 
     /// Splits edge `i` of `t` at its midpoint; false (and no change) if rounding would
     /// make a new triangle degenerate.
-    fn split_edge(&mut self, mesh: &mut Mesh, t: u32, i: usize, metric: &impl MetricSource) -> bool {
+    fn split_edge(
+        &mut self,
+        mesh: &mut Mesh,
+        t: u32,
+        i: usize,
+        metric: &impl MetricSource,
+    ) -> bool {
         let tri = mesh.tris[t as usize];
         let (a, p, q) = (tri[i], tri[(i + 1) % 3], tri[(i + 2) % 3]);
         let o = mesh.adj[t as usize][i];
@@ -237,7 +253,11 @@ impl Adapter {
         let n_qa = mesh.adj[t as usize][(i + 1) % 3];
         let n_ap = mesh.adj[t as usize][(i + 2) % 3];
         let t1 = self.alloc_tri(mesh);
-        let o1 = if od.is_some() { self.alloc_tri(mesh) } else { INVALID };
+        let o1 = if od.is_some() {
+            self.alloc_tri(mesh)
+        } else {
+            INVALID
+        };
         mesh.tris[t as usize] = [a, p, m];
         mesh.adj[t as usize] = [o1, t1, n_ap];
         mesh.tris[t1 as usize] = [a, m, q];
@@ -271,7 +291,9 @@ impl Adapter {
             if mesh.vert_tri[a as usize] == INVALID || mesh.vert_tri[b as usize] == INVALID {
                 continue;
             }
-            if mesh.find_edge(a, b, &mut self.ball).is_none() || self.len_of(mesh, a, b) >= COLLAPSE_BELOW {
+            if mesh.find_edge(a, b, &mut self.ball).is_none()
+                || self.len_of(mesh, a, b) >= COLLAPSE_BELOW
+            {
                 continue;
             }
             if self.try_collapse(mesh, a, b) || self.try_collapse(mesh, b, a) {
@@ -339,7 +361,9 @@ impl Adapter {
         for &x in &self.ring {
             if x != w && !self.ring2.contains(&x) {
                 let e = sub(mesh.coords[x as usize], xw);
-                if edge_length(&self.metrics[x as usize], &self.metrics[w as usize], e) > COLLAPSE_MAX_NEW {
+                if edge_length(&self.metrics[x as usize], &self.metrics[w as usize], e)
+                    > COLLAPSE_MAX_NEW
+                {
                     return false;
                 }
             }
@@ -420,7 +444,9 @@ impl Adapter {
         if orient(c(a), c(p), c(d)) <= 0.0 || orient(c(a), c(d), c(q)) <= 0.0 {
             return false;
         }
-        let old = self.tri_quality(mesh, [a, p, q]).min(self.tri_quality(mesh, otri));
+        let old = self
+            .tri_quality(mesh, [a, p, q])
+            .min(self.tri_quality(mesh, otri));
         let new = self
             .tri_quality(mesh, [a, p, d])
             .min(self.tri_quality(mesh, [a, d, q]));
@@ -518,5 +544,8 @@ pub fn adapt(mesh: &mut Mesh, metric: &impl MetricSource, opts: &AdaptOptions) -
 
 /// Helper for tests and tools: the metric at every vertex of `mesh`.
 pub fn vertex_metrics(mesh: &Mesh, metric: &impl MetricSource) -> Vec<Sym2> {
-    mesh.coords.par_iter().map(|&p: &Point| metric.metric(p)).collect()
+    mesh.coords
+        .par_iter()
+        .map(|&p: &Point| metric.metric(p))
+        .collect()
 }

@@ -172,7 +172,11 @@ impl<'a> CurveMetric<'a> {
                         (s + sign * g.curvature, c + 1)
                     });
                 LocalFrame {
-                    curvature: if cnt > 0 { (sum / cnt as f64).abs() } else { 0.0 },
+                    curvature: if cnt > 0 {
+                        (sum / cnt as f64).abs()
+                    } else {
+                        0.0
+                    },
                     ..*f
                 }
             })

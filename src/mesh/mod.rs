@@ -148,7 +148,11 @@ impl Mesh {
             for i in 0..=nx {
                 // Stagger alternate rows so the lattice is not co-circular everywhere and
                 // the Delaunay triangles are near-equilateral; keep the boundary straight.
-                let shift = if j % 2 == 1 && i > 0 && i < nx { 0.5 } else { 0.0 };
+                let shift = if j % 2 == 1 && i > 0 && i < nx {
+                    0.5
+                } else {
+                    0.0
+                };
                 let x = bbox.min[0] + size[0] * ((i as f64 + shift).min(nx as f64) / nx as f64);
                 let y = bbox.min[1] + size[1] * (j as f64 / ny as f64);
                 pts.push([x, y]);
@@ -361,7 +365,13 @@ impl Mesh {
         let adj: Vec<[u32; 3]> = live
             .iter()
             .map(|&t| {
-                self.adj[t as usize].map(|o| if o == INVALID { INVALID } else { tmap[o as usize] })
+                self.adj[t as usize].map(|o| {
+                    if o == INVALID {
+                        INVALID
+                    } else {
+                        tmap[o as usize]
+                    }
+                })
             })
             .collect();
         let mut vert_tri = vec![INVALID; coords.len()];
@@ -403,7 +413,10 @@ impl Mesh {
             if tri[0] == INVALID {
                 continue;
             }
-            if tri.iter().any(|&v| v >= nv || self.vert_tri[v as usize] == INVALID) {
+            if tri
+                .iter()
+                .any(|&v| v >= nv || self.vert_tri[v as usize] == INVALID)
+            {
                 push(format!("triangle {t} {tri:?} names a missing vertex"));
                 continue;
             }
@@ -441,13 +454,17 @@ impl Mesh {
                             push(format!("adjacency of {t} and {o} is not mutual"));
                         }
                     }
-                    _ => push(format!("triangles {t} and {o} are adjacent without an edge")),
+                    _ => push(format!(
+                        "triangles {t} and {o} are adjacent without an edge"
+                    )),
                 }
             }
         }
         for v in 0..nv {
             let t = self.vert_tri[v as usize];
-            if t != INVALID && (t >= self.tris.len() as u32 || local_index(self.tris[t as usize], v).is_none()) {
+            if t != INVALID
+                && (t >= self.tris.len() as u32 || local_index(self.tris[t as usize], v).is_none())
+            {
                 push(format!("vertex {v}: vert_tri {t} does not hold it"));
             }
         }
