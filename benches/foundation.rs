@@ -1,1 +1,55 @@
-fn main() {}
+//! Benchmarks of the foundation stages: kd-tree build + distance at 100k vertices, and
+//! one full adaptation of the circle case. Data come from `isoline::synth`, the
+//! generator the tests use.
+
+use criterion::{criterion_group, criterion_main, Criterion};
+use isoline::distance::DistanceField;
+use isoline::meshing::{adapt_to_points, MeshParams};
+use isoline::synth::{generate, Shape, SynthParams};
+use rand::{Rng, SeedableRng};
+
+fn circle(points: usize, noise: f64) -> Vec<[f64; 2]> {
+    let mut p = SynthParams::new(Shape::Circle);
+    p.points = points;
+    p.noise = noise;
+    generate(&p).unwrap().remove(0).points
+}
+
+fn distance(c: &mut Criterion) {
+    let pts = circle(2000, 0.002);
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(1);
+    // Query points concentrated near the data, as an adapted mesh's vertices are.
+    let queries: Vec<[f64; 2]> = (0..100_000)
+        .map(|i| {
+            let a: f64 = rng.random::<f64>() * std::f64::consts::TAU;
+            let r = if i % 4 == 0 {
+                rng.random::<f64>() * 0.6
+            } else {
+                0.4 + 0.02 * (rng.random::<f64>() - 0.5)
+            };
+            [0.5 + r * a.cos(), 0.5 + r * a.sin()]
+        })
+        .collect();
+    let mut out = Vec::new();
+    c.bench_function("kdtree_build_and_distance_100k_vertices", |b| {
+        b.iter(|| {
+            let field = DistanceField::new(&pts).unwrap();
+            field.distances_into(&queries, &mut out);
+            out[0]
+        })
+    });
+}
+
+fn adaptation(c: &mut Criterion) {
+    let pts = circle(2000, 0.002);
+    let params = MeshParams::default().with_hmin(1e-3).with_eps(1e-3);
+    let mut g = c.benchmark_group("adapt");
+    g.sample_size(10);
+    g.bench_function("circle_2000pts_hmin1e-3_anisotropic", |b| {
+        b.iter(|| adapt_to_points(&pts, &params).unwrap().stats.vertices)
+    });
+    g.finish();
+}
+
+criterion_group!(benches, distance, adaptation);
+criterion_main!(benches);

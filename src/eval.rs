@@ -19,7 +19,6 @@ pub struct SegmentIndex {
     piece_seg: Vec<u32>,
     tree: Option<ImmutableKdTree<f64, 2>>,
     half_piece: f64,
-    points_only: Vec<Point>,
 }
 
 impl SegmentIndex {
@@ -57,7 +56,6 @@ impl SegmentIndex {
             piece_seg,
             tree,
             half_piece: 0.5 * piece,
-            points_only: mids,
         }
     }
 
@@ -87,7 +85,6 @@ impl SegmentIndex {
             let s = self.segs[self.piece_seg[c.item as usize] as usize];
             best = best.min(point_segment_dist2(q, s.0, s.1).0);
         }
-        debug_assert!(self.points_only.len() == self.piece_seg.len());
         best.sqrt()
     }
 }
@@ -243,7 +240,7 @@ mod tests {
             closed: false,
             points: vec![[0.9, 0.5], [0.9, 0.6]],
         };
-        let acc = compare(&[b.clone()], &[a.clone()], None);
+        let acc = compare(std::slice::from_ref(&b), std::slice::from_ref(&a), None);
         assert!(acc.recon_to_truth.unwrap() < 0.02);
         assert!(acc.truth_to_recon.unwrap() > 0.5);
         let none = compare(&[], &[a], None);

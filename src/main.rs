@@ -129,7 +129,17 @@ fn run(cli: Cli) -> Result<()> {
             p.frames = frames;
             p.motion = motion;
             p.seed = seed;
-            let frames = synth::generate(&p).map_err(anyhow::Error::msg)?;
+            let mut frames = synth::generate(&p).map_err(anyhow::Error::msg)?;
+            // Seven decimals (quantisation 5e-8 on unit-scale shapes, far below any noise or
+            // mesh size) halve the files.
+            let round = |q: &mut [f64; 2]| *q = q.map(|c| (c * 1e7).round() / 1e7);
+            for f in &mut frames {
+                f.points.iter_mut().for_each(round);
+                f.truth
+                    .iter_mut()
+                    .flat_map(|pl| pl.points.iter_mut())
+                    .for_each(round);
+            }
             let mut out = std::io::BufWriter::new(create(&output)?);
             for f in &frames {
                 let rec = FrameRecord {

@@ -87,7 +87,7 @@ pub fn fit_frame(center: Point, pts: &[Point]) -> LocalFrame {
     }
     let (l1, l2, t) = cov.eigen();
     let spread = pts.iter().map(|p| dot(sub(*p, c), sub(*p, c))).sum::<f64>();
-    if !(l1 > 0.0) || spread <= 1e-24 * (1.0 + dot(c, c)) {
+    if l1.is_nan() || l1 <= 0.0 || spread <= 1e-24 * (1.0 + dot(c, c)) {
         return LocalFrame::default();
     }
     let normal = [-t[1], t[0]];

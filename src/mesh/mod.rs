@@ -300,9 +300,9 @@ impl Mesh {
     pub fn compact(&mut self) {
         let mut vmap = vec![INVALID; self.coords.len()];
         let mut nv = 0u32;
-        for v in 0..self.coords.len() {
-            if self.vert_tri[v] != INVALID {
-                vmap[v] = nv;
+        for (slot, &t) in vmap.iter_mut().zip(&self.vert_tri) {
+            if t != INVALID {
+                *slot = nv;
                 nv += 1;
             }
         }
