@@ -1,5 +1,5 @@
 //! Benchmarks of the foundation stages: kd-tree build + distance at 100k vertices, and
-//! one full adaptation of the circle case. Data come from `isoline::synth`, the
+//! one full adaptation of the circle case, and eval of two 100k-vertex polylines. Data come from `isoline::synth`, the
 //! generator the tests use.
 
 use criterion::{criterion_group, criterion_main, Criterion};
@@ -51,5 +51,26 @@ fn adaptation(c: &mut Criterion) {
     g.finish();
 }
 
-criterion_group!(benches, distance, adaptation);
+fn evaluation(c: &mut Criterion) {
+    use isoline::geom::Polyline;
+    let ring = |r: f64, n: usize, phase: f64| Polyline {
+        closed: true,
+        points: (0..n)
+            .map(|i| {
+                let a = phase + std::f64::consts::TAU * i as f64 / n as f64;
+                [0.5 + r * a.cos(), 0.5 + r * a.sin()]
+            })
+            .collect(),
+    };
+    let recon = [ring(0.401, 100_000, 0.3)];
+    let truth = [ring(0.4, 100_000, 0.0)];
+    let mut g = c.benchmark_group("eval");
+    g.sample_size(10);
+    g.bench_function("hausdorff_100k_vs_100k_vertices", |b| {
+        b.iter(|| isoline::eval::compare(&recon, &truth, None).hausdorff)
+    });
+    g.finish();
+}
+
+criterion_group!(benches, distance, adaptation, evaluation);
 criterion_main!(benches);

@@ -155,7 +155,9 @@ pub struct Accuracy {
 }
 
 /// Compares `recon` with `truth`. `step` bounds the sampling gap (see the module doc);
-/// `None` uses a quarter of the shorter median segment length of the two sets.
+/// `None` uses twice the shorter median segment length of the two sets: the finer set is
+/// then sampled at its vertices, the coarser one as finely, and the Hausdorff distance
+/// is exact to within one median segment length of the finer set.
 pub fn compare(recon: &[Polyline], truth: &[Polyline], step: Option<f64>) -> Accuracy {
     let ir = SegmentIndex::new(recon);
     let it = SegmentIndex::new(truth);
