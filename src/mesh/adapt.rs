@@ -13,7 +13,7 @@ use rayon::prelude::*;
 use super::metric::MetricSource;
 use super::quality::{edge_length, quality};
 use super::{local_index, Mesh, VertexTag, INVALID};
-use crate::geom::{add, mid, orient, scale, sub, Point, Sym2};
+use crate::geom::{add, mid, orient, scale, sub, Sym2};
 
 const SPLIT_ABOVE: f64 = std::f64::consts::SQRT_2;
 const COLLAPSE_BELOW: f64 = std::f64::consts::FRAC_1_SQRT_2;
@@ -540,12 +540,4 @@ fn replace_adj(mesh: &mut Mesh, t: u32, old: u32, new: u32) {
 /// Convenience: adapts `mesh` to `metric` with a fresh [`Adapter`].
 pub fn adapt(mesh: &mut Mesh, metric: &impl MetricSource, opts: &AdaptOptions) -> AdaptReport {
     Adapter::new().adapt(mesh, metric, opts)
-}
-
-/// Helper for tests and tools: the metric at every vertex of `mesh`.
-pub fn vertex_metrics(mesh: &Mesh, metric: &impl MetricSource) -> Vec<Sym2> {
-    mesh.coords
-        .par_iter()
-        .map(|&p: &Point| metric.metric(p))
-        .collect()
 }
