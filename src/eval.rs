@@ -156,8 +156,8 @@ pub struct Accuracy {
 
 /// Compares `recon` with `truth`. `step` bounds the sampling gap (see the module doc);
 /// `None` uses twice the shorter median segment length of the two sets: the finer set is
-/// then sampled at its vertices, the coarser one as finely, and the Hausdorff distance
-/// is exact to within one median segment length of the finer set.
+/// then sampled at its vertices, the coarser one as finely, and the Hausdorff distance is
+/// exact to within one median segment length of the finer set.
 pub fn compare(recon: &[Polyline], truth: &[Polyline], step: Option<f64>) -> Accuracy {
     let ir = SegmentIndex::new(recon);
     let it = SegmentIndex::new(truth);
@@ -173,7 +173,7 @@ pub fn compare(recon: &[Polyline], truth: &[Polyline], step: Option<f64>) -> Acc
         return base;
     }
     let step = step
-        .unwrap_or_else(|| 0.5 * ir.half_piece.min(it.half_piece))
+        .unwrap_or_else(|| 4.0 * ir.half_piece.min(it.half_piece))
         .max(1e-12);
     let (rt, mrt) = directed(recon, &it, step);
     let (tr, mtr) = directed(truth, &ir, step);
