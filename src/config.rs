@@ -5,7 +5,9 @@ use serde::Deserialize;
 use std::path::Path;
 
 use crate::error::{Error, Result};
+use crate::levelset::{Init, Scheme};
 use crate::meshing::MeshParams;
+use crate::reconstruct::{ExportParams, Params, SolverParams};
 
 /// The whole configuration file.
 #[derive(Clone, Debug, Default, Deserialize)]
@@ -14,6 +16,103 @@ pub struct Config {
     /// `[mesh]`: the adapted mesh.
     #[serde(default)]
     pub mesh: MeshConfig,
+    /// `[solver]`: the level-set evolution.
+    #[serde(default)]
+    pub solver: SolverConfig,
+    /// `[export]`: the curves written.
+    #[serde(default)]
+    pub export: ExportConfig,
+}
+
+/// `[solver]`. Unset values are derived from the data's diagonal `D` and `hmin`.
+#[derive(Clone, Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SolverConfig {
+    /// `"semi-implicit"` (default) or `"explicit"`.
+    pub scheme: Option<String>,
+    /// Attraction of eq. 4, an inverse length. Default `10 / D`.
+    pub alpha: Option<f64>,
+    /// Semi-implicit time step in units of `hmin`. Default 10.
+    pub dt_factor: Option<f64>,
+    /// Explicit: fraction of the stability bound, in (0, 1]. Default 0.9.
+    pub cfl: Option<f64>,
+    /// Explicit: per-vertex time steps. Default true.
+    pub local_dt: Option<bool>,
+    /// Stopping tolerance of eq. 11 (data units). Default `hmin`.
+    pub eps: Option<f64>,
+    /// Renormalize every this many steps; 0 never. Default 5 (semi-implicit), 100 (explicit).
+    pub renormalize_every: Option<usize>,
+    /// Iteration cap. Default 2,000 (semi-implicit), 200,000 (explicit).
+    pub max_iterations: Option<usize>,
+    /// A solver phase ends when the mean residual improves by less than 1% over this many
+    /// steps. Default 10 (semi-implicit), 1,000 (explicit).
+    pub patience: Option<usize>,
+    /// Starting curve: `"tube"` (default), `"box"` or `"circle"` (the paper's).
+    pub init: Option<String>,
+    /// Tube start: radius of the tube around the data. Default: twice the 95th percentile
+    /// of the nearest-neighbour spacing, at least `2 hmin`.
+    pub tube: Option<f64>,
+    /// Gap between the data and the starting curve, in units of `D`. Default 0.05.
+    pub margin: Option<f64>,
+}
+
+/// `[export]`.
+#[derive(Clone, Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ExportConfig {
+    /// Douglas-Peucker tolerance in data units; 0 (default) keeps every vertex.
+    pub simplify: Option<f64>,
+}
+
+impl SolverConfig {
+    /// The solver parameters, validated; every problem is listed.
+    pub fn to_params(&self) -> std::result::Result<SolverParams, Vec<String>> {
+        let mut problems = Vec::new();
+        let mut p = SolverParams::default();
+        if let Some(s) = &self.scheme {
+            match s.parse::<Scheme>() {
+                Ok(s) => p.scheme = s,
+                Err(e) => problems.push(format!("solver.scheme: {e}")),
+            }
+        }
+        if let Some(s) = &self.init {
+            match s.parse::<Init>() {
+                Ok(i) => p.init = i,
+                Err(e) => problems.push(format!("solver.init: {e}")),
+            }
+        }
+        p.alpha = self.alpha;
+        p.dt_factor = self.dt_factor;
+        p.cfl = self.cfl.unwrap_or(p.cfl);
+        p.local_dt = self.local_dt.unwrap_or(p.local_dt);
+        p.eps = self.eps;
+        p.renormalize_every = self.renormalize_every;
+        p.max_iterations = self.max_iterations;
+        p.patience = self.patience;
+        p.margin = self.margin.unwrap_or(p.margin);
+        p.tube = self.tube;
+        if let Err(more) = p.validate() {
+            problems.extend(more);
+        }
+        if problems.is_empty() {
+            Ok(p)
+        } else {
+            Err(problems)
+        }
+    }
+}
+
+impl ExportConfig {
+    /// The export parameters, validated.
+    pub fn to_params(&self) -> std::result::Result<ExportParams, Vec<String>> {
+        let simplify = self.simplify.unwrap_or(0.0);
+        if !(simplify.is_finite() && simplify >= 0.0) {
+            return Err(vec![format!(
+                "export.simplify = {simplify}: must be a finite number >= 0"
+            )]);
+        }
+        Ok(ExportParams { simplify })
+    }
 }
 
 /// `[mesh]`. Lengths are in data units; unset ones are derived from the data's
@@ -70,10 +169,22 @@ impl Config {
             path: name.to_string(),
             problems: vec![e.to_string().trim().replace('\n', "\n  ")],
         })?;
-        cfg.mesh.to_params().map_err(|problems| Error::Config {
-            path: name.to_string(),
-            problems,
-        })?;
+        let mut problems = Vec::new();
+        if let Err(p) = cfg.mesh.to_params() {
+            problems.extend(p);
+        }
+        if let Err(p) = cfg.solver.to_params() {
+            problems.extend(p);
+        }
+        if let Err(p) = cfg.export.to_params() {
+            problems.extend(p);
+        }
+        if !problems.is_empty() {
+            return Err(Error::Config {
+                path: name.to_string(),
+                problems,
+            });
+        }
         Ok(cfg)
     }
 
@@ -86,6 +197,15 @@ impl Config {
     /// The validated mesh parameters.
     pub fn mesh_params(&self) -> MeshParams {
         self.mesh.to_params().expect("validated when loaded")
+    }
+
+    /// All reconstruction parameters, validated when loaded.
+    pub fn params(&self) -> Params {
+        Params::new(
+            self.mesh_params(),
+            self.solver.to_params().expect("validated when loaded"),
+            self.export.to_params().expect("validated when loaded"),
+        )
     }
 }
 
@@ -112,6 +232,22 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.contains("c.toml") && e.contains("hmin"), "{e}");
+        let e = Config::parse(
+            "[solver]\nscheme = \"implicit\"\ncfl = 2.0\n[export]\nsimplify = -1\n",
+            "e.toml",
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(
+            e.contains("solver.scheme")
+                && e.contains("solver.cfl = 2")
+                && e.contains("export.simplify"),
+            "{e}"
+        );
+        let e = Config::parse("[solver]\nalhpa = 1\n", "f.toml")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("alhpa"), "{e}");
         let ok = Config::parse("[mesh]\nhmin = 1e-3\neps = 1e-3\n", "d.toml").unwrap();
         assert_eq!(ok.mesh_params().hmin, Some(1e-3));
     }

@@ -10,6 +10,9 @@ pub enum Error {
     /// The point set is empty.
     #[error("the point set is empty")]
     EmptyPointSet,
+    /// Every point is at the same place: there is no curve to find.
+    #[error("all {count} points coincide: there is no curve to reconstruct")]
+    CoincidentPoints { count: usize },
     /// A coordinate is NaN or infinite; `index` is the point's position in the input.
     #[error("point {index} has a non-finite coordinate ({x}, {y})")]
     NonFinitePoint { index: usize, x: f64, y: f64 },

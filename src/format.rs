@@ -84,3 +84,79 @@ impl TruthFile {
         }
     }
 }
+
+/// Milliseconds per stage of one frame.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct StageMs {
+    /// kd-tree and distances at the mesh vertices.
+    pub distance: f64,
+    /// Metric and mesh adaptation.
+    pub adapt: f64,
+    /// Time stepping and stopping tests.
+    pub solve: f64,
+    /// Fast-marching renormalization.
+    pub renormalize: f64,
+    /// Isoline extraction and simplification.
+    pub export: f64,
+    /// The whole frame.
+    pub total: f64,
+}
+
+/// The `stats` of a result record (DESIGN.md section 4), plus what a user tuning the
+/// solver wants to see.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct FrameStats {
+    /// Data points.
+    pub points: usize,
+    /// Mesh vertices.
+    pub vertices: usize,
+    /// Mesh triangles.
+    pub triangles: usize,
+    /// Solver time steps.
+    pub iterations: usize,
+    /// Eq. 11 residual: the largest `|u|` at a data point.
+    pub residual: f64,
+    /// Whether the residual got below `eps`.
+    pub converged: bool,
+    /// Whether the frame started from the previous frame's level set.
+    pub warm_start: bool,
+    /// Time per stage.
+    pub ms: StageMs,
+    /// Why the solver stopped: `converged`, `stagnated` or `max_iterations`.
+    #[serde(default)]
+    pub stop: String,
+    /// `explicit` or `semi-implicit`.
+    #[serde(default)]
+    pub scheme: String,
+    /// Conjugate-gradient iterations (semi-implicit).
+    #[serde(default)]
+    pub linear_iterations: usize,
+    /// Renormalizations.
+    #[serde(default)]
+    pub renormalizations: usize,
+    /// Smallest element size used.
+    #[serde(default)]
+    pub hmin: f64,
+    /// Stopping tolerance used.
+    #[serde(default)]
+    pub eps: f64,
+}
+
+/// One line of a result stream: curves and stats, or an error, for one input frame.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct ResultRecord {
+    /// Stream id, as in the input.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub stream: Option<String>,
+    /// Frame number, as in the input.
+    pub frame: u64,
+    /// The curves.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub polylines: Option<Vec<PolylineJson>>,
+    /// How they were made.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub stats: Option<FrameStats>,
+    /// Why the frame has no curves.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub error: Option<String>,
+}

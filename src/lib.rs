@@ -15,8 +15,12 @@ pub mod fem;
 pub mod format;
 pub mod geom;
 pub mod ingest;
+pub mod levelset;
 pub mod mesh;
 pub mod meshing;
+pub mod reconstruct;
+pub mod redistance;
 pub mod synth;
 
 pub use error::{Error, Result};
+pub use reconstruct::{reconstruct, Params, Reconstruction};

@@ -71,6 +71,33 @@ enum Command {
         #[arg(long)]
         truth: PathBuf,
     },
+    /// Reconstruct curves from a point file or from each frame of an NDJSON stream.
+    Reconstruct {
+        /// Point file (`x y` per line) or NDJSON frame stream (.ndjson/.jsonl).
+        input: PathBuf,
+        /// TOML configuration ([mesh], [solver], [export] tables).
+        #[arg(short, long)]
+        config: Option<PathBuf>,
+        /// Output; the extension picks the format: .ndjson .json .geojson .csv .svg.
+        /// Default: NDJSON on stdout.
+        #[arg(short, long)]
+        output: Option<PathBuf>,
+        /// Per-frame statistics as JSON (an object, or an array for several frames).
+        #[arg(long)]
+        stats: Option<PathBuf>,
+        /// Only this frame of an NDJSON input.
+        #[arg(long)]
+        frame: Option<u64>,
+        /// Override the configured scheme: explicit or semi-implicit.
+        #[arg(long)]
+        scheme: Option<isoline::levelset::Scheme>,
+        /// Override the configured starting curve: box or circle.
+        #[arg(long)]
+        init: Option<isoline::levelset::Init>,
+        /// Draw the mesh in SVG output.
+        #[arg(long)]
+        mesh: bool,
+    },
     /// Adapt an anisotropic mesh to a point set and draw it.
     Mesh {
         /// Point file, or NDJSON frame stream (first frame unless --frame).
@@ -201,6 +228,36 @@ fn run(cli: Cli) -> Result<()> {
             println!("{out}");
             Ok(())
         }
+        Command::Reconstruct {
+            input,
+            config,
+            output,
+            stats,
+            frame,
+            scheme,
+            init,
+            mesh,
+        } => {
+            let cfg = match &config {
+                Some(p) => Config::load(p)?,
+                None => Config::default(),
+            };
+            let mut params = cfg.params();
+            if let Some(s) = scheme {
+                params.solver.scheme = s;
+            }
+            if let Some(i) = init {
+                params.solver.init = i;
+            }
+            reconstruct_cmd(
+                &input,
+                &params,
+                output.as_deref(),
+                stats.as_deref(),
+                frame,
+                mesh,
+            )
+        }
         Command::Mesh {
             input,
             config,
@@ -265,6 +322,150 @@ fn run(cli: Cli) -> Result<()> {
             Ok(())
         }
     }
+}
+
+/// `isoline reconstruct`: one record per frame, written in the output's format.
+fn reconstruct_cmd(
+    input: &Path,
+    params: &isoline::Params,
+    output: Option<&Path>,
+    stats: Option<&Path>,
+    frame: Option<u64>,
+    draw_mesh: bool,
+) -> Result<()> {
+    use isoline::export::writers::{self, Format};
+    use isoline::format::ResultRecord;
+
+    let format = match output {
+        None => Format::Ndjson,
+        Some(p) => Format::from_path(p).with_context(|| {
+            format!(
+                "{}: unknown output extension (use .ndjson, .json, .geojson, .csv or .svg)",
+                p.display()
+            )
+        })?,
+    };
+    let frames: Vec<FrameRecord> = if isoline::ingest::is_frame_stream(input) {
+        let all = isoline::ingest::read_frames(input)?;
+        let chosen: Vec<FrameRecord> = match frame {
+            Some(f) => all.into_iter().filter(|r| r.frame == f).collect(),
+            None => all,
+        };
+        if chosen.is_empty() {
+            bail!(
+                "{}: no frame {}",
+                input.display(),
+                frame.map_or("at all".into(), |f| f.to_string())
+            );
+        }
+        chosen
+    } else {
+        vec![FrameRecord {
+            stream: None,
+            frame: 0,
+            t: None,
+            points: isoline::ingest::read_points(input, None)?,
+            origin: None,
+        }]
+    };
+    if format == Format::Svg && frames.len() > 1 {
+        bail!(
+            "{} has {} frames and an SVG holds one: pick one with --frame",
+            input.display(),
+            frames.len()
+        );
+    }
+    let mut records = Vec::with_capacity(frames.len());
+    let mut last = None;
+    let mut failed = 0;
+    for f in &frames {
+        let span = tracing::info_span!(
+            "frame",
+            stream = f.stream.as_deref().unwrap_or(""),
+            frame = f.frame
+        );
+        let _e = span.enter();
+        match isoline::reconstruct(&f.points, params) {
+            Ok(r) => {
+                records.push(ResultRecord {
+                    stream: f.stream.clone(),
+                    frame: f.frame,
+                    polylines: Some(r.polylines.iter().map(PolylineJson::from).collect()),
+                    stats: Some(r.stats.clone()),
+                    error: None,
+                });
+                last = Some(r);
+            }
+            Err(e) => {
+                failed += 1;
+                let what = if frames.len() > 1 || f.stream.is_some() {
+                    format!("{}, frame {}: {e}", input.display(), f.frame)
+                } else {
+                    format!("{}: {e}", input.display())
+                };
+                if frames.len() == 1 {
+                    bail!(what);
+                }
+                eprintln!("isoline: {what}");
+                records.push(ResultRecord {
+                    stream: f.stream.clone(),
+                    frame: f.frame,
+                    error: Some(e.to_string()),
+                    ..Default::default()
+                });
+            }
+        }
+    }
+    let text = match format {
+        Format::Ndjson => {
+            let mut buf = Vec::new();
+            for r in &records {
+                writers::write_ndjson(&mut buf, r)?;
+            }
+            String::from_utf8(buf).expect("JSON is UTF-8")
+        }
+        Format::Json => writers::to_json(&records),
+        Format::GeoJson => writers::to_geojson(&records),
+        Format::Csv => writers::to_csv(&records),
+        Format::Svg => {
+            let r = last.as_ref().expect("one frame, reconstructed");
+            let pts = &frames[0].points;
+            svg::render(
+                &svg::Drawing {
+                    mesh: draw_mesh.then_some(&r.mesh),
+                    points: pts,
+                    polylines: &r.polylines,
+                    view: isoline::geom::BBox::of(pts).map(|b| b.padded(0.05 * b.diag())),
+                },
+                1200.0,
+            )
+        }
+    };
+    match output {
+        Some(p) => std::fs::write(p, text).with_context(|| format!("writing {}", p.display()))?,
+        None => {
+            let mut out = std::io::stdout().lock();
+            out.write_all(text.as_bytes())?;
+            out.flush()?;
+        }
+    }
+    if let Some(path) = stats {
+        let all: Vec<_> = records.iter().map(|r| &r.stats).collect();
+        let v = if all.len() == 1 {
+            serde_json::to_value(all[0])?
+        } else {
+            serde_json::to_value(&all)?
+        };
+        std::fs::write(path, format!("{v:#}\n"))
+            .with_context(|| format!("writing {}", path.display()))?;
+    }
+    if failed > 0 {
+        bail!(
+            "{failed} of {} frames failed (error records written)",
+            frames.len()
+        );
+    }
+    Ok(())
 }
 
 fn finite(x: f64) -> serde_json::Value {

@@ -192,6 +192,25 @@ pub struct AdaptedMesh {
 /// m.mesh.sanity_check().unwrap();
 /// ```
 pub fn adapt_to_points(points: &[Point], params: &MeshParams) -> Result<AdaptedMesh> {
+    crate::distance::validate_points(points)?;
+    let bbox = BBox::of(points).ok_or(Error::EmptyPointSet)?;
+    let center = bbox.center();
+    let local: Vec<Point> = points.iter().map(|&p| sub(p, center)).collect();
+    let (mut m, _) = adapt_local(&local, params)?;
+    for p in &mut m.mesh.coords {
+        *p = crate::geom::add(*p, center);
+    }
+    m.domain = BBox {
+        min: crate::geom::add(m.domain.min, center),
+        max: crate::geom::add(m.domain.max, center),
+    };
+    Ok(m)
+}
+
+/// [`adapt_to_points`] without the change of origin: `points` should already be centred
+/// near the origin. Also returns the distance field of the points, which the solver
+/// needs at the mesh vertices.
+pub fn adapt_local(points: &[Point], params: &MeshParams) -> Result<(AdaptedMesh, DistanceField)> {
     let t0 = Instant::now();
     crate::distance::validate_points(points)?;
     params.validate().map_err(|problems| Error::Config {
@@ -199,15 +218,14 @@ pub fn adapt_to_points(points: &[Point], params: &MeshParams) -> Result<AdaptedM
         problems,
     })?;
     let bbox = BBox::of(points).ok_or(Error::EmptyPointSet)?;
-    let center = bbox.center();
-    let local: Vec<Point> = points.iter().map(|&p| sub(p, center)).collect();
+    let local = points;
     let diag = bbox.diag();
     let scale = if diag > 0.0 { diag } else { 1.0 };
     let hmin = params.hmin.unwrap_or(scale / 1000.0);
     let hmax = params.hmax.unwrap_or(scale / 10.0).max(hmin);
     let eps = params.eps.unwrap_or(hmin);
 
-    let field = DistanceField::new(&local)?;
+    let field = DistanceField::new(local)?;
     let t_dist = t0.elapsed();
     let mut metric_params = MetricParams {
         hmin,
@@ -226,9 +244,7 @@ pub fn adapt_to_points(points: &[Point], params: &MeshParams) -> Result<AdaptedM
     }
     let t_metric = t0.elapsed();
 
-    let local_box = BBox::of(&local)
-        .expect("non-empty")
-        .padded(params.padding * scale + 2.0 * hmin);
+    let local_box = bbox.padded(params.padding * scale + 2.0 * hmin);
     let mut mesh = Mesh::of_box(&local_box, hmax);
     let opts = AdaptOptions::default()
         .with_max_passes(params.max_passes)
@@ -237,28 +253,25 @@ pub fn adapt_to_points(points: &[Point], params: &MeshParams) -> Result<AdaptedM
     let report = adapter.adapt(&mut mesh, &metric, &opts);
     let metrics = adapter.metrics().to_vec();
     let stats = mesh_stats(&mesh, &metrics);
+    drop(metric);
     let t_adapt = t0.elapsed();
-    for p in &mut mesh.coords {
-        *p = crate::geom::add(*p, center);
-    }
-    let domain = BBox {
-        min: crate::geom::add(local_box.min, center),
-        max: crate::geom::add(local_box.max, center),
-    };
     let ms = |d: std::time::Duration| d.as_secs_f64() * 1e3;
-    Ok(AdaptedMesh {
-        mesh,
-        metrics,
-        params: metric_params,
-        domain,
-        noise_estimate: noise,
-        report,
-        stats,
-        ms: MeshTimings {
-            distance: ms(t_dist),
-            metric: ms(t_metric - t_dist),
-            adapt: ms(t_adapt - t_metric),
-            total: ms(t0.elapsed()),
+    Ok((
+        AdaptedMesh {
+            mesh,
+            metrics,
+            params: metric_params,
+            domain: local_box,
+            noise_estimate: noise,
+            report,
+            stats,
+            ms: MeshTimings {
+                distance: ms(t_dist),
+                metric: ms(t_metric - t_dist),
+                adapt: ms(t_adapt - t_metric),
+                total: ms(t0.elapsed()),
+            },
         },
-    })
+        field,
+    ))
 }

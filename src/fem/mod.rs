@@ -5,6 +5,8 @@
 //! vertex balls and rings as CSR arrays), so recovering derivatives of a new field is a
 //! pair of allocation-free parallel loops: over triangles, then over vertices.
 
+pub mod locate;
+
 use nalgebra::{Matrix3, Vector3};
 use rayon::prelude::*;
 

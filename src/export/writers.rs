@@ -1,0 +1,159 @@
+//! Result writers. The format follows the output file's extension: `.ndjson` (one
+//! result record per line, the contract of DESIGN.md), `.json` (the same records as an
+//! array, pretty-printed), `.geojson` (a FeatureCollection of LineStrings), `.csv`
+//! (`frame,polyline,closed,vertex,x,y`) and `.svg` (see [`super::svg`]).
+
+use std::fmt::Write as _;
+use std::io::Write;
+use std::path::Path;
+
+use serde_json::json;
+
+use crate::format::ResultRecord;
+
+/// A result file format.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Format {
+    /// One JSON record per line.
+    Ndjson,
+    /// A JSON array of records (a single record for one frame).
+    Json,
+    /// GeoJSON FeatureCollection.
+    GeoJson,
+    /// Comma-separated vertices.
+    Csv,
+    /// SVG drawing.
+    Svg,
+}
+
+impl Format {
+    /// The format named by `path`'s extension.
+    pub fn from_path(path: &Path) -> Option<Format> {
+        let ext = path.extension()?.to_str()?.to_ascii_lowercase();
+        Some(match ext.as_str() {
+            "ndjson" | "jsonl" => Format::Ndjson,
+            "json" => Format::Json,
+            "geojson" => Format::GeoJson,
+            "csv" => Format::Csv,
+            "svg" => Format::Svg,
+            _ => return None,
+        })
+    }
+
+    /// The usual extension.
+    pub fn extension(&self) -> &'static str {
+        match self {
+            Format::Ndjson => "ndjson",
+            Format::Json => "json",
+            Format::GeoJson => "geojson",
+            Format::Csv => "csv",
+            Format::Svg => "svg",
+        }
+    }
+}
+
+/// Writes one record as an NDJSON line.
+pub fn write_ndjson(out: &mut impl Write, rec: &ResultRecord) -> std::io::Result<()> {
+    serde_json::to_writer(&mut *out, rec)?;
+    out.write_all(b"\n")
+}
+
+/// The records as pretty JSON: one object for one record, else an array.
+pub fn to_json(recs: &[ResultRecord]) -> String {
+    let v = if recs.len() == 1 {
+        serde_json::to_value(&recs[0])
+    } else {
+        serde_json::to_value(recs)
+    }
+    .expect("records serialise");
+    serde_json::to_string_pretty(&v).expect("values serialise") + "\n"
+}
+
+/// The curves of `recs` as a GeoJSON FeatureCollection: one LineString per polyline
+/// (closed ones repeat their first point, as GeoJSON rings do), with `stream`, `frame`,
+/// `closed` and, for closed ones, the signed `area` (positive counter-clockwise) as
+/// properties. Error records become features without geometry that carry the error.
+pub fn to_geojson(recs: &[ResultRecord]) -> String {
+    let mut features = Vec::new();
+    for r in recs {
+        if let Some(e) = &r.error {
+            features.push(json!({
+                "type": "Feature", "geometry": null,
+                "properties": {"stream": r.stream, "frame": r.frame, "error": e}
+            }));
+        }
+        for pl in r.polylines.iter().flatten() {
+            let mut coords = pl.points.clone();
+            if pl.closed && !coords.is_empty() {
+                coords.push(coords[0]);
+            }
+            let poly = crate::geom::Polyline::from(pl.clone());
+            features.push(json!({
+                "type": "Feature",
+                "geometry": {"type": "LineString", "coordinates": coords},
+                "properties": {
+                    "stream": r.stream, "frame": r.frame, "closed": pl.closed,
+                    "area": if pl.closed { Some(poly.signed_area()) } else { None },
+                }
+            }));
+        }
+    }
+    serde_json::to_string(&json!({"type": "FeatureCollection", "features": features}))
+        .expect("values serialise")
+        + "\n"
+}
+
+/// The curves as CSV rows `stream,frame,polyline,closed,vertex,x,y`.
+pub fn to_csv(recs: &[ResultRecord]) -> String {
+    let mut s = String::from("stream,frame,polyline,closed,vertex,x,y\n");
+    for r in recs {
+        let stream = r.stream.as_deref().unwrap_or("");
+        for (k, pl) in r.polylines.iter().flatten().enumerate() {
+            for (i, p) in pl.points.iter().enumerate() {
+                let _ = writeln!(
+                    s,
+                    "{stream},{},{k},{},{i},{},{}",
+                    r.frame, pl.closed, p[0], p[1]
+                );
+            }
+        }
+    }
+    s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::format::PolylineJson;
+
+    fn rec() -> ResultRecord {
+        ResultRecord {
+            stream: Some("s".into()),
+            frame: 3,
+            polylines: Some(vec![PolylineJson {
+                closed: true,
+                points: vec![[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]],
+            }]),
+            ..Default::default()
+        }
+    }
+
+    #[test]
+    fn formats_round_trip_or_parse() {
+        let mut nd = Vec::new();
+        write_ndjson(&mut nd, &rec()).unwrap();
+        let back: ResultRecord = serde_json::from_slice(&nd).unwrap();
+        assert_eq!(back, rec());
+        let g: serde_json::Value = serde_json::from_str(&to_geojson(&[rec()])).unwrap();
+        let f = &g["features"][0];
+        assert_eq!(f["geometry"]["coordinates"].as_array().unwrap().len(), 4);
+        assert_eq!(f["properties"]["area"], 0.5);
+        let csv = to_csv(&[rec()]);
+        assert_eq!(csv.lines().count(), 4);
+        assert!(csv.contains("s,3,0,true,1,1,0"));
+        assert_eq!(
+            Format::from_path(Path::new("a/b.GeoJSON")),
+            Some(Format::GeoJson)
+        );
+    }
+}

@@ -1,0 +1,333 @@
+//! Initial level sets: signed distance functions (negative inside) to a starting curve
+//! that encloses the data, evaluated at the mesh vertices.
+
+use rayon::prelude::*;
+
+use crate::distance::DistanceField;
+use crate::eval::SegmentIndex;
+use crate::geom::{dist, BBox, Point, Polyline};
+use crate::mesh::{Mesh, VertexTag};
+
+/// Where the evolution starts.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum Init {
+    /// The paper's start (section 4.1): a circle centred on the data's bounding box that
+    /// encloses every point with a margin.
+    Circle,
+    /// A rounded rectangle around the data's bounding box with the same margin. It hugs
+    /// elongated data much more closely than a circle, so the curve has less far to go.
+    Box,
+    /// The outer boundary of the tube `{d < delta}` around the data (DESIGN.md section
+    /// 2): the regions outside the tube are labelled inside or outside by how many tube
+    /// crossings separate them from the domain boundary, so holes and separate components
+    /// start out right, and the curve starts `delta` from the data everywhere, concavities
+    /// included.
+    #[default]
+    Tube,
+}
+
+impl std::str::FromStr for Init {
+    type Err = String;
+    fn from_str(s: &str) -> std::result::Result<Self, String> {
+        match s {
+            "circle" => Ok(Init::Circle),
+            "box" => Ok(Init::Box),
+            "tube" => Ok(Init::Tube),
+            _ => Err(format!(
+                "unknown init {s:?}: expected \"tube\", \"box\" or \"circle\""
+            )),
+        }
+    }
+}
+
+/// The signed distance at each of `coords` to the starting curve `init` around
+/// `points`, which stays `margin` away from every point.
+pub fn enclosing(init: Init, points: &[Point], margin: f64, coords: &[Point]) -> Vec<f64> {
+    let Some(bbox) = BBox::of(points) else {
+        return vec![f64::INFINITY; coords.len()];
+    };
+    match init {
+        Init::Circle => {
+            let c = bbox.center();
+            let r = points.iter().map(|&p| dist(p, c)).fold(0.0, f64::max) + margin;
+            circle(c, r, coords)
+        }
+        Init::Tube => unreachable!("the tube start needs the mesh: use `tube`"),
+        Init::Box => {
+            let size = bbox.size();
+            let half = [0.5 * size[0] + margin, 0.5 * size[1] + margin];
+            // Corners rounded with radius `margin`: every point of the data's box is then
+            // at least `margin` inside.
+            rounded_box(bbox.center(), half, margin, coords)
+        }
+    }
+}
+
+/// A default tube radius: twice the 95th percentile of the data's nearest-neighbour
+/// spacing, and at least `floor`. Gaps between consecutive samples up to twice that
+/// close; where the tube still leaks, [`tube`] says so.
+pub fn tube_radius(field: &DistanceField, floor: f64) -> f64 {
+    let pts = field.points();
+    let mut nn: Vec<f64> = pts
+        .par_iter()
+        .map_init(Vec::new, |buf, &p| {
+            field.nearest_k(p, 2, buf);
+            buf.get(1).map_or(0.0, |&j| dist(p, pts[j as usize]))
+        })
+        .collect();
+    if nn.is_empty() {
+        return floor;
+    }
+    let k = (nn.len() * 95 / 100).min(nn.len() - 1);
+    let (_, p95, _) = nn.select_nth_unstable_by(k, f64::total_cmp);
+    (2.0 * *p95).max(floor)
+}
+
+/// The tube start: `dist` is the distance to the data at each vertex of `mesh`,
+/// `neighbours(v)` its ring. Returns a level set whose zero isoline is the boundary
+/// between the regions labelled outside and the rest; it is a signed distance only up
+/// to the tube, so renormalize it before use. `None` when no region comes out inside
+/// (the tube leaks, or the data encloses nothing): use an enclosing start then.
+pub fn tube<'a>(
+    mesh: &Mesh,
+    neighbours: impl Fn(usize) -> &'a [u32],
+    dist: &[f64],
+    delta: f64,
+) -> Option<Vec<f64>> {
+    let n = dist.len();
+    const NONE: u32 = u32::MAX;
+    // Label connected regions of free (d >= delta) and tube vertices separately.
+    let label = |free_at: &dyn Fn(usize) -> bool| -> (Vec<u32>, Vec<bool>) {
+        let mut region = vec![NONE; n];
+        let mut kinds = Vec::new(); // true: free
+        let mut stack = Vec::new();
+        for seed in 0..n {
+            if region[seed] != NONE {
+                continue;
+            }
+            let free = free_at(seed);
+            let id = kinds.len() as u32;
+            kinds.push(free);
+            region[seed] = id;
+            stack.push(seed);
+            while let Some(v) = stack.pop() {
+                for &w in neighbours(v) {
+                    let w = w as usize;
+                    if region[w] == NONE && free_at(w) == free {
+                        region[w] = id;
+                        stack.push(w);
+                    }
+                }
+            }
+        }
+        (region, kinds)
+    };
+    // Free pockets between noisy samples, never farther than 2 delta from the data,
+    // are part of the tube, not regions of their own.
+    let (first, first_kinds) = label(&|v| dist[v] >= delta);
+    let mut reach = vec![0.0f64; first_kinds.len()];
+    for v in 0..n {
+        let r = first[v] as usize;
+        reach[r] = reach[r].max(dist[v]);
+    }
+    let free_at = |v: usize| {
+        let r = first[v] as usize;
+        first_kinds[r] && reach[r] >= 2.0 * delta
+    };
+    let (region, kinds) = label(&free_at);
+    // Breadth-first depth of each region from the free regions touching the boundary.
+    let nr = kinds.len();
+    let mut adj: Vec<Vec<u32>> = vec![Vec::new(); nr];
+    for v in 0..n {
+        for &w in neighbours(v) {
+            let (a, b) = (region[v], region[w as usize]);
+            if a != b {
+                adj[a as usize].push(b);
+            }
+        }
+    }
+    for a in &mut adj {
+        a.sort_unstable();
+        a.dedup();
+    }
+    let mut depth = vec![u32::MAX; nr];
+    let mut queue = std::collections::VecDeque::new();
+    for (&rv, &tag) in region.iter().zip(&mesh.tag) {
+        let r = rv as usize;
+        if tag != VertexTag::Interior && kinds[r] && depth[r] == u32::MAX {
+            depth[r] = 0;
+            queue.push_back(r);
+        }
+    }
+    while let Some(r) = queue.pop_front() {
+        for &q in &adj[r] {
+            let q = q as usize;
+            if depth[q] == u32::MAX {
+                depth[q] = depth[r] + 1;
+                queue.push_back(q);
+            }
+        }
+    }
+    // Free regions at depth 0, 4, 8, ... are outside; 2, 6, ... inside. Unreached
+    // regions (a domain with no free boundary) count as inside.
+    let any_inside = (0..nr).any(|r| kinds[r] && (depth[r] == u32::MAX || (depth[r] / 2) % 2 == 1));
+    if !any_inside {
+        return None;
+    }
+    let u = (0..n)
+        .map(|v| {
+            let r = region[v] as usize;
+            let outside = kinds[r] && depth[r] != u32::MAX && (depth[r] / 2) % 2 == 0;
+            if outside {
+                dist[v] - delta
+            } else if kinds[r] {
+                -dist[v]
+            } else {
+                (dist[v] - delta).min(-f64::EPSILON)
+            }
+        })
+        .collect();
+    Some(u)
+}
+
+/// Signed distance to the circle of centre `c` and radius `r`.
+pub fn circle(c: Point, r: f64, coords: &[Point]) -> Vec<f64> {
+    coords.par_iter().map(|&p| dist(p, c) - r).collect()
+}
+
+/// Signed distance to the rectangle of centre `c` and half-sizes `half`, its corners
+/// rounded with radius `round` (at most the smaller half-size).
+pub fn rounded_box(c: Point, half: Point, round: f64, coords: &[Point]) -> Vec<f64> {
+    let r = round.min(half[0]).min(half[1]).max(0.0);
+    let inner = [half[0] - r, half[1] - r];
+    coords
+        .par_iter()
+        .map(|&p| {
+            let q = [
+                (p[0] - c[0]).abs() - inner[0],
+                (p[1] - c[1]).abs() - inner[1],
+            ];
+            let outside = (q[0].max(0.0).powi(2) + q[1].max(0.0).powi(2)).sqrt();
+            outside + q[0].max(q[1]).min(0.0) - r
+        })
+        .collect()
+}
+
+/// Signed distance to a set of polylines: the distance to the nearest segment, negative
+/// inside by the even-odd rule over the closed polylines (open ones only attract).
+pub fn polylines(curves: &[Polyline], coords: &[Point]) -> Vec<f64> {
+    let index = SegmentIndex::new(curves);
+    let closed: Vec<&Polyline> = curves.iter().filter(|c| c.closed).collect();
+    coords
+        .par_iter()
+        .map(|&p| {
+            let d = index.distance(p);
+            let inside = closed
+                .iter()
+                .fold(false, |acc, c| acc ^ crossing_parity(c, p));
+            if inside {
+                -d
+            } else {
+                d
+            }
+        })
+        .collect()
+}
+
+/// Whether a ray from `p` towards +x crosses the closed polyline an odd number of times.
+fn crossing_parity(c: &Polyline, p: Point) -> bool {
+    let mut odd = false;
+    for (a, b) in c.segments() {
+        if (a[1] > p[1]) != (b[1] > p[1]) {
+            let x = a[0] + (p[1] - a[1]) / (b[1] - a[1]) * (b[0] - a[0]);
+            if x > p[0] {
+                odd = !odd;
+            }
+        }
+    }
+    odd
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn starting_curves_are_signed_distances_enclosing_the_data() {
+        let pts = vec![[0.0, 0.0], [2.0, 0.0], [2.0, 1.0], [0.0, 1.0], [1.0, 0.5]];
+        let probes = vec![[1.0, 0.5], [3.0, 0.5], [1.0, -1.0], [-0.3, 0.5]];
+        for init in [Init::Circle, Init::Box] {
+            let at_data = enclosing(init, &pts, 0.1, &pts);
+            assert!(
+                at_data.iter().all(|&u| u <= -0.1 + 1e-12),
+                "{init:?} {at_data:?}"
+            );
+        }
+        let b = enclosing(Init::Box, &pts, 0.1, &probes);
+        assert!((b[0] + 0.6).abs() < 1e-12);
+        assert!((b[1] - 0.9).abs() < 1e-12);
+        assert!((b[2] - 0.9).abs() < 1e-12);
+        assert!((b[3] - 0.2).abs() < 1e-12);
+        let c = enclosing(Init::Circle, &pts, 0.1, &probes);
+        let r = 5f64.sqrt() / 2.0 + 0.1;
+        assert!((c[0] + r).abs() < 1e-12);
+    }
+
+    #[test]
+    fn tube_start_finds_holes_and_separate_components() {
+        // Points on two concentric circles (an annulus) and on a separate small circle.
+        let mut pts = Vec::new();
+        for i in 0..400 {
+            let a = i as f64 / 400.0 * std::f64::consts::TAU;
+            pts.push([0.4 * a.cos(), 0.4 * a.sin()]);
+            pts.push([0.2 * a.cos(), 0.2 * a.sin()]);
+            pts.push([0.75 + 0.1 * a.cos(), 0.1 * a.sin()]);
+        }
+        let field = DistanceField::new(&pts).unwrap();
+        let mesh = Mesh::structured(
+            &BBox {
+                min: [-0.6, -0.6],
+                max: [1.0, 0.6],
+            },
+            160,
+        );
+        let space = crate::fem::P1Space::new(&mesh);
+        let mut d = Vec::new();
+        field.distances_into(&mesh.coords, &mut d);
+        let delta = tube_radius(&field, 0.02);
+        assert!((0.02..0.03).contains(&delta), "{delta}");
+        // A tube too thin to close: nothing is inside.
+        assert!(tube(&mesh, |v| space.ring(v), &d, 1e-4).is_none());
+        let u = tube(&mesh, |v| space.ring(v), &d, delta).unwrap();
+        let at = |p: Point| {
+            let v = (0..mesh.coords.len())
+                .min_by(|&a, &b| dist(mesh.coords[a], p).total_cmp(&dist(mesh.coords[b], p)))
+                .unwrap();
+            u[v]
+        };
+        assert!(at([0.0, 0.0]) > 0.0, "the hole is outside");
+        assert!(at([0.3, 0.0]) < 0.0, "the ring is inside");
+        assert!(at([0.75, 0.0]) < 0.0, "the small disc is inside");
+        assert!(
+            at([0.5, 0.5]) > 0.0 && at([0.62, 0.0]) > 0.0,
+            "the gap is outside"
+        );
+    }
+
+    #[test]
+    fn polyline_distance_is_negative_inside_and_handles_holes() {
+        let square = |h: f64| Polyline {
+            closed: true,
+            points: vec![[-h, -h], [h, -h], [h, h], [-h, h]],
+        };
+        let curves = vec![square(2.0), square(1.0)];
+        let u = polylines(&curves, &[[0.0, 0.0], [1.5, 0.0], [3.0, 0.0], [0.0, 1.25]]);
+        assert!(
+            (u[0] - 1.0).abs() < 1e-12,
+            "inside the hole is outside: {u:?}"
+        );
+        assert!((u[1] + 0.5).abs() < 1e-12);
+        assert!((u[2] - 1.0).abs() < 1e-12);
+        assert!((u[3] + 0.25).abs() < 1e-12);
+    }
+}
