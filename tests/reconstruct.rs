@@ -1,0 +1,174 @@
+//! `isoline reconstruct` end to end, through the real binary.
+
+use std::path::Path;
+use std::process::Command;
+
+use serde_json::Value;
+
+fn isoline(args: &[&str]) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_isoline"))
+        .args(args)
+        .output()
+        .expect("run isoline")
+}
+
+fn ok(args: &[&str]) -> std::process::Output {
+    let out = isoline(args);
+    assert!(
+        out.status.success(),
+        "{args:?}: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    out
+}
+
+fn p(path: &Path) -> &str {
+    path.to_str().unwrap()
+}
+
+fn fixture(name: &str) -> String {
+    format!("{}/fixtures/{name}", env!("CARGO_MANIFEST_DIR"))
+}
+
+fn json_file(path: &Path) -> Value {
+    serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
+}
+
+/// Issue acceptance: the circle of radius 0.4 with 2,000 points, Hausdorff distance to
+/// the truth at most 3 sigma + 2 hmin at each noise level.
+#[test]
+fn circle_accuracy_is_within_three_sigma_plus_two_hmin() {
+    let dir = tempfile::tempdir().unwrap();
+    for (k, sigma) in [0.0, 0.002, 0.005].into_iter().enumerate() {
+        let frames = dir.path().join(format!("c{k}.ndjson"));
+        let truth = dir.path().join(format!("c{k}.truth.json"));
+        let recon = dir.path().join(format!("r{k}.ndjson"));
+        let stats = dir.path().join(format!("s{k}.json"));
+        let noise = sigma.to_string();
+        ok(&[
+            "synth", "circle", "--points", "2000", "--noise", &noise, "--seed", "11", "-o",
+            p(&frames), "--truth", p(&truth),
+        ]);
+        ok(&["reconstruct", p(&frames), "-o", p(&recon), "--stats", p(&stats)]);
+        let s = json_file(&stats);
+        let hmin = s["hmin"].as_f64().unwrap();
+        let out = ok(&["eval", p(&recon), "--truth", p(&truth)]);
+        let acc: Value = serde_json::from_slice(&out.stdout).unwrap();
+        let h = acc["hausdorff"].as_f64().unwrap();
+        let bound = 3.0 * sigma + 2.0 * hmin;
+        assert!(h <= bound, "sigma {sigma}: Hausdorff {h} > {bound}; stats {s}");
+        assert_eq!(acc["components_recon"], 1, "sigma {sigma}");
+        if sigma == 0.0 {
+            assert_eq!(s["converged"], true, "clean data meets eq. 11: {s}");
+        }
+    }
+}
+
+/// Two shapes whose topology the enclosing-circle start cannot find: two separate
+/// circles, and an annulus (its hole must come out as a clockwise loop).
+#[test]
+fn separate_components_and_holes_come_out_right() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("two.json");
+    ok(&["reconstruct", &fixture("two-circles-600-n001.ndjson"), "-o", p(&out)]);
+    let r = json_file(&out);
+    let pls = r["polylines"].as_array().unwrap();
+    assert_eq!(pls.len(), 2, "{r}");
+    let area = |pl: &Value| -> f64 {
+        let pts: Vec<[f64; 2]> = serde_json::from_value(pl["points"].clone()).unwrap();
+        let n = pts.len();
+        0.5 * (0..n)
+            .map(|i| {
+                let (a, b) = (pts[i], pts[(i + 1) % n]);
+                a[0] * b[1] - a[1] * b[0]
+            })
+            .sum::<f64>()
+    };
+    for pl in pls {
+        assert_eq!(pl["closed"], true);
+        // Radius 0.18: area 0.102.
+        assert!((area(pl) - 0.1018).abs() < 0.005, "{}", area(pl));
+    }
+    let out = dir.path().join("annulus.ndjson");
+    ok(&["reconstruct", &fixture("annulus-800-n001.ndjson"), "-o", p(&out)]);
+    let text = std::fs::read_to_string(&out).unwrap();
+    let r: Value = serde_json::from_str(text.lines().next().unwrap()).unwrap();
+    let pls = r["polylines"].as_array().unwrap();
+    assert_eq!(pls.len(), 2, "{r}");
+    let (outer, hole) = (area(&pls[0]), area(&pls[1]));
+    assert!(outer > 0.0 && hole < 0.0, "outer {outer}, hole {hole}");
+    let acc = ok(&[
+        "eval",
+        p(&out),
+        "--truth",
+        &fixture("annulus-800-n001.truth.json"),
+    ]);
+    let acc: Value = serde_json::from_slice(&acc.stdout).unwrap();
+    assert_eq!(acc["components_truth"], acc["components_recon"]);
+}
+
+#[test]
+fn every_output_format_is_written_and_parses() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = fixture("ellipse-500-n001.ndjson");
+    let geo = dir.path().join("e.geojson");
+    ok(&["reconstruct", &input, "-o", p(&geo)]);
+    let g = json_file(&geo);
+    assert_eq!(g["type"], "FeatureCollection");
+    let coords = g["features"][0]["geometry"]["coordinates"].as_array().unwrap();
+    assert_eq!(coords.first(), coords.last(), "closed rings repeat their first point");
+    let csv = dir.path().join("e.csv");
+    ok(&["reconstruct", &input, "-o", p(&csv)]);
+    let text = std::fs::read_to_string(&csv).unwrap();
+    assert!(text.starts_with("stream,frame,polyline,closed,vertex,x,y\n"));
+    assert!(text.lines().count() > 100);
+    let svg = dir.path().join("e.svg");
+    ok(&["reconstruct", &input, "-o", p(&svg), "--mesh"]);
+    let text = std::fs::read_to_string(&svg).unwrap();
+    assert!(text.starts_with("<svg") && text.trim_end().ends_with("</svg>"));
+    // Without -o: one NDJSON record on stdout.
+    let out = ok(&["reconstruct", &fixture("circle-500.xy")]);
+    let text = String::from_utf8(out.stdout).unwrap();
+    assert_eq!(text.lines().count(), 1);
+    let r: Value = serde_json::from_str(&text).unwrap();
+    assert_eq!(r["frame"], 0);
+    assert!(r["stats"]["vertices"].as_u64().unwrap() > 100);
+    let bad = isoline(&["reconstruct", &input, "-o", p(&dir.path().join("e.txt"))]);
+    assert!(!bad.status.success());
+    assert!(String::from_utf8_lossy(&bad.stderr).contains("unknown output extension"));
+}
+
+#[test]
+fn bad_frames_get_error_records_and_a_failing_exit_code() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("mixed.ndjson");
+    let good = std::fs::read_to_string(fixture("ellipse-500-n001.ndjson")).unwrap();
+    let good = good.lines().next().unwrap().replace("\"frame\":0", "\"frame\":1");
+    std::fs::write(
+        &input,
+        format!("{good}\n{{\"frame\":2,\"points\":[[0.5,0.5]]}}\n{{\"frame\":3,\"points\":[]}}\n"),
+    )
+    .unwrap();
+    let out_path = dir.path().join("out.ndjson");
+    let out = isoline(&["reconstruct", p(&input), "-o", p(&out_path)]);
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("2 of 3 frames failed"), "{err}");
+    assert!(err.contains("frame 2") && err.contains("frame 3"), "{err}");
+    let recs: Vec<Value> = std::fs::read_to_string(&out_path)
+        .unwrap()
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    assert_eq!(recs.len(), 3);
+    assert!(recs[0]["polylines"].is_array());
+    assert!(recs[1]["error"].as_str().unwrap().contains("coincide"));
+    assert!(recs[2]["error"].as_str().unwrap().contains("empty"));
+    // A single bad point file fails with its name and line.
+    let xy = dir.path().join("bad.xy");
+    std::fs::write(&xy, "0 0\n1 oops\n").unwrap();
+    let out = isoline(&["reconstruct", p(&xy)]);
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("bad.xy") && err.contains("line 2"), "{err}");
+}
