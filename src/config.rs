@@ -54,6 +54,8 @@ pub struct SolverConfig {
     pub tube: Option<f64>,
     /// Gap between the data and the starting curve, in units of `D`. Default 0.05.
     pub margin: Option<f64>,
+    /// Narrow band half-width in units of `D`; 0 moves every vertex. Default 0.1.
+    pub band: Option<f64>,
 }
 
 /// `[export]`.
@@ -91,6 +93,7 @@ impl SolverConfig {
         p.patience = self.patience;
         p.margin = self.margin.unwrap_or(p.margin);
         p.tube = self.tube;
+        p.band = self.band.unwrap_or(p.band);
         if let Err(more) = p.validate() {
             problems.extend(more);
         }
@@ -248,6 +251,12 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.contains("alhpa"), "{e}");
+        for shipped in ["example.toml", "paper-4.1.toml", "circle-hmin1e-3.toml"] {
+            let path = Path::new(env!("CARGO_MANIFEST_DIR"))
+                .join("config")
+                .join(shipped);
+            Config::load(&path).unwrap().params();
+        }
         let ok = Config::parse("[mesh]\nhmin = 1e-3\neps = 1e-3\n", "d.toml").unwrap();
         assert_eq!(ok.mesh_params().hmin, Some(1e-3));
     }

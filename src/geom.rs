@@ -34,10 +34,11 @@ pub fn cross(a: Point, b: Point) -> f64 {
     a[0] * b[1] - a[1] * b[0]
 }
 
-/// Euclidean norm.
+/// Euclidean norm. Not `hypot`: input coordinates are validated below 1e150, so the
+/// squares cannot overflow, and `sqrt` is several times faster in the hot loops.
 #[inline]
 pub fn norm(a: Point) -> f64 {
-    a[0].hypot(a[1])
+    dot(a, a).sqrt()
 }
 
 /// Squared distance.

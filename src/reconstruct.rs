@@ -46,7 +46,7 @@ pub struct SolverParams {
     /// many steps. Default 1,000 (explicit) or 10 (semi-implicit).
     pub patience: Option<usize>,
     /// Narrow band half-width in units of `D`: only vertices with `|u|` below it move.
-    /// Default 0.1; 0 or less disables the band.
+    /// Default 0.1; 0 disables the band.
     pub band: f64,
     /// The starting curve. Default [`Init::Tube`].
     pub init: Init,
@@ -127,6 +127,12 @@ impl SolverParams {
             problems.push(format!(
                 "solver.margin = {}: must be in (0, 0.15] (the mesh is padded by 0.2 D)",
                 self.margin
+            ));
+        }
+        if !(self.band.is_finite() && self.band >= 0.0) {
+            problems.push(format!(
+                "solver.band = {}: must be a finite number >= 0",
+                self.band
             ));
         }
         if self.max_iterations == Some(0) {

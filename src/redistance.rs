@@ -17,7 +17,7 @@ use std::cmp::Reverse;
 use std::collections::BinaryHeap;
 
 use crate::fem::P1Space;
-use crate::geom::{dist, dot, norm, orient, point_segment_dist2, sub, Point};
+use crate::geom::{cross, dist, dot, norm, point_segment_dist2, sub, Point};
 use crate::mesh::{local_index, Mesh, INVALID};
 
 const FAR: u8 = 0;
@@ -221,8 +221,10 @@ impl Redistancer {
                 .expect("neighbour has a third vertex") as usize;
             let pc = mesh.coords[c];
             // Inside the cone of the angle (a, x, b), counter-clockwise from a to b.
-            let left_of_a = orient(px, pa, pc) > 0.0;
-            let right_of_b = orient(px, pb, pc) < 0.0;
+            // Plain floating point: a misjudged near-collinear vertex only picks the
+            // other of two equally good updates.
+            let left_of_a = cross(sub(pa, px), sub(pc, px)) > 0.0;
+            let right_of_b = cross(sub(pb, px), sub(pc, px)) < 0.0;
             if left_of_a && right_of_b {
                 if self.state[c] != ACCEPTED {
                     return plain;
