@@ -46,17 +46,37 @@ fn circle_accuracy_is_within_three_sigma_plus_two_hmin() {
         let stats = dir.path().join(format!("s{k}.json"));
         let noise = sigma.to_string();
         ok(&[
-            "synth", "circle", "--points", "2000", "--noise", &noise, "--seed", "11", "-o",
-            p(&frames), "--truth", p(&truth),
+            "synth",
+            "circle",
+            "--points",
+            "2000",
+            "--noise",
+            &noise,
+            "--seed",
+            "11",
+            "-o",
+            p(&frames),
+            "--truth",
+            p(&truth),
         ]);
-        ok(&["reconstruct", p(&frames), "-o", p(&recon), "--stats", p(&stats)]);
+        ok(&[
+            "reconstruct",
+            p(&frames),
+            "-o",
+            p(&recon),
+            "--stats",
+            p(&stats),
+        ]);
         let s = json_file(&stats);
         let hmin = s["hmin"].as_f64().unwrap();
         let out = ok(&["eval", p(&recon), "--truth", p(&truth)]);
         let acc: Value = serde_json::from_slice(&out.stdout).unwrap();
         let h = acc["hausdorff"].as_f64().unwrap();
         let bound = 3.0 * sigma + 2.0 * hmin;
-        assert!(h <= bound, "sigma {sigma}: Hausdorff {h} > {bound}; stats {s}");
+        assert!(
+            h <= bound,
+            "sigma {sigma}: Hausdorff {h} > {bound}; stats {s}"
+        );
         assert_eq!(acc["components_recon"], 1, "sigma {sigma}");
         if sigma == 0.0 {
             assert_eq!(s["converged"], true, "clean data meets eq. 11: {s}");
@@ -70,7 +90,12 @@ fn circle_accuracy_is_within_three_sigma_plus_two_hmin() {
 fn separate_components_and_holes_come_out_right() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("two.json");
-    ok(&["reconstruct", &fixture("two-circles-600-n001.ndjson"), "-o", p(&out)]);
+    ok(&[
+        "reconstruct",
+        &fixture("two-circles-600-n001.ndjson"),
+        "-o",
+        p(&out),
+    ]);
     let r = json_file(&out);
     let pls = r["polylines"].as_array().unwrap();
     assert_eq!(pls.len(), 2, "{r}");
@@ -90,7 +115,12 @@ fn separate_components_and_holes_come_out_right() {
         assert!((area(pl) - 0.1018).abs() < 0.005, "{}", area(pl));
     }
     let out = dir.path().join("annulus.ndjson");
-    ok(&["reconstruct", &fixture("annulus-800-n001.ndjson"), "-o", p(&out)]);
+    ok(&[
+        "reconstruct",
+        &fixture("annulus-800-n001.ndjson"),
+        "-o",
+        p(&out),
+    ]);
     let text = std::fs::read_to_string(&out).unwrap();
     let r: Value = serde_json::from_str(text.lines().next().unwrap()).unwrap();
     let pls = r["polylines"].as_array().unwrap();
@@ -115,8 +145,14 @@ fn every_output_format_is_written_and_parses() {
     ok(&["reconstruct", &input, "-o", p(&geo)]);
     let g = json_file(&geo);
     assert_eq!(g["type"], "FeatureCollection");
-    let coords = g["features"][0]["geometry"]["coordinates"].as_array().unwrap();
-    assert_eq!(coords.first(), coords.last(), "closed rings repeat their first point");
+    let coords = g["features"][0]["geometry"]["coordinates"]
+        .as_array()
+        .unwrap();
+    assert_eq!(
+        coords.first(),
+        coords.last(),
+        "closed rings repeat their first point"
+    );
     let csv = dir.path().join("e.csv");
     ok(&["reconstruct", &input, "-o", p(&csv)]);
     let text = std::fs::read_to_string(&csv).unwrap();
@@ -143,7 +179,11 @@ fn bad_frames_get_error_records_and_a_failing_exit_code() {
     let dir = tempfile::tempdir().unwrap();
     let input = dir.path().join("mixed.ndjson");
     let good = std::fs::read_to_string(fixture("ellipse-500-n001.ndjson")).unwrap();
-    let good = good.lines().next().unwrap().replace("\"frame\":0", "\"frame\":1");
+    let good = good
+        .lines()
+        .next()
+        .unwrap()
+        .replace("\"frame\":0", "\"frame\":1");
     std::fs::write(
         &input,
         format!("{good}\n{{\"frame\":2,\"points\":[[0.5,0.5]]}}\n{{\"frame\":3,\"points\":[]}}\n"),
