@@ -64,6 +64,8 @@ pub struct SolverConfig {
 pub struct ExportConfig {
     /// Douglas-Peucker tolerance in data units; 0 (default) keeps every vertex.
     pub simplify: Option<f64>,
+    /// Closed loops enclosing less area are dropped (default pi (2 hmin)^2; 0 keeps all).
+    pub min_area: Option<f64>,
 }
 
 impl SolverConfig {
@@ -114,7 +116,17 @@ impl ExportConfig {
                 "export.simplify = {simplify}: must be a finite number >= 0"
             )]);
         }
-        Ok(ExportParams { simplify })
+        if let Some(a) = self.min_area {
+            if !(a.is_finite() && a >= 0.0) {
+                return Err(vec![format!(
+                    "export.min_area = {a}: must be a finite number >= 0"
+                )]);
+            }
+        }
+        Ok(ExportParams {
+            simplify,
+            min_area: self.min_area,
+        })
     }
 }
 

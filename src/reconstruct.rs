@@ -187,6 +187,8 @@ impl SolverParams {
 pub struct ExportParams {
     /// Douglas-Peucker tolerance in data units; 0 keeps every isoline vertex. Default 0.
     pub simplify: f64,
+    /// Closed loops enclosing less area are dropped. Default `pi (2 hmin)^2`; 0 keeps all.
+    pub min_area: Option<f64>,
 }
 
 /// Everything `reconstruct` needs.
@@ -287,13 +289,15 @@ pub fn reconstruct(points: &[Point], params: &Params) -> Result<Reconstruction> 
     let data = locate_all(&mesh, &local);
     let t_dist = t0.elapsed();
 
-    let settings = params.solver.resolve(diag, hmin);
+    let mut settings = params.solver.resolve(diag, hmin);
     let mut u = match params.solver.init {
         Init::Tube => {
             let delta = params
                 .solver
                 .tube
                 .unwrap_or_else(|| init::tube_radius(&field, 2.0 * hmin));
+            // The pinned vertices must lie inside the starting curve, or nothing moves.
+            settings.tube = settings.tube.min(0.5 * delta);
             match init::tube(&mesh, |v| space.ring(v), &dist, delta) {
                 Some(mut u) => {
                     crate::redistance::Redistancer::new().run(&mesh, &space, &mut u, f64::INFINITY);
@@ -312,6 +316,13 @@ pub fn reconstruct(points: &[Point], params: &Params) -> Result<Reconstruction> 
 
     let _export = tracing::debug_span!("export").entered();
     let mut polylines = zero_isoline(&mesh, &u, 1e-9 * diag);
+    // Loops smaller than a disc of radius 2 hmin are below what the mesh resolves: specks
+    // left where the level set grazes zero between samples.
+    let min_area = params
+        .export
+        .min_area
+        .unwrap_or(std::f64::consts::PI * 4.0 * hmin * hmin);
+    polylines.retain(|p| !p.closed || p.signed_area().abs() >= min_area);
     if params.export.simplify > 0.0 {
         polylines = polylines
             .iter()
