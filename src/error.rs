@@ -61,3 +61,13 @@ impl Error {
         }
     }
 }
+
+/// Adds a problem to `problems` if `value` is set and is not a positive finite number;
+/// `key` is its path in the configuration (`mesh.hmin`).
+pub(crate) fn check_positive(problems: &mut Vec<String>, key: &str, value: Option<f64>) {
+    if let Some(v) = value {
+        if !(v.is_finite() && v > 0.0) {
+            problems.push(format!("{key} = {v}: must be a positive finite number"));
+        }
+    }
+}

@@ -92,20 +92,11 @@ impl MeshParams {
     /// Checks the values that are set; every problem is listed.
     pub fn validate(&self) -> std::result::Result<(), Vec<String>> {
         let mut problems = Vec::new();
-        let mut positive = |name: &str, v: Option<f64>| {
-            if let Some(v) = v {
-                if !(v.is_finite() && v > 0.0) {
-                    problems.push(format!(
-                        "mesh.{name} = {v}: must be a positive finite number"
-                    ));
-                }
-            }
-        };
-        positive("hmin", self.hmin);
-        positive("hmax", self.hmax);
-        positive("eps", self.eps);
-        positive("band", self.band);
-        positive("gradation", Some(self.gradation));
+        crate::error::check_positive(&mut problems, "mesh.hmin", self.hmin);
+        crate::error::check_positive(&mut problems, "mesh.hmax", self.hmax);
+        crate::error::check_positive(&mut problems, "mesh.eps", self.eps);
+        crate::error::check_positive(&mut problems, "mesh.band", self.band);
+        crate::error::check_positive(&mut problems, "mesh.gradation", Some(self.gradation));
         if let (Some(a), Some(b)) = (self.hmin, self.hmax) {
             if a > b {
                 problems.push(format!("mesh.hmax = {b}: must be at least mesh.hmin = {a}"));

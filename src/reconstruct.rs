@@ -107,19 +107,10 @@ impl SolverParams {
     /// Checks the values that are set; every problem is listed.
     pub fn validate(&self) -> std::result::Result<(), Vec<String>> {
         let mut problems = Vec::new();
-        let mut positive = |name: &str, v: Option<f64>| {
-            if let Some(v) = v {
-                if !(v.is_finite() && v > 0.0) {
-                    problems.push(format!(
-                        "solver.{name} = {v}: must be a positive finite number"
-                    ));
-                }
-            }
-        };
-        positive("alpha", self.alpha);
-        positive("dt_factor", self.dt_factor);
-        positive("eps", self.eps);
-        positive("tube", self.tube);
+        crate::error::check_positive(&mut problems, "solver.alpha", self.alpha);
+        crate::error::check_positive(&mut problems, "solver.dt_factor", self.dt_factor);
+        crate::error::check_positive(&mut problems, "solver.eps", self.eps);
+        crate::error::check_positive(&mut problems, "solver.tube", self.tube);
         if !(self.cfl > 0.0 && self.cfl <= 1.0) {
             problems.push(format!("solver.cfl = {}: must be in (0, 1]", self.cfl));
         }

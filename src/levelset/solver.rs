@@ -547,9 +547,6 @@ impl Solver {
         global
     }
 
-    /// One semi-implicit step by preconditioned conjugate gradients from `u^n`; returns
-    /// the iterations taken. Row `i` is divided by `dt d_i / m_i`:
-    /// `(m_i / (dt d_i)) u_i^{n+1} + (K u^{n+1})_i = (m_i / (dt d_i)) u_i^n + alpha m_i`.
     /// Freezes the vertices closer than `tube` to the data (and frees the others).
     fn pin(&mut self, tube: f64) {
         let d = &self.op.d;
@@ -561,6 +558,9 @@ impl Solver {
             .for_each(|(i, f)| *f = d[i] < tube);
     }
 
+    /// One semi-implicit step by preconditioned conjugate gradients from `u^n`; returns
+    /// the iterations taken. Row `i` is divided by `dt d_i / m_i`:
+    /// `(m_i / (dt d_i)) u_i^{n+1} + (K u^{n+1})_i = (m_i / (dt d_i)) u_i^n + alpha m_i`.
     fn semi_implicit_step(
         &mut self,
         mesh: &Mesh,
