@@ -56,6 +56,12 @@ pub struct SolverConfig {
     pub margin: Option<f64>,
     /// Narrow band half-width in units of `D`; 0 moves every vertex. Default 0.1.
     pub band: Option<f64>,
+    /// Semi-implicit linear solver: `"cg"` (default) or `"gmres"` (the paper's).
+    pub linear_solver: Option<String>,
+    /// Its residual reduction per step, in (0, 1). Default 1e-2.
+    pub linear_tolerance: Option<f64>,
+    /// Its iterations per step, 1..=1000. Default 10.
+    pub linear_max_iterations: Option<usize>,
 }
 
 /// `[export]`.
@@ -79,6 +85,12 @@ impl SolverConfig {
                 Err(e) => problems.push(format!("solver.scheme: {e}")),
             }
         }
+        if let Some(s) = &self.linear_solver {
+            match s.parse::<crate::levelset::LinearSolver>() {
+                Ok(l) => p.linear = l,
+                Err(e) => problems.push(format!("solver.linear_solver: {e}")),
+            }
+        }
         if let Some(s) = &self.init {
             match s.parse::<Init>() {
                 Ok(i) => p.init = i,
@@ -95,6 +107,10 @@ impl SolverConfig {
         p.patience = self.patience;
         p.margin = self.margin.unwrap_or(p.margin);
         p.tube = self.tube;
+        p.linear_tolerance = self.linear_tolerance.unwrap_or(p.linear_tolerance);
+        p.linear_max_iterations = self
+            .linear_max_iterations
+            .unwrap_or(p.linear_max_iterations);
         p.band = self.band.unwrap_or(p.band);
         if let Err(more) = p.validate() {
             problems.extend(more);

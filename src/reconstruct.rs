@@ -15,7 +15,7 @@ use crate::fem::P1Space;
 use crate::format::{FrameStats, StageMs};
 use crate::geom::{add, sub, BBox, Point, Polyline};
 use crate::levelset::init::{self, Init};
-use crate::levelset::solver::{Scheme, SolveReport, Solver, SolverSettings};
+use crate::levelset::solver::{LinearSolver, Scheme, SolveReport, Solver, SolverSettings};
 use crate::mesh::Mesh;
 use crate::meshing::{adapt_local, MeshParams};
 
@@ -48,6 +48,12 @@ pub struct SolverParams {
     /// Narrow band half-width in units of `D`: only vertices with `|u|` below it move.
     /// Default 0.1; 0 disables the band.
     pub band: f64,
+    /// The semi-implicit step's Krylov solver. Default conjugate gradients.
+    pub linear: LinearSolver,
+    /// Its relative residual reduction per step. Default 1e-2.
+    pub linear_tolerance: f64,
+    /// Its iterations per step at most. Default 10.
+    pub linear_max_iterations: usize,
     /// The starting curve. Default [`Init::Tube`].
     pub init: Init,
     /// Tube start: the tube radius. Default: twice the 95th percentile of the data's
@@ -75,6 +81,9 @@ impl Default for SolverParams {
             max_iterations: None,
             patience: None,
             band: 0.1,
+            linear: LinearSolver::Cg,
+            linear_tolerance: 1e-2,
+            linear_max_iterations: 10,
             init: Init::Tube,
             tube: None,
             margin: 0.05,
@@ -126,6 +135,18 @@ impl SolverParams {
                 self.band
             ));
         }
+        if !(self.linear_tolerance > 0.0 && self.linear_tolerance < 1.0) {
+            problems.push(format!(
+                "solver.linear_tolerance = {}: must be in (0, 1)",
+                self.linear_tolerance
+            ));
+        }
+        if !(1..=1000).contains(&self.linear_max_iterations) {
+            problems.push(format!(
+                "solver.linear_max_iterations = {}: must be in 1..=1000",
+                self.linear_max_iterations
+            ));
+        }
         if self.max_iterations == Some(0) {
             problems.push("solver.max_iterations = 0: must be at least 1".into());
         }
@@ -166,8 +187,9 @@ impl SolverParams {
             check_every: if explicit { 10 } else { 1 },
             patience: self.patience.unwrap_or(if explicit { 1_000 } else { 10 }),
             d_floor: 1e-6 * hmin,
-            cg_tol: 1e-2,
-            cg_max: 10,
+            cg_tol: self.linear_tolerance,
+            cg_max: self.linear_max_iterations,
+            linear: self.linear,
         }
     }
 }

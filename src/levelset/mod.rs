@@ -5,4 +5,4 @@ pub mod init;
 pub mod solver;
 
 pub use init::Init;
-pub use solver::{Scheme, SolveReport, Solver, SolverSettings, StopReason};
+pub use solver::{LinearSolver, Scheme, SolveReport, Solver, SolverSettings, StopReason};
