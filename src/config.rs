@@ -161,7 +161,7 @@ pub struct MeshConfig {
     pub band: Option<f64>,
     /// Size growth per unit distance outside the band. Default 0.3.
     pub gradation: Option<f64>,
-    /// Samples per local curve fit. Default 16.
+    /// Samples per local curve fit. Default 32.
     pub neighbours: Option<usize>,
     /// Margin around the data as a fraction of `D`. Default 0.2.
     pub padding: Option<f64>,

@@ -28,7 +28,7 @@ pub struct MeshParams {
     pub band: Option<f64>,
     /// Size growth per unit distance outside the band (dimensionless). Default 0.3.
     pub gradation: f64,
-    /// Samples in each local curve fit of the metric. Default 16.
+    /// Samples in each local curve fit of the metric. Default 32.
     pub neighbours: usize,
     /// Margin around the data's bounding box, as a fraction of its diagonal. Default 0.2.
     pub padding: f64,
@@ -48,7 +48,7 @@ impl Default for MeshParams {
             eps: None,
             band: None,
             gradation: 0.3,
-            neighbours: 16,
+            neighbours: 32,
             padding: 0.2,
             isotropic: false,
             max_passes: 24,
