@@ -200,6 +200,23 @@ impl Config {
             path: name.to_string(),
             problems: vec![e.to_string().trim().replace('\n', "\n  ")],
         })?;
+        cfg.validate(name, "")
+    }
+
+    /// Builds and validates a configuration from parsed TOML (the `[mesh]`, `[solver]`
+    /// and `[export]` tables); `prefix` is put before every key path in messages.
+    pub fn from_table(table: toml::Table, name: &str, prefix: &str) -> Result<Config> {
+        let cfg: Config = toml::Value::Table(table)
+            .try_into()
+            .map_err(|e: toml::de::Error| Error::Config {
+                path: name.to_string(),
+                problems: vec![format!("{prefix}{}", e.to_string().trim())],
+            })?;
+        cfg.validate(name, prefix)
+    }
+
+    fn validate(self, name: &str, prefix: &str) -> Result<Config> {
+        let cfg = self;
         let mut problems = Vec::new();
         if let Err(p) = cfg.mesh.to_params() {
             problems.extend(p);
@@ -213,7 +230,10 @@ impl Config {
         if !problems.is_empty() {
             return Err(Error::Config {
                 path: name.to_string(),
-                problems,
+                problems: problems
+                    .into_iter()
+                    .map(|p| format!("{prefix}{p}"))
+                    .collect(),
             });
         }
         Ok(cfg)

@@ -6,6 +6,7 @@
 //! ([`synth`]) and accuracy metrics ([`eval`]) beside them. The numerical modules know
 //! nothing of serde, files or threads.
 
+pub mod batch;
 pub mod config;
 pub mod distance;
 pub mod error;

@@ -98,6 +98,16 @@ enum Command {
         #[arg(long)]
         mesh: bool,
     },
+    /// Reconstruct many files in parallel, as a TOML job file says.
+    Batch {
+        /// Job file: [batch] inputs, output, formats, workers; [mesh] [solver] [export];
+        /// [files."GLOB".*] overrides.
+        #[arg(short, long)]
+        config: PathBuf,
+        /// Redo inputs whose outputs are up to date.
+        #[arg(long)]
+        force: bool,
+    },
     /// Adapt an anisotropic mesh to a point set and draw it.
     Mesh {
         /// Point file, or NDJSON frame stream (first frame unless --frame).
@@ -258,6 +268,7 @@ fn run(cli: Cli) -> Result<()> {
                 mesh,
             )
         }
+        Command::Batch { config, force } => batch_cmd(&config, force),
         Command::Mesh {
             input,
             config,
@@ -324,6 +335,83 @@ fn run(cli: Cli) -> Result<()> {
     }
 }
 
+/// `isoline batch`: a progress bar on a terminal, a log line per file otherwise, and the
+/// summary table at the end; fails when a file failed.
+fn batch_cmd(config: &Path, force: bool) -> Result<()> {
+    use std::io::IsTerminal;
+    let job = isoline::batch::Job::load(config)?;
+    let n = job.tasks.len();
+    let bar = std::io::stderr().is_terminal().then(|| {
+        let b = indicatif::ProgressBar::new(n as u64);
+        b.set_style(
+            indicatif::ProgressStyle::with_template(
+                "{elapsed_precise} [{bar:40}] {pos}/{len} files, {per_sec}, eta {eta} {msg}",
+            )
+            .expect("valid template")
+            .progress_chars("=> "),
+        );
+        b
+    });
+    let done = std::sync::atomic::AtomicUsize::new(0);
+    eprintln!(
+        "isoline batch: {n} files, {} workers, output {}",
+        job.workers,
+        job.output.display()
+    );
+    let summary = job.run(force, |f| {
+        let k = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
+        match &bar {
+            Some(b) => {
+                b.set_message(f.file.clone());
+                b.inc(1);
+            }
+            None => eprintln!(
+                "[{k}/{n}] {} {}{} ({:.0} ms)",
+                f.file,
+                f.status,
+                f.reason
+                    .as_deref()
+                    .map(|r| format!(": {r}"))
+                    .unwrap_or_default(),
+                f.ms
+            ),
+        }
+    })?;
+    if let Some(b) = bar {
+        b.finish_and_clear();
+    }
+    println!(
+        "{:<40} {:>8} {:>7} {:>9} {:>9} {:>9} {:>10} {:>9}",
+        "file", "status", "points", "polylines", "vertices", "iterations", "residual", "ms"
+    );
+    for f in &summary.files {
+        let name = Path::new(&f.file)
+            .file_name()
+            .map_or(f.file.clone(), |n| n.to_string_lossy().into_owned());
+        println!(
+            "{:<40} {:>8} {:>7} {:>9} {:>9} {:>9} {:>10.2e} {:>9.0}",
+            name, f.status, f.points, f.polylines, f.vertices, f.iterations, f.residual, f.ms
+        );
+        if let Some(r) = &f.reason {
+            println!("    {r}");
+        }
+    }
+    let t = &summary.totals;
+    println!(
+        "total: {} files, {} reconstructed, {} skipped, {} failed; {} points, {} polylines; {:.1} s, {:.2} files/s",
+        t.files, t.ok, t.skipped, t.failed, t.points, t.polylines, t.ms / 1e3, t.files_per_second
+    );
+    println!("summary: {}", job.output.join("summary.json").display());
+    if t.failed > 0 {
+        bail!(
+            "{} of {} files failed (reasons in summary.json)",
+            t.failed,
+            t.files
+        );
+    }
+    Ok(())
+}
+
 /// `isoline reconstruct`: one record per frame, written in the output's format.
 fn reconstruct_cmd(
     input: &Path,
@@ -334,7 +422,6 @@ fn reconstruct_cmd(
     draw_mesh: bool,
 ) -> Result<()> {
     use isoline::export::writers::{self, Format};
-    use isoline::format::ResultRecord;
 
     let format = match output {
         None => Format::Ndjson,
@@ -345,29 +432,18 @@ fn reconstruct_cmd(
             )
         })?,
     };
-    let frames: Vec<FrameRecord> = if isoline::ingest::is_frame_stream(input) {
-        let all = isoline::ingest::read_frames(input)?;
-        let chosen: Vec<FrameRecord> = match frame {
-            Some(f) => all.into_iter().filter(|r| r.frame == f).collect(),
-            None => all,
-        };
-        if chosen.is_empty() {
-            bail!(
-                "{}: no frame {}",
-                input.display(),
-                frame.map_or("at all".into(), |f| f.to_string())
-            );
-        }
-        chosen
-    } else {
-        vec![FrameRecord {
-            stream: None,
-            frame: 0,
-            t: None,
-            points: isoline::ingest::read_points(input, None)?,
-            origin: None,
-        }]
+    let all = isoline::ingest::read_input(input)?;
+    let frames: Vec<FrameRecord> = match frame {
+        Some(f) => all.into_iter().filter(|r| r.frame == f).collect(),
+        None => all,
     };
+    if frames.is_empty() {
+        bail!(
+            "{}: no frame {}",
+            input.display(),
+            frame.map_or("at all".into(), |f| f.to_string())
+        );
+    }
     if format == Format::Svg && frames.len() > 1 {
         bail!(
             "{} has {} frames and an SVG holds one: pick one with --frame",
@@ -379,54 +455,25 @@ fn reconstruct_cmd(
     let mut last = None;
     let mut failed = 0;
     for f in &frames {
-        let span = tracing::info_span!(
-            "frame",
-            stream = f.stream.as_deref().unwrap_or(""),
-            frame = f.frame
-        );
-        let _e = span.enter();
-        match isoline::reconstruct(&f.points, params) {
-            Ok(r) => {
-                records.push(ResultRecord {
-                    stream: f.stream.clone(),
-                    frame: f.frame,
-                    polylines: Some(r.polylines.iter().map(PolylineJson::from).collect()),
-                    stats: Some(r.stats.clone()),
-                    error: None,
-                });
-                last = Some(r);
+        let (rec, r) = isoline::reconstruct::reconstruct_frame(f, params);
+        if let Some(e) = &rec.error {
+            failed += 1;
+            let what = if frames.len() > 1 || f.stream.is_some() {
+                format!("{}, frame {}: {e}", input.display(), f.frame)
+            } else {
+                format!("{}: {e}", input.display())
+            };
+            if frames.len() == 1 {
+                bail!(what);
             }
-            Err(e) => {
-                failed += 1;
-                let what = if frames.len() > 1 || f.stream.is_some() {
-                    format!("{}, frame {}: {e}", input.display(), f.frame)
-                } else {
-                    format!("{}: {e}", input.display())
-                };
-                if frames.len() == 1 {
-                    bail!(what);
-                }
-                eprintln!("isoline: {what}");
-                records.push(ResultRecord {
-                    stream: f.stream.clone(),
-                    frame: f.frame,
-                    error: Some(e.to_string()),
-                    ..Default::default()
-                });
-            }
+            eprintln!("isoline: {what}");
         }
+        if r.is_some() {
+            last = r;
+        }
+        records.push(rec);
     }
     let text = match format {
-        Format::Ndjson => {
-            let mut buf = Vec::new();
-            for r in &records {
-                writers::write_ndjson(&mut buf, r)?;
-            }
-            String::from_utf8(buf).expect("JSON is UTF-8")
-        }
-        Format::Json => writers::to_json(&records),
-        Format::GeoJson => writers::to_geojson(&records),
-        Format::Csv => writers::to_csv(&records),
         Format::Svg => {
             let r = last.as_ref().expect("one frame, reconstructed");
             let pts = &frames[0].points;
@@ -440,6 +487,7 @@ fn reconstruct_cmd(
                 1200.0,
             )
         }
+        other => writers::render(other, &records),
     };
     match output {
         Some(p) => std::fs::write(p, text).with_context(|| format!("writing {}", p.display()))?,

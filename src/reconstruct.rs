@@ -385,3 +385,40 @@ pub fn reconstruct(points: &[Point], params: &Params) -> Result<Reconstruction> 
         noise_estimate: adapted.noise_estimate,
     })
 }
+
+/// Reconstructs one input frame into its result record (curves and stats, or the error),
+/// with a tracing span carrying the stream and frame ids. The reconstruction itself is
+/// returned too, for drawing.
+pub fn reconstruct_frame(
+    frame: &crate::format::FrameRecord,
+    params: &Params,
+) -> (crate::format::ResultRecord, Option<Reconstruction>) {
+    use crate::format::{PolylineJson, ResultRecord};
+    let span = tracing::info_span!(
+        "frame",
+        stream = frame.stream.as_deref().unwrap_or(""),
+        frame = frame.frame
+    );
+    let _e = span.enter();
+    match reconstruct(&frame.points, params) {
+        Ok(r) => (
+            ResultRecord {
+                stream: frame.stream.clone(),
+                frame: frame.frame,
+                polylines: Some(r.polylines.iter().map(PolylineJson::from).collect()),
+                stats: Some(r.stats.clone()),
+                error: None,
+            },
+            Some(r),
+        ),
+        Err(e) => (
+            ResultRecord {
+                stream: frame.stream.clone(),
+                frame: frame.frame,
+                error: Some(e.to_string()),
+                ..Default::default()
+            },
+            None,
+        ),
+    }
+}

@@ -52,6 +52,34 @@ impl Format {
     }
 }
 
+/// The records as the text of `format` (not SVG, which needs the points and mesh: see
+/// [`super::svg`]).
+pub fn render(format: Format, recs: &[ResultRecord]) -> String {
+    match format {
+        Format::Ndjson => {
+            let mut buf = Vec::new();
+            for r in recs {
+                write_ndjson(&mut buf, r).expect("writing to memory");
+            }
+            String::from_utf8(buf).expect("JSON is UTF-8")
+        }
+        Format::Json => to_json(recs),
+        Format::GeoJson => to_geojson(recs),
+        Format::Csv => to_csv(recs),
+        Format::Svg => panic!("SVG needs the drawing, not only the records"),
+    }
+}
+
+/// Writes `text` to `path` through a temporary file renamed into place, so that an
+/// interrupted run never leaves a truncated file that looks finished.
+pub fn write_atomic(path: &Path, text: &[u8]) -> std::io::Result<()> {
+    let mut tmp = path.as_os_str().to_owned();
+    tmp.push(".part");
+    let tmp = std::path::PathBuf::from(tmp);
+    std::fs::write(&tmp, text)?;
+    std::fs::rename(&tmp, path)
+}
+
 /// Writes one record as an NDJSON line.
 pub fn write_ndjson(out: &mut impl Write, rec: &ResultRecord) -> std::io::Result<()> {
     serde_json::to_writer(&mut *out, rec)?;

@@ -90,6 +90,22 @@ pub fn is_frame_stream(path: &Path) -> bool {
     )
 }
 
+/// Reads an input as frames: every frame of an NDJSON stream, or a point file as frame 0.
+pub fn read_input(path: &Path) -> Result<Vec<FrameRecord>> {
+    if is_frame_stream(path) {
+        read_frames(path)
+    } else {
+        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+        Ok(vec![FrameRecord {
+            stream: None,
+            frame: 0,
+            t: None,
+            points: parse_points(&text, &path.display().to_string())?,
+            origin: None,
+        }])
+    }
+}
+
 /// Reads the points of `path`: a point file, or frame `frame` (default: the first) of an
 /// NDJSON stream.
 pub fn read_points(path: &Path, frame: Option<u64>) -> Result<Vec<Point>> {

@@ -1,0 +1,600 @@
+//! Batch jobs: many point files, reconstructed in parallel, with a summary.
+//!
+//! A job file is a configuration file (the `[mesh]`, `[solver]` and `[export]` tables the
+//! other commands read) plus a `[batch]` table naming the inputs, the output folder and
+//! the formats, and optional per-file overrides:
+//!
+//! ```toml
+//! [batch]
+//! inputs = ["scans/*.xy", "streams/*.ndjson"]   # globs, relative to the job file
+//! output = "out"                                 # relative to the job file
+//! formats = ["ndjson", "svg"]                    # ndjson json geojson csv svg
+//! workers = 2                                    # default: every core
+//!
+//! [solver]
+//! alpha = 12.0
+//!
+//! [files."scans/noisy-*.xy".mesh]                # overrides for matching inputs
+//! neighbours = 64
+//! ```
+//!
+//! Everything is checked before any work starts. Files run in parallel on one rayon pool
+//! of `workers` threads, and each file's own parallel loops run on that same pool, so the
+//! machine is never oversubscribed. Outputs are written through a temporary file and a
+//! rename; an input whose outputs are all newer than it and than the job file is skipped,
+//! so an interrupted job resumes where it stopped.
+
+use std::path::{Path, PathBuf};
+use std::time::{Instant, SystemTime};
+
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+
+use crate::config::Config;
+use crate::error::{Error, Result};
+use crate::export::svg;
+use crate::export::writers::{self, Format};
+use crate::reconstruct::{reconstruct_frame, Params};
+
+/// The `[batch]` table.
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct BatchTable {
+    inputs: Vec<String>,
+    output: String,
+    #[serde(default)]
+    formats: Option<Vec<String>>,
+    #[serde(default)]
+    workers: Option<usize>,
+}
+
+/// One input of a job, with its parameters and outputs.
+#[derive(Clone, Debug)]
+pub struct Task {
+    /// The input file.
+    pub input: PathBuf,
+    /// Its parameters (the job's, with the overrides of the patterns it matches).
+    pub params: Params,
+    /// Output path stem (`output/<file stem>`).
+    pub stem: PathBuf,
+}
+
+/// A validated job.
+#[derive(Clone, Debug)]
+pub struct Job {
+    /// The job file.
+    pub path: PathBuf,
+    /// The inputs, in a stable order.
+    pub tasks: Vec<Task>,
+    /// The output folder.
+    pub output: PathBuf,
+    /// Output formats.
+    pub formats: Vec<Format>,
+    /// Worker threads.
+    pub workers: usize,
+}
+
+/// What became of one input.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct FileSummary {
+    /// The input file.
+    pub file: String,
+    /// `ok`, `failed` or `skipped` (outputs up to date).
+    pub status: String,
+    /// Why it failed.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub reason: Option<String>,
+    /// Frames read.
+    pub frames: usize,
+    /// Points, over all frames.
+    pub points: usize,
+    /// Polylines, over all frames.
+    pub polylines: usize,
+    /// Mesh vertices (largest frame).
+    pub vertices: usize,
+    /// Solver iterations, over all frames.
+    pub iterations: usize,
+    /// Eq. 11 residual (largest frame).
+    pub residual: f64,
+    /// Wall time for this file, milliseconds.
+    pub ms: f64,
+}
+
+/// The totals of a job.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct Totals {
+    /// Inputs.
+    pub files: usize,
+    /// Reconstructed now.
+    pub ok: usize,
+    /// Failed.
+    pub failed: usize,
+    /// Up to date, not redone.
+    pub skipped: usize,
+    /// Points, over the files reconstructed now.
+    pub points: usize,
+    /// Polylines, over the files reconstructed now.
+    pub polylines: usize,
+    /// Wall time of the whole job, milliseconds.
+    pub ms: f64,
+    /// Files reconstructed per second of wall time.
+    pub files_per_second: f64,
+}
+
+/// `summary.json`.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct Summary {
+    /// One entry per input.
+    pub files: Vec<FileSummary>,
+    /// Totals.
+    pub totals: Totals,
+}
+
+fn config_error(path: &Path, problems: Vec<String>) -> Error {
+    Error::Config {
+        path: path.display().to_string(),
+        problems,
+    }
+}
+
+/// `a/b/../c` as `a/c`, lexically (for readable paths; the job's paths are not links).
+fn normalize(p: &Path) -> PathBuf {
+    use std::path::Component;
+    let mut out = PathBuf::new();
+    for c in p.components() {
+        match c {
+            Component::ParentDir
+                if matches!(out.components().next_back(), Some(Component::Normal(_))) =>
+            {
+                out.pop();
+            }
+            Component::CurDir => {}
+            other => out.push(other),
+        }
+    }
+    if out.as_os_str().is_empty() {
+        out.push(".");
+    }
+    out
+}
+
+/// Recursively lays `over` onto `base`: tables merge, other values replace.
+fn merge(base: &mut toml::Table, over: &toml::Table) {
+    for (k, v) in over {
+        match (base.get_mut(k), v) {
+            (Some(toml::Value::Table(b)), toml::Value::Table(o)) => merge(b, o),
+            _ => {
+                base.insert(k.clone(), v.clone());
+            }
+        }
+    }
+}
+
+impl Job {
+    /// Reads and validates a job file: the `[batch]` table, the shared tables and every
+    /// override, the inputs (each glob must match a file) and the output names (two
+    /// inputs may not share one). Every problem is listed at once, with its key path.
+    pub fn load(path: &Path) -> Result<Job> {
+        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+        let mut table: toml::Table = toml::from_str(&text)
+            .map_err(|e| config_error(path, vec![e.to_string().trim().replace('\n', "\n  ")]))?;
+        let base_dir = path.parent().unwrap_or(Path::new(".")).to_path_buf();
+        let mut problems = Vec::new();
+        let batch = match table.remove("batch") {
+            None => {
+                return Err(config_error(
+                    path,
+                    vec!["missing table [batch] (inputs, output, formats, workers)".into()],
+                ))
+            }
+            Some(v) => v.try_into::<BatchTable>().map_err(|e| {
+                config_error(path, vec![format!("batch: {}", e.to_string().trim())])
+            })?,
+        };
+        let files = match table.remove("files") {
+            None => toml::Table::new(),
+            Some(toml::Value::Table(t)) => t,
+            Some(_) => {
+                return Err(config_error(
+                    path,
+                    vec!["files: must be a table of per-file overrides".into()],
+                ))
+            }
+        };
+        let name = path.display().to_string();
+        let base = match Config::from_table(table.clone(), &name, "") {
+            Ok(c) => Some(c),
+            Err(Error::Config { problems: p, .. }) => {
+                problems.extend(p);
+                None
+            }
+            Err(e) => return Err(e),
+        };
+        // Overrides: each merged onto the shared tables and validated as a whole.
+        let mut overrides: Vec<(glob::Pattern, Params)> = Vec::new();
+        for (pat, over) in &files {
+            let prefix = format!("files.\"{pat}\".");
+            let full = normalize(&base_dir.join(pat));
+            let pattern = match glob::Pattern::new(&full.to_string_lossy()) {
+                Ok(p) => p,
+                Err(e) => {
+                    problems.push(format!("files.\"{pat}\": not a glob pattern: {e}"));
+                    continue;
+                }
+            };
+            let Some(over) = over.as_table() else {
+                problems.push(format!("{prefix}: must be a table"));
+                continue;
+            };
+            let mut merged = table.clone();
+            merge(&mut merged, over);
+            match Config::from_table(merged, &name, &prefix) {
+                Ok(c) => overrides.push((pattern, c.params())),
+                Err(Error::Config { problems: p, .. }) => problems.extend(p),
+                Err(e) => return Err(e),
+            }
+        }
+        let formats: Vec<Format> = match &batch.formats {
+            None => vec![Format::Ndjson, Format::Svg],
+            Some(list) => list
+                .iter()
+                .filter_map(|f| {
+                    let parsed = Format::from_path(Path::new(&format!("x.{f}")));
+                    if parsed.is_none() {
+                        problems.push(format!(
+                            "batch.formats: unknown format {f:?} (allowed: ndjson, json, geojson, csv, svg)"
+                        ));
+                    }
+                    parsed
+                })
+                .collect(),
+        };
+        if batch.formats.as_ref().is_some_and(|f| f.is_empty()) {
+            problems.push("batch.formats: empty (allowed: ndjson, json, geojson, csv, svg)".into());
+        }
+        let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+        let workers = batch.workers.unwrap_or(cores);
+        if !(1..=256).contains(&workers) {
+            problems.push(format!("batch.workers = {workers}: must be in 1..=256"));
+        }
+        if batch.inputs.is_empty() {
+            problems.push("batch.inputs: empty (list globs of point or NDJSON files)".into());
+        }
+        let output = normalize(&base_dir.join(&batch.output));
+        let mut inputs: Vec<PathBuf> = Vec::new();
+        for pat in &batch.inputs {
+            let full = normalize(&base_dir.join(pat));
+            match glob::glob(&full.to_string_lossy()) {
+                Err(e) => problems.push(format!("batch.inputs: {pat:?} is not a glob: {e}")),
+                Ok(paths) => {
+                    let found: Vec<PathBuf> = paths
+                        .filter_map(|p| p.ok())
+                        .filter(|p| p.is_file())
+                        .collect();
+                    if found.is_empty() {
+                        problems.push(format!("batch.inputs: {pat:?} matches no file"));
+                    }
+                    inputs.extend(found);
+                }
+            }
+        }
+        inputs.sort();
+        inputs.dedup();
+        let mut tasks: Vec<Task> = Vec::new();
+        let mut seen = std::collections::HashMap::new();
+        for input in inputs {
+            let stem = input.file_stem().unwrap_or_default().to_os_string();
+            if let Some(other) = seen.insert(stem.clone(), input.clone()) {
+                problems.push(format!(
+                    "batch.inputs: {} and {} would write the same outputs ({})",
+                    other.display(),
+                    input.display(),
+                    stem.to_string_lossy()
+                ));
+            }
+            // Override patterns, like inputs, are relative to the job file.
+            let mut params = base.as_ref().map(|c| c.params()).unwrap_or_default();
+            for (pat, p) in &overrides {
+                if pat.matches_path(&input) {
+                    params = p.clone();
+                }
+            }
+            tasks.push(Task {
+                stem: output.join(&stem),
+                input,
+                params,
+            });
+        }
+        if !problems.is_empty() {
+            return Err(config_error(path, problems));
+        }
+        Ok(Job {
+            path: path.to_path_buf(),
+            tasks,
+            output,
+            formats,
+            workers,
+        })
+    }
+
+    /// The output files of `task`. SVG drawings hold one frame each; frames beyond the
+    /// first are drawn into `<stem>-<frame>.svg` when they are written.
+    pub fn outputs(&self, task: &Task) -> Vec<PathBuf> {
+        self.formats
+            .iter()
+            .map(|f| {
+                let mut p = task.stem.clone().into_os_string();
+                p.push(".");
+                p.push(f.extension());
+                PathBuf::from(p)
+            })
+            .collect()
+    }
+
+    /// Whether every output of `task` is newer than its input and the job file.
+    pub fn up_to_date(&self, task: &Task) -> bool {
+        let mtime = |p: &Path| std::fs::metadata(p).and_then(|m| m.modified()).ok();
+        let Some(newest_source) = [mtime(&task.input), mtime(&self.path)]
+            .into_iter()
+            .collect::<Option<Vec<SystemTime>>>()
+            .and_then(|v| v.into_iter().max())
+        else {
+            return false;
+        };
+        self.outputs(task)
+            .iter()
+            .all(|o| mtime(o).is_some_and(|t| t >= newest_source))
+    }
+
+    /// Runs the job: every input in parallel on a pool of `workers` threads (the inputs
+    /// that are up to date are skipped unless `force`), calling `progress` once per input
+    /// as it finishes. Writes `summary.json` and `summary.csv` into the output folder.
+    pub fn run(&self, force: bool, progress: impl Fn(&FileSummary) + Sync) -> Result<Summary> {
+        std::fs::create_dir_all(&self.output).map_err(|e| Error::io(&self.output, e))?;
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(self.workers)
+            .build()
+            .map_err(|e| Error::Internal(format!("thread pool: {e}")))?;
+        let t0 = Instant::now();
+        let files: Vec<FileSummary> = pool.install(|| {
+            self.tasks
+                .par_iter()
+                .map(|task| {
+                    let s = if !force && self.up_to_date(task) {
+                        self.skipped(task)
+                    } else {
+                        self.process(task)
+                    };
+                    progress(&s);
+                    s
+                })
+                .collect()
+        });
+        let ms = t0.elapsed().as_secs_f64() * 1e3;
+        let count = |st: &str| files.iter().filter(|f| f.status == st).count();
+        let done: Vec<&FileSummary> = files.iter().filter(|f| f.status == "ok").collect();
+        let totals = Totals {
+            files: files.len(),
+            ok: done.len(),
+            failed: count("failed"),
+            skipped: count("skipped"),
+            points: done.iter().map(|f| f.points).sum(),
+            polylines: done.iter().map(|f| f.polylines).sum(),
+            ms,
+            files_per_second: if ms > 0.0 {
+                done.len() as f64 / (ms / 1e3)
+            } else {
+                0.0
+            },
+        };
+        let summary = Summary { files, totals };
+        let json = serde_json::to_string_pretty(&summary).expect("summary serialises") + "\n";
+        let path = self.output.join("summary.json");
+        writers::write_atomic(&path, json.as_bytes()).map_err(|e| Error::io(&path, e))?;
+        let path = self.output.join("summary.csv");
+        writers::write_atomic(&path, summary_csv(&summary).as_bytes())
+            .map_err(|e| Error::io(&path, e))?;
+        Ok(summary)
+    }
+
+    /// The summary of an up-to-date input, read back from its NDJSON output if any.
+    fn skipped(&self, task: &Task) -> FileSummary {
+        let mut s = FileSummary {
+            file: task.input.display().to_string(),
+            status: "skipped".into(),
+            ..Default::default()
+        };
+        let ndjson = self
+            .outputs(task)
+            .into_iter()
+            .find(|p| p.extension().is_some_and(|e| e == "ndjson"));
+        if let Some(text) = ndjson.and_then(|p| std::fs::read_to_string(p).ok()) {
+            let recs: Vec<crate::format::ResultRecord> = text
+                .lines()
+                .filter_map(|l| serde_json::from_str(l).ok())
+                .collect();
+            tally(&mut s, &recs);
+        }
+        s
+    }
+
+    /// Reconstructs every frame of one input and writes its outputs.
+    fn process(&self, task: &Task) -> FileSummary {
+        let t0 = Instant::now();
+        let _span = tracing::info_span!("file", file = %task.input.display()).entered();
+        let mut s = FileSummary {
+            file: task.input.display().to_string(),
+            status: "ok".into(),
+            ..Default::default()
+        };
+        let fail = |mut s: FileSummary, reason: String| {
+            s.status = "failed".into();
+            s.reason = Some(reason);
+            s.ms = t0.elapsed().as_secs_f64() * 1e3;
+            s
+        };
+        let frames = match crate::ingest::read_input(&task.input) {
+            Ok(f) => f,
+            Err(e) => return fail(s, e.to_string()),
+        };
+        if frames.is_empty() {
+            return fail(s, "empty: no points and no frames".into());
+        }
+        let mut recs = Vec::with_capacity(frames.len());
+        let mut drawings = Vec::new();
+        for f in &frames {
+            let (rec, r) = reconstruct_frame(f, &task.params);
+            if let Some(r) = r {
+                if self.formats.contains(&Format::Svg) {
+                    let doc = svg::render(
+                        &svg::Drawing {
+                            points: &f.points,
+                            polylines: &r.polylines,
+                            view: crate::geom::BBox::of(&f.points)
+                                .map(|b| b.padded(0.05 * b.diag())),
+                            ..Default::default()
+                        },
+                        1200.0,
+                    );
+                    drawings.push((f.frame, doc));
+                }
+            }
+            recs.push(rec);
+        }
+        tally(&mut s, &recs);
+        let errors: Vec<String> = recs
+            .iter()
+            .filter_map(|r| r.error.as_ref().map(|e| (r.frame, e)))
+            .map(|(k, e)| {
+                if frames.len() > 1 {
+                    format!("frame {k}: {e}")
+                } else {
+                    e.clone()
+                }
+            })
+            .collect();
+        for (format, out) in self.formats.iter().zip(self.outputs(task)) {
+            let written = match format {
+                Format::Svg => drawings.iter().enumerate().try_for_each(|(i, (k, doc))| {
+                    let path = if i == 0 {
+                        out.clone()
+                    } else {
+                        let mut p = task.stem.clone().into_os_string();
+                        p.push(format!("-{k}.svg"));
+                        PathBuf::from(p)
+                    };
+                    writers::write_atomic(&path, doc.as_bytes())
+                }),
+                other => writers::write_atomic(&out, writers::render(*other, &recs).as_bytes()),
+            };
+            if let Err(e) = written {
+                return fail(s, format!("writing {}: {e}", out.display()));
+            }
+        }
+        if !errors.is_empty() {
+            let n = errors.len();
+            let mut s = fail(s, errors.join("; "));
+            if n < frames.len() {
+                s.reason = Some(format!(
+                    "{n} of {} frames failed: {}",
+                    frames.len(),
+                    errors.join("; ")
+                ));
+            }
+            return s;
+        }
+        s.ms = t0.elapsed().as_secs_f64() * 1e3;
+        s
+    }
+}
+
+/// Adds the stats of `recs` to `s`.
+fn tally(s: &mut FileSummary, recs: &[crate::format::ResultRecord]) {
+    s.frames = recs.len();
+    for r in recs {
+        s.polylines += r.polylines.as_ref().map_or(0, |p| p.len());
+        if let Some(st) = &r.stats {
+            s.points += st.points;
+            s.vertices = s.vertices.max(st.vertices);
+            s.iterations += st.iterations;
+            s.residual = s.residual.max(st.residual);
+        }
+    }
+}
+
+/// `summary.csv`: one row per input, then a `TOTAL` row.
+pub fn summary_csv(s: &Summary) -> String {
+    let mut out = String::from(
+        "file,status,frames,points,polylines,vertices,iterations,residual,ms,reason\n",
+    );
+    let quote = |t: &str| format!("\"{}\"", t.replace('"', "\"\""));
+    for f in &s.files {
+        out += &format!(
+            "{},{},{},{},{},{},{},{},{:.1},{}\n",
+            quote(&f.file),
+            f.status,
+            f.frames,
+            f.points,
+            f.polylines,
+            f.vertices,
+            f.iterations,
+            f.residual,
+            f.ms,
+            quote(f.reason.as_deref().unwrap_or(""))
+        );
+    }
+    let t = &s.totals;
+    out += &format!(
+        "TOTAL,{} ok / {} failed / {} skipped,,{},{},,,,{:.1},\n",
+        t.ok, t.failed, t.skipped, t.points, t.polylines, t.ms
+    );
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn job_files_are_validated_with_key_paths_before_any_work() {
+        let dir = tempfile::tempdir().unwrap();
+        std::fs::write(dir.path().join("a.xy"), "0 0\n1 0\n0 1\n").unwrap();
+        let job = dir.path().join("job.toml");
+        std::fs::write(
+            &job,
+            concat!(
+                "[batch]\ninputs = [\"*.xy\", \"nothing/*.xy\"]\noutput = \"out\"\n",
+                "formats = [\"ndjson\", \"pdf\"]\nworkers = 0\n",
+                "[mesh]\nhmin = -1\n",
+                "[files.\"a*\".solver]\ncfl = 3\n",
+            ),
+        )
+        .unwrap();
+        let e = Job::load(&job).unwrap_err().to_string();
+        for needle in [
+            "nothing/*.xy\" matches no file",
+            "unknown format \"pdf\"",
+            "batch.workers = 0: must be in 1..=256",
+            "mesh.hmin = -1",
+            "files.\"a*\".solver.cfl = 3: must be in (0, 1]",
+        ] {
+            assert!(e.contains(needle), "{needle:?} not in {e}");
+        }
+        std::fs::write(
+            &job,
+            "[batch]\ninputs = [\"*.xy\"]\noutput = \"out\"\nworkrs = 2\n",
+        )
+        .unwrap();
+        let e = Job::load(&job).unwrap_err().to_string();
+        assert!(e.contains("workrs"), "{e}");
+        std::fs::write(
+            &job,
+            "[batch]\ninputs = [\"*.xy\"]\noutput = \"out\"\n[files.\"a*\".solver]\nalpha = 5.0\n",
+        )
+        .unwrap();
+        let j = Job::load(&job).unwrap();
+        assert_eq!(j.tasks.len(), 1);
+        assert_eq!(j.tasks[0].params.solver.alpha, Some(5.0));
+        assert_eq!(j.formats, vec![Format::Ndjson, Format::Svg]);
+    }
+}
