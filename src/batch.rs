@@ -188,7 +188,7 @@ impl Job {
                 ))
             }
             Some(v) => v.try_into::<BatchTable>().map_err(|e| {
-                config_error(path, vec![format!("batch: {}", e.to_string().trim())])
+                config_error(path, vec![crate::config::value_problem(&e, "batch.")])
             })?,
         };
         let files = match table.remove("files") {
@@ -587,6 +587,20 @@ mod tests {
         .unwrap();
         let e = Job::load(&job).unwrap_err().to_string();
         assert!(e.contains("workrs"), "{e}");
+        std::fs::write(
+            &job,
+            "[batch]\ninputs = [\"*.xy\"]\noutput = \"out\"\nworkers = \"two\"\n",
+        )
+        .unwrap();
+        let e = Job::load(&job).unwrap_err().to_string();
+        assert!(e.contains("batch.workers: invalid type"), "{e}");
+        std::fs::write(
+            &job,
+            "[batch]\ninputs = [\"*.xy\"]\noutput = \"out\"\n[files.\"*.xy\".mesh]\nhmin = \"x\"\n",
+        )
+        .unwrap();
+        let e = Job::load(&job).unwrap_err().to_string();
+        assert!(e.contains("files.\"*.xy\".mesh.hmin: invalid type"), "{e}");
         std::fs::write(
             &job,
             "[batch]\ninputs = [\"*.xy\"]\noutput = \"out\"\n[files.\"a*\".solver]\nalpha = 5.0\n",

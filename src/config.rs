@@ -74,6 +74,17 @@ pub struct ExportConfig {
     pub min_area: Option<f64>,
 }
 
+/// A deserialisation error of an already-parsed TOML value as `prefix.key: message`
+/// (toml reports the key on a line of its own, as ``in `key` ``).
+pub(crate) fn value_problem(e: &toml::de::Error, prefix: &str) -> String {
+    let text = e.to_string();
+    let text = text.trim();
+    match text.rsplit_once("\nin `") {
+        Some((msg, key)) => format!("{prefix}{}: {}", key.trim_end_matches('`'), msg.trim()),
+        None => format!("{}{text}", prefix.trim_end_matches('.')),
+    }
+}
+
 impl SolverConfig {
     /// The solver parameters, validated; every problem is listed.
     pub fn to_params(&self) -> std::result::Result<SolverParams, Vec<String>> {
@@ -210,7 +221,7 @@ impl Config {
             .try_into()
             .map_err(|e: toml::de::Error| Error::Config {
                 path: name.to_string(),
-                problems: vec![format!("{prefix}{}", e.to_string().trim())],
+                problems: vec![value_problem(&e, prefix)],
             })?;
         cfg.validate(name, prefix)
     }
