@@ -202,6 +202,18 @@ pub fn adapt_to_points(points: &[Point], params: &MeshParams) -> Result<AdaptedM
 /// near the origin. Also returns the distance field of the points, which the solver
 /// needs at the mesh vertices.
 pub fn adapt_local(points: &[Point], params: &MeshParams) -> Result<(AdaptedMesh, DistanceField)> {
+    adapt_local_from(points, params, None)
+}
+
+/// [`adapt_local`] starting from `start` (a mesh in the same coordinates, for instance the
+/// previous frame's) instead of a lattice. The start is used only if its domain covers the
+/// bounding box of `points` with half the padding; otherwise adaptation starts from a
+/// lattice.
+pub fn adapt_local_from(
+    points: &[Point],
+    params: &MeshParams,
+    start: Option<Mesh>,
+) -> Result<(AdaptedMesh, DistanceField)> {
     let t0 = Instant::now();
     crate::distance::validate_points(points)?;
     params.validate().map_err(|problems| Error::Config {
@@ -235,8 +247,17 @@ pub fn adapt_local(points: &[Point], params: &MeshParams) -> Result<(AdaptedMesh
     }
     let t_metric = t0.elapsed();
 
-    let local_box = bbox.padded(params.padding * scale + 2.0 * hmin);
-    let mut mesh = Mesh::of_box(&local_box, hmax);
+    let wanted = bbox.padded(params.padding * scale + 2.0 * hmin);
+    // A start mesh will do while the data keep at least half the padding from its edge
+    // (a moving shape keeps its mesh until it has drifted that far).
+    let enough = bbox.padded(0.5 * params.padding * scale + 2.0 * hmin);
+    let (local_box, mut mesh) = match start.and_then(|m| {
+        let b = BBox::of(&m.coords)?;
+        (b.contains(enough.min) && b.contains(enough.max)).then_some((b, m))
+    }) {
+        Some(found) => found,
+        None => (wanted, Mesh::of_box(&wanted, hmax)),
+    };
     let opts = AdaptOptions::default()
         .with_max_passes(params.max_passes)
         .with_max_vertices(params.max_vertices);

@@ -17,7 +17,7 @@ use crate::geom::{add, sub, BBox, Point, Polyline};
 use crate::levelset::init::{self, Init};
 use crate::levelset::solver::{LinearSolver, Scheme, SolveReport, Solver, SolverSettings};
 use crate::mesh::Mesh;
-use crate::meshing::{adapt_local, MeshParams};
+use crate::meshing::{adapt_local_from, MeshParams};
 
 /// Solver parameters; `None` means "derive" (see each field).
 #[derive(Clone, Debug, PartialEq)]
@@ -262,6 +262,20 @@ pub struct Reconstruction {
 /// assert!(r.polylines[0].closed && r.polylines[0].signed_area() > 0.0);
 /// ```
 pub fn reconstruct(points: &[Point], params: &Params) -> Result<Reconstruction> {
+    reconstruct_warm(points, params, None)
+}
+
+/// [`reconstruct`] warm-started from `previous`, the reconstruction of an earlier frame of
+/// the same stream: adaptation starts from its mesh, and the level set from its `u`
+/// interpolated onto the new mesh (each new vertex located in the old mesh by walking)
+/// and renormalized. It falls back to a cold start when the old mesh does not cover the
+/// new data's padded box, or when the interpolated level set is farther from the new data
+/// (eq. 11 residual) than the cold tube start would be. `stats.warm_start` says which.
+pub fn reconstruct_warm(
+    points: &[Point],
+    params: &Params,
+    previous: Option<&Reconstruction>,
+) -> Result<Reconstruction> {
     let _span = tracing::debug_span!("reconstruct", points = points.len()).entered();
     let t0 = Instant::now();
     validate_points(points)?;
@@ -291,7 +305,16 @@ pub fn reconstruct(points: &[Point], params: &Params) -> Result<Reconstruction> 
         let half = bbox.size()[0].min(bbox.size()[1]) / 2.0;
         mesh_params.padding = mesh_params.padding.max((r - half) / diag + 0.05);
     }
-    let (adapted, field) = adapt_local(&local, &mesh_params)?;
+    // The previous frame, moved into this frame's coordinates.
+    let old = previous.map(|p| {
+        let mut m = p.mesh.clone();
+        for c in &mut m.coords {
+            *c = sub(*c, center);
+        }
+        (m, &p.u, p.stats.residual)
+    });
+    let (adapted, field) =
+        adapt_local_from(&local, &mesh_params, old.as_ref().map(|o| o.0.clone()))?;
     let hmin = adapted.params.hmin;
     let mesh = adapted.mesh;
     let t_adapt = t0.elapsed();
@@ -303,26 +326,49 @@ pub fn reconstruct(points: &[Point], params: &Params) -> Result<Reconstruction> 
     let t_dist = t0.elapsed();
 
     let mut settings = params.solver.resolve(diag, hmin);
-    let mut u = match params.solver.init {
-        Init::Tube => {
-            let delta = params
-                .solver
-                .tube
-                .unwrap_or_else(|| init::tube_radius(&field, 2.0 * hmin));
+    let tube_radius = params
+        .solver
+        .tube
+        .unwrap_or_else(|| init::tube_radius(&field, 2.0 * hmin));
+    let warm = old.and_then(|(old_mesh, old_u, old_residual)| {
+        let bbox_old = BBox::of(&old_mesh.coords)?;
+        if !mesh.coords.iter().all(|&c| bbox_old.contains(c)) {
+            return None;
+        }
+        let at = locate_all(&old_mesh, &mesh.coords);
+        let mut u: Vec<f64> = at.iter().map(|l| l.interpolate(&old_mesh, old_u)).collect();
+        crate::redistance::Redistancer::new().run(&mesh, &space, &mut u, f64::INFINITY);
+        let (res, _) = crate::levelset::solver::residual(&mesh, &data, &u);
+        // A cold tube start begins about one tube radius from the data, and the previous
+        // frame ended at `old_residual` from its own: the warm start must not be much
+        // worse than either (a jump, a restarted stream).
+        let keep = res <= 2.0 * tube_radius.max(old_residual) + settings.eps;
+        tracing::debug!(residual = res, keep, "warm start");
+        // The evolution only moves the curve inwards, and part of the old curve may lie
+        // inside the moved data: push it out past every point first (u is a distance, so
+        // subtracting a constant offsets the curve), and let it close in again.
+        let offset = res + settings.eps;
+        u.iter_mut().for_each(|x| *x -= offset);
+        keep.then_some(u)
+    });
+    let warm_start = warm.is_some();
+    let mut u = match (warm, params.solver.init) {
+        (Some(u), _) => u,
+        (None, Init::Tube) => {
             // The pinned vertices must lie inside the starting curve, or nothing moves.
-            settings.tube = settings.tube.min(0.5 * delta);
-            match init::tube(&mesh, |v| space.ring(v), &dist, delta) {
+            settings.tube = settings.tube.min(0.5 * tube_radius);
+            match init::tube(&mesh, |v| space.ring(v), &dist, tube_radius) {
                 Some(mut u) => {
                     crate::redistance::Redistancer::new().run(&mesh, &space, &mut u, f64::INFINITY);
                     u
                 }
                 None => {
-                    tracing::debug!(delta, "the tube encloses nothing: box start");
+                    tracing::debug!(tube_radius, "the tube encloses nothing: box start");
                     init::enclosing(Init::Box, &local, margin, &mesh.coords)
                 }
             }
         }
-        other => init::enclosing(other, &local, margin, &mesh.coords),
+        (None, other) => init::enclosing(other, &local, margin, &mesh.coords),
     };
     let report = Solver::new().solve(&mesh, &space, &dist, &data, &mut u, &settings);
     let t_solve = t0.elapsed();
@@ -359,7 +405,7 @@ pub fn reconstruct(points: &[Point], params: &Params) -> Result<Reconstruction> 
         iterations: report.iterations,
         residual: report.residual,
         converged: report.converged,
-        warm_start: false,
+        warm_start,
         ms: StageMs {
             distance: adapted.ms.distance + ms(t_dist - t_adapt),
             adapt: adapted.ms.metric + adapted.ms.adapt,
