@@ -49,6 +49,8 @@ pub struct SolverConfig {
     pub patience: Option<usize>,
     /// Starting curve: `"tube"` (default), `"box"` or `"circle"` (the paper's).
     pub init: Option<String>,
+    /// After the capture phase on noisy data: `"median"` (default) or `"flow"`.
+    pub settle: Option<String>,
     /// Tube start: radius of the tube around the data. Default: twice the 95th percentile
     /// of the nearest-neighbour spacing, at least `2 hmin`.
     pub tube: Option<f64>,
@@ -100,6 +102,12 @@ impl SolverConfig {
             match s.parse::<crate::levelset::LinearSolver>() {
                 Ok(l) => p.linear = l,
                 Err(e) => problems.push(format!("solver.linear_solver: {e}")),
+            }
+        }
+        if let Some(s) = &self.settle {
+            match s.parse::<crate::reconstruct::Settle>() {
+                Ok(v) => p.settle = v,
+                Err(e) => problems.push(format!("solver.settle: {e}")),
             }
         }
         if let Some(s) = &self.init {

@@ -19,6 +19,32 @@ use crate::levelset::solver::{LinearSolver, Scheme, SolveReport, Solver, SolverS
 use crate::mesh::Mesh;
 use crate::meshing::{adapt_local_from, MeshParams};
 
+/// What follows the capture phase on data that does not meet eq. 11 (noisy data).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum Settle {
+    /// Move the curve to the local median of the data: each vertex near the curve is
+    /// shifted by the median of `u` at its 32 nearest samples, then renormalized; repeated
+    /// while the mean `|u|` at the data improves by 1%.
+    #[default]
+    Median,
+    /// The solver's settle phase: the d-weighted curvature flow without attraction,
+    /// keeping the level set with the smallest mean `|u|` at the data.
+    Flow,
+}
+
+impl std::str::FromStr for Settle {
+    type Err = String;
+    fn from_str(s: &str) -> std::result::Result<Self, String> {
+        match s {
+            "median" => Ok(Settle::Median),
+            "flow" => Ok(Settle::Flow),
+            _ => Err(format!(
+                "unknown settle {s:?}: expected \"median\" or \"flow\""
+            )),
+        }
+    }
+}
+
 /// Solver parameters; `None` means "derive" (see each field).
 #[derive(Clone, Debug, PartialEq)]
 #[non_exhaustive]
@@ -56,6 +82,8 @@ pub struct SolverParams {
     pub linear_max_iterations: usize,
     /// The starting curve. Default [`Init::Tube`].
     pub init: Init,
+    /// What follows the capture phase on noisy data. Default [`Settle::Median`].
+    pub settle: Settle,
     /// Tube start: the tube radius. Default: twice the 95th percentile of the data's
     /// nearest-neighbour spacing, and at least `2 hmin`.
     pub tube: Option<f64>,
@@ -85,6 +113,7 @@ impl Default for SolverParams {
             linear_tolerance: 1e-2,
             linear_max_iterations: 10,
             init: Init::Tube,
+            settle: Settle::Median,
             tube: None,
             margin: 0.05,
         }
@@ -173,6 +202,7 @@ impl SolverParams {
             local_dt: self.local_dt,
             eps: self.eps.unwrap_or(hmin),
             tube: 4.0 * hmin,
+            settle_flow: self.settle == Settle::Flow,
             band: if self.band > 0.0 {
                 self.band * diag
             } else {
@@ -370,7 +400,19 @@ pub fn reconstruct_warm(
         }
         (None, other) => init::enclosing(other, &local, margin, &mesh.coords),
     };
-    let report = Solver::new().solve(&mesh, &space, &dist, &data, &mut u, &settings);
+    let mut report = Solver::new().solve(&mesh, &space, &dist, &data, &mut u, &settings);
+    if params.solver.settle == Settle::Median && !report.converged {
+        let t = Instant::now();
+        let width = 4.0 * adapted.noise_estimate + 4.0 * hmin;
+        let (res, mean) = center_on_data(&mesh, &space, &field, &data, &mut u, width);
+        report.residual = res;
+        report.mean_residual = mean;
+        if res < settings.eps {
+            report.converged = true;
+            report.stop = crate::levelset::StopReason::Converged;
+        }
+        report.ms_solve += t.elapsed().as_secs_f64() * 1e3;
+    }
     let t_solve = t0.elapsed();
 
     let _export = tracing::debug_span!("export").entered();
@@ -467,4 +509,58 @@ pub fn reconstruct_frame(
             None,
         ),
     }
+}
+
+/// Moves the zero level set to the local median of the data: each vertex within `width`
+/// of it is lowered by the median of `u` at its 32 nearest data points, then `u` is
+/// renormalized; repeated (at most 4 times) while the mean `|u|` at the data improves by
+/// 1%. Returns the eq. 11 residual and the mean `|u|` at the data afterwards.
+fn center_on_data(
+    mesh: &Mesh,
+    space: &P1Space,
+    field: &crate::distance::DistanceField,
+    data: &[crate::fem::locate::Location],
+    u: &mut [f64],
+    width: f64,
+) -> (f64, f64) {
+    use rayon::prelude::*;
+    let samples = locate_all(mesh, field.points());
+    let mut fm = crate::redistance::Redistancer::new();
+    let (mut best_res, mut best) = crate::levelset::solver::residual(mesh, data, u);
+    for _ in 0..4 {
+        // Allocation is fine here: this runs a few times per frame, not per step.
+        let at: Vec<f64> = samples.iter().map(|l| l.interpolate(mesh, u)).collect();
+        let offsets: Vec<f64> = mesh
+            .coords
+            .par_iter()
+            .zip(u.par_iter())
+            .map_init(Vec::new, |buf, (&c, &ui)| {
+                if ui.abs() > width {
+                    return 0.0;
+                }
+                field.nearest_k(c, 32, buf);
+                let mut vals: Vec<f64> = buf.iter().map(|&j| at[j as usize]).collect();
+                if vals.is_empty() {
+                    return 0.0;
+                }
+                let m = vals.len() / 2;
+                *vals.select_nth_unstable_by(m, f64::total_cmp).1
+            })
+            .collect();
+        let mut trial = u.to_vec();
+        for (t, o) in trial.iter_mut().zip(&offsets) {
+            *t -= o;
+        }
+        fm.run(mesh, space, &mut trial, f64::INFINITY);
+        let (res, mean) = crate::levelset::solver::residual(mesh, data, &trial);
+        tracing::debug!(mean, best, "center");
+        if mean < best * 0.99 {
+            best = mean;
+            best_res = res;
+            u.copy_from_slice(&trial);
+        } else {
+            break;
+        }
+    }
+    (best_res, best)
 }

@@ -116,6 +116,10 @@ pub struct SolverSettings {
     /// Capture phase: vertices closer than this to the data do not move (see
     /// [`Solver::solve`]).
     pub tube: f64,
+    /// Run the settle phase (d-weighted curvature flow) after the capture phase; when
+    /// false, `solve` returns once the capture phase ends (the caller centres the curve
+    /// on the data instead, as `reconstruct` does by default).
+    pub settle_flow: bool,
     /// Narrow band: only vertices with `|u| < band` move (`f64::INFINITY`: all). The
     /// level set is renormalized out to `2 band`, beyond which it keeps its sign and a
     /// magnitude of at least `2 band`.
@@ -493,7 +497,7 @@ impl Solver {
             if it - window_start >= s.patience {
                 // Less than 1% better over a whole window: this phase is done.
                 if best > 0.99 * window_mean {
-                    if settling {
+                    if settling || !s.settle_flow {
                         report.stop = StopReason::Settled;
                         break;
                     }
@@ -859,6 +863,7 @@ mod tests {
             local_dt: true,
             eps: h,
             tube: 4.0 * h,
+            settle_flow: true,
             band: 0.1,
             renormalize_every: if explicit { 100 } else { 5 },
             max_iterations: if explicit { 100_000 } else { 2_000 },
