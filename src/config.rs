@@ -49,7 +49,7 @@ pub struct SolverConfig {
     pub patience: Option<usize>,
     /// Starting curve: `"tube"` (default), `"box"` or `"circle"` (the paper's).
     pub init: Option<String>,
-    /// After the capture phase on noisy data: `"median"` (default) or `"flow"`.
+    /// After the capture phase on noisy data: `"flow"` (default) or `"median"`.
     pub settle: Option<String>,
     /// Tube start: radius of the tube around the data. Default: twice the 95th percentile
     /// of the nearest-neighbour spacing, at least `2 hmin`.
