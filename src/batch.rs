@@ -580,27 +580,19 @@ mod tests {
         ] {
             assert!(e.contains(needle), "{needle:?} not in {e}");
         }
-        std::fs::write(
-            &job,
-            "[batch]\ninputs = [\"*.xy\"]\noutput = \"out\"\nworkrs = 2\n",
-        )
-        .unwrap();
-        let e = Job::load(&job).unwrap_err().to_string();
-        assert!(e.contains("workrs"), "{e}");
-        std::fs::write(
-            &job,
-            "[batch]\ninputs = [\"*.xy\"]\noutput = \"out\"\nworkers = \"two\"\n",
-        )
-        .unwrap();
-        let e = Job::load(&job).unwrap_err().to_string();
-        assert!(e.contains("batch.workers: invalid type"), "{e}");
-        std::fs::write(
-            &job,
-            "[batch]\ninputs = [\"*.xy\"]\noutput = \"out\"\n[files.\"*.xy\".mesh]\nhmin = \"x\"\n",
-        )
-        .unwrap();
-        let e = Job::load(&job).unwrap_err().to_string();
-        assert!(e.contains("files.\"*.xy\".mesh.hmin: invalid type"), "{e}");
+        let head = "[batch]\ninputs = [\"*.xy\"]\noutput = \"out\"\n";
+        for (tail, needle) in [
+            ("workrs = 2\n", "workrs"),
+            ("workers = \"two\"\n", "batch.workers: invalid type"),
+            (
+                "[files.\"*.xy\".mesh]\nhmin = \"x\"\n",
+                "files.\"*.xy\".mesh.hmin: invalid type",
+            ),
+        ] {
+            std::fs::write(&job, format!("{head}{tail}")).unwrap();
+            let e = Job::load(&job).unwrap_err().to_string();
+            assert!(e.contains(needle), "{needle:?} not in {e}");
+        }
         std::fs::write(
             &job,
             "[batch]\ninputs = [\"*.xy\"]\noutput = \"out\"\n[files.\"a*\".solver]\nalpha = 5.0\n",
