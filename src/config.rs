@@ -49,7 +49,7 @@ pub struct SolverConfig {
     pub patience: Option<usize>,
     /// Starting curve: `"tube"` (default), `"box"` or `"circle"` (the paper's).
     pub init: Option<String>,
-    /// After the capture phase on noisy data: `"flow"` (default) or `"median"`.
+    /// After the capture phase on noisy data: `"median"` (default) or `"flow"`.
     pub settle: Option<String>,
     /// Tube start: radius of the tube around the data. Default: twice the 95th percentile
     /// of the nearest-neighbour spacing, at least `2 hmin`.
@@ -72,7 +72,7 @@ pub struct SolverConfig {
 pub struct ExportConfig {
     /// Douglas-Peucker tolerance in data units; 0 (default) keeps every vertex.
     pub simplify: Option<f64>,
-    /// Closed loops enclosing less area are dropped (default pi (2 hmin)^2; 0 keeps all).
+    /// Closed loops enclosing less area are dropped (default pi (3 hmin)^2; 0 keeps all).
     pub min_area: Option<f64>,
 }
 

@@ -100,6 +100,16 @@ impl DistanceField {
         self.nearest(q).dist
     }
 
+    /// How many data points lie within distance `r` of `q`.
+    pub fn count_within(&self, q: Point, r: f64) -> usize {
+        self.tree
+            .query(&q)
+            .within::<SquaredEuclidean<f64>>(r * r)
+            .unsorted()
+            .execute()
+            .len()
+    }
+
     /// Indices of the `k` nearest data points to `q`, nearest first (fewer when the set
     /// is smaller), appended to `out` after clearing it.
     pub fn nearest_k(&self, q: Point, k: usize, out: &mut Vec<u32>) {

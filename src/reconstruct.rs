@@ -23,14 +23,13 @@ use crate::meshing::{adapt_local_from, MeshParams};
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
 pub enum Settle {
     /// Move the curve to the local median of the data: each vertex near the curve is
-    /// shifted by the median of `u` at its 32 nearest samples, then renormalized; repeated
-    /// while the mean `|u|` at the data improves by 1%. Faster and usually closer, but not
-    /// yet the default: it split the C at sigma = 0.005 and stays near the outermost
-    /// samples of very dense data (32 samples span less than the noise band there).
+    /// shifted by the median of `u` at its nearest samples (enough to span the noise band:
+    /// the median count within the band's width, 32 to 512), then renormalized; repeated
+    /// while the mean `|u|` at the data improves by 1%.
+    #[default]
     Median,
     /// The solver's settle phase: the d-weighted curvature flow without attraction,
     /// keeping the level set with the smallest mean `|u|` at the data.
-    #[default]
     Flow,
 }
 
@@ -84,7 +83,7 @@ pub struct SolverParams {
     pub linear_max_iterations: usize,
     /// The starting curve. Default [`Init::Tube`].
     pub init: Init,
-    /// What follows the capture phase on noisy data. Default [`Settle::Flow`].
+    /// What follows the capture phase on noisy data. Default [`Settle::Median`].
     pub settle: Settle,
     /// Tube start: the tube radius. Default: twice the 95th percentile of the data's
     /// nearest-neighbour spacing, and at least `2 hmin`.
@@ -115,7 +114,7 @@ impl Default for SolverParams {
             linear_tolerance: 1e-2,
             linear_max_iterations: 10,
             init: Init::Tube,
-            settle: Settle::Flow,
+            settle: Settle::Median,
             tube: None,
             margin: 0.05,
         }
@@ -232,7 +231,7 @@ impl SolverParams {
 pub struct ExportParams {
     /// Douglas-Peucker tolerance in data units; 0 keeps every isoline vertex. Default 0.
     pub simplify: f64,
-    /// Closed loops enclosing less area are dropped. Default `pi (2 hmin)^2`; 0 keeps all.
+    /// Closed loops enclosing less area are dropped. Default `pi (3 hmin)^2`; 0 keeps all.
     pub min_area: Option<f64>,
 }
 
@@ -419,12 +418,12 @@ pub fn reconstruct_warm(
 
     let _export = tracing::debug_span!("export").entered();
     let mut polylines = zero_isoline(&mesh, &u, 1e-9 * diag);
-    // Loops smaller than a disc of radius 2 hmin are below what the mesh resolves: specks
+    // Loops smaller than a disc of radius 3 hmin are below what the mesh resolves: specks
     // left where the level set grazes zero between samples.
     let min_area = params
         .export
         .min_area
-        .unwrap_or(std::f64::consts::PI * 4.0 * hmin * hmin);
+        .unwrap_or(std::f64::consts::PI * 9.0 * hmin * hmin);
     polylines.retain(|p| !p.closed || p.signed_area().abs() >= min_area);
     if params.export.simplify > 0.0 {
         polylines = polylines
@@ -514,7 +513,7 @@ pub fn reconstruct_frame(
 }
 
 /// Moves the zero level set to the local median of the data: each vertex within `width`
-/// of it is lowered by the median of `u` at its 32 nearest data points, then `u` is
+/// of it is lowered by the median of `u` at its `k` nearest data points, then `u` is
 /// renormalized; repeated (at most 4 times) while the mean `|u|` at the data improves by
 /// 1%. Returns the eq. 11 residual and the mean `|u|` at the data afterwards.
 fn center_on_data(
@@ -527,6 +526,21 @@ fn center_on_data(
 ) -> (f64, f64) {
     use rayon::prelude::*;
     let samples = locate_all(mesh, field.points());
+    // Enough neighbours to span the noise band: the median count of samples within
+    // `width` of a sample (checked on up to 64 of them), at least 32, at most 512.
+    let pts = field.points();
+    let step = (pts.len() / 64).max(1);
+    let mut counts: Vec<usize> = pts
+        .iter()
+        .step_by(step)
+        .map(|&p| field.count_within(p, width))
+        .collect();
+    counts.sort_unstable();
+    let k = counts
+        .get(counts.len() / 2)
+        .copied()
+        .unwrap_or(32)
+        .clamp(32, 512);
     let mut fm = crate::redistance::Redistancer::new();
     let (mut best_res, mut best) = crate::levelset::solver::residual(mesh, data, u);
     for _ in 0..4 {
@@ -540,7 +554,7 @@ fn center_on_data(
                 if ui.abs() > width {
                     return 0.0;
                 }
-                field.nearest_k(c, 32, buf);
+                field.nearest_k(c, k, buf);
                 let mut vals: Vec<f64> = buf.iter().map(|&j| at[j as usize]).collect();
                 if vals.is_empty() {
                     return 0.0;
