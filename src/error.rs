@@ -12,39 +12,67 @@ pub enum Error {
     EmptyPointSet,
     /// Every point is at the same place: there is no curve to find.
     #[error("all {count} points coincide: there is no curve to reconstruct")]
-    CoincidentPoints { count: usize },
+    CoincidentPoints {
+        /// How many points there are.
+        count: usize,
+    },
     /// A coordinate is NaN or infinite; `index` is the point's position in the input.
     #[error("point {index} has a non-finite coordinate ({x}, {y})")]
-    NonFinitePoint { index: usize, x: f64, y: f64 },
+    NonFinitePoint {
+        /// The point's position in the input, from 0.
+        index: usize,
+        /// Its x coordinate.
+        x: f64,
+        /// Its y coordinate.
+        y: f64,
+    },
     /// A coordinate is so large that squared distances would overflow.
     #[error(
         "point {index} has a coordinate of magnitude {magnitude:e}, above the supported 1e150"
     )]
-    HugeCoordinate { index: usize, magnitude: f64 },
+    HugeCoordinate {
+        /// The point's position in the input, from 0.
+        index: usize,
+        /// The largest coordinate magnitude.
+        magnitude: f64,
+    },
     /// A text input could not be parsed; `line` is 1-based.
     #[error("{source_name}, line {line}: {message}")]
     Parse {
+        /// The file or stream.
         source_name: String,
+        /// 1-based line.
         line: usize,
+        /// What is wrong.
         message: String,
     },
     /// A parameter is out of its allowed range.
     #[error("invalid parameter {name} = {value}: {reason}")]
     InvalidParameter {
+        /// The parameter.
         name: &'static str,
+        /// Its value.
         value: String,
+        /// The allowed range.
         reason: String,
     },
     /// Reading or writing a file failed.
     #[error("{path}: {source}")]
     Io {
+        /// The file.
         path: PathBuf,
+        /// The operating system's error.
         #[source]
         source: std::io::Error,
     },
     /// The configuration file is invalid; every problem found is listed.
     #[error("invalid configuration {path}:\n  {}", problems.join("\n  "))]
-    Config { path: String, problems: Vec<String> },
+    Config {
+        /// The file (or what the parameters came from).
+        path: String,
+        /// Every problem found, each naming its key path.
+        problems: Vec<String>,
+    },
     /// An internal invariant failed: a bug in isoline, not in the input.
     #[error("internal error: {0}")]
     Internal(String),

@@ -1,10 +1,16 @@
 //! isoline reconstructs smooth curves from noisy, unorganized 2D points with the
 //! level-set method of Claisse & Frey (2009).
 //!
-//! The crate is layered: [`geom`] → [`distance`] → [`mesh`] → [`fem`], with the file
-//! formats ([`format`], [`ingest`]), configuration ([`config`]), the scanner simulator
-//! ([`synth`]) and accuracy metrics ([`eval`]) beside them. The numerical modules know
-//! nothing of serde, files or threads.
+//! The pipeline's stages are modules: [`distance`] (kd-tree distance field), [`meshing`]
+//! and [`mesh`] (anisotropic adaptation), [`levelset`] (starting level sets and the
+//! solver), [`redistance`] (fast-marching renormalization) and [`export`] (the zero
+//! isoline and writers); [`reconstruct()`] runs them in turn, and [`batch`] runs it over
+//! many files. Beside them: [`geom`] and [`fem`] (the numerical ground), the file formats
+//! ([`mod@format`], [`ingest`]), configuration ([`config`]), the scanner simulator
+//! ([`synth`]) and accuracy metrics ([`eval`]). The numerical modules know nothing of
+//! serde, files or threads beyond rayon.
+
+#![warn(missing_docs)]
 
 pub mod batch;
 pub mod config;
