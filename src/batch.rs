@@ -492,16 +492,17 @@ impl Job {
             }
         }
         if !errors.is_empty() {
-            let n = errors.len();
-            let mut s = fail(s, errors.join("; "));
-            if n < frames.len() {
-                s.reason = Some(format!(
-                    "{n} of {} frames failed: {}",
+            let reason = if errors.len() < frames.len() {
+                format!(
+                    "{} of {} frames failed: {}",
+                    errors.len(),
                     frames.len(),
                     errors.join("; ")
-                ));
-            }
-            return s;
+                )
+            } else {
+                errors.join("; ")
+            };
+            return fail(s, reason);
         }
         s.ms = t0.elapsed().as_secs_f64() * 1e3;
         s

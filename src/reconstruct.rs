@@ -353,7 +353,9 @@ pub fn reconstruct_warm(
     let space = P1Space::new(&mesh);
     let mut dist = Vec::new();
     field.distances_into(&mesh.coords, &mut dist);
-    let data = locate_all(&mesh, &local);
+    // The field's points: the data with exact duplicates merged, so that the stopping
+    // test and the median settle weigh each sample once.
+    let data = locate_all(&mesh, field.points());
     let t_dist = t0.elapsed();
 
     let mut settings = params.solver.resolve(diag, hmin);
@@ -513,7 +515,8 @@ pub fn reconstruct_frame(
 }
 
 /// Moves the zero level set to the local median of the data: each vertex within `width`
-/// of it is lowered by the median of `u` at its `k` nearest data points, then `u` is
+/// of it is lowered by the median of `u` at its `k` nearest data points (`data` holds
+/// the locations of `field`'s points, in its order), then `u` is
 /// renormalized; repeated (at most 4 times) while the mean `|u|` at the data improves by
 /// 1%. Returns the eq. 11 residual and the mean `|u|` at the data afterwards.
 fn center_on_data(
@@ -525,7 +528,6 @@ fn center_on_data(
     width: f64,
 ) -> (f64, f64) {
     use rayon::prelude::*;
-    let samples = locate_all(mesh, field.points());
     // Enough neighbours to span the noise band: the median count of samples within
     // `width` of a sample (checked on up to 64 of them), at least 32, at most 512.
     let pts = field.points();
@@ -545,7 +547,7 @@ fn center_on_data(
     let (mut best_res, mut best) = crate::levelset::solver::residual(mesh, data, u);
     for _ in 0..4 {
         // Allocation is fine here: this runs a few times per frame, not per step.
-        let at: Vec<f64> = samples.iter().map(|l| l.interpolate(mesh, u)).collect();
+        let at: Vec<f64> = data.iter().map(|l| l.interpolate(mesh, u)).collect();
         let offsets: Vec<f64> = mesh
             .coords
             .par_iter()

@@ -41,7 +41,11 @@ const MIN_LEN: usize = 2048;
 /// Time-stepping scheme.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
 pub enum Scheme {
-    /// Forward Euler; the step is bounded by stability (see [`Solver::explicit_dt_bound`]).
+    /// Forward Euler at the stability bound `dt <= m_i / (d_i sum_j |K_ij|)`: by
+    /// Gershgorin no eigenvalue of `D M^-1 K` exceeds `max_i d_i sum_j |K_ij| / m_i`. With
+    /// `|grad u| = 1` the bound is of order `h^2 / d` (h the smallest triangle height at
+    /// the vertex): in the band around the data `h = hmin` but also `d <= band`, so the
+    /// step is `O(hmin^2 / band)`, and far from the data the elements are large.
     Explicit,
     /// Curvature implicit, attraction explicit; the step is `O(hmin)` (paper 3.4.2).
     #[default]
@@ -524,30 +528,6 @@ impl Solver {
         report
     }
 
-    /// The global explicit stability bound for the level set `u` (see
-    /// [`Scheme::Explicit`]): the smallest `m_i / (d_i sum_j |K_ij|)` over the vertices.
-    /// With `|grad u| = 1` and `h` the smallest height of the triangles around a vertex it
-    /// is of order `h^2 / d`: the thin elements of the band around the data have
-    /// `h = hmin` but also `d <= band`, so the step is `O(hmin^2 / band)`; the elements
-    /// far from the data are large, and `d` there does not set the bound.
-    pub fn explicit_dt_bound(
-        &mut self,
-        mesh: &Mesh,
-        space: &P1Space,
-        dist: &[f64],
-        u: &[f64],
-        d_floor: f64,
-    ) -> f64 {
-        self.op.prepare(mesh, space, dist, d_floor);
-        self.op.assemble(mesh, space, u);
-        let op = &self.op;
-        (0..u.len())
-            .into_par_iter()
-            .with_min_len(MIN_LEN)
-            .map(|i| op.bound_at(i))
-            .reduce(|| f64::INFINITY, f64::min)
-    }
-
     /// One forward Euler step; returns the (smallest) step used.
     fn explicit_step(
         &mut self,
@@ -636,7 +616,7 @@ impl Solver {
         }
         let op = &self.op;
         // r = b - A u, z = r / diag, p = z.
-        let (mut rz, _) = self
+        let mut rz = self
             .r
             .par_iter_mut()
             .zip(self.z.par_iter_mut())
@@ -654,9 +634,9 @@ impl Solver {
                 *r = alpha * op.mass[i] - op.row_dot(i, u);
                 *z = *r / *dg;
                 *p = *z;
-                (*r * *z, z.abs())
+                *r * *z
             })
-            .reduce(|| (0.0, 0.0), |a, b| (a.0 + b.0, a.1.max(b.1)));
+            .sum::<f64>();
         if s.linear == LinearSolver::Gmres {
             return self.gmres(u, s);
         }
@@ -680,7 +660,7 @@ impl Solver {
             }
             let a = rz / pq;
             let (q, diag) = (&self.q, &self.diag);
-            let (rz_new, _) = u
+            let rz_new = u
                 .par_iter_mut()
                 .zip(self.r.par_iter_mut())
                 .zip(self.z.par_iter_mut())
@@ -690,9 +670,9 @@ impl Solver {
                     *x += a * p[i];
                     *r -= a * q[i];
                     *z = *r / diag[i];
-                    (*r * *z, z.abs())
+                    *r * *z
                 })
-                .reduce(|| (0.0, 0.0), |x, y| (x.0 + y.0, x.1.max(y.1)));
+                .sum::<f64>();
             let beta = rz_new / rz;
             rz = rz_new;
             let z = &self.z;
