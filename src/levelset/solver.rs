@@ -541,6 +541,8 @@ impl Solver {
         let alpha = s.alpha;
         let uu = &*u;
         // Curvature and bound first: the update must not see half-updated neighbours.
+        // `kappa` is NaN where a vertex does not move (outside the band, or pinned); the
+        // per-vertex bounds go to `diag`, which only the semi-implicit step uses otherwise.
         let bound = self
             .kappa
             .par_iter_mut()
