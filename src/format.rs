@@ -98,8 +98,11 @@ pub struct StageMs {
     pub renormalize: f64,
     /// Isoline extraction and simplification.
     pub export: f64,
-    /// The whole frame.
+    /// The whole frame: the sum of the stages.
     pub total: f64,
+    /// Daemon only: from the frame's arrival to its record, queueing included.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub latency: Option<f64>,
 }
 
 /// The `stats` of a result record (DESIGN.md section 4), plus what a user tuning the

@@ -214,76 +214,129 @@ pub fn adapt_local_from(
     params: &MeshParams,
     start: Option<Mesh>,
 ) -> Result<(AdaptedMesh, DistanceField)> {
-    let t0 = Instant::now();
-    crate::distance::validate_points(points)?;
-    params.validate().map_err(|problems| Error::Config {
-        path: "mesh parameters".into(),
-        problems,
-    })?;
-    let bbox = BBox::of(points).ok_or(Error::EmptyPointSet)?;
-    let local = points;
-    let diag = bbox.diag();
-    let scale = if diag > 0.0 { diag } else { 1.0 };
-    let hmin = params.hmin.unwrap_or(scale / 1000.0);
-    let hmax = params.hmax.unwrap_or(scale / 10.0).max(hmin);
-    let eps = params.eps.unwrap_or(hmin);
+    let prepared = MetricField::new(points, params)?;
+    let adapted = prepared.adapt(start);
+    Ok((adapted, prepared.field))
+}
 
-    let field = DistanceField::new(local)?;
-    let t_dist = t0.elapsed();
-    let mut metric_params = MetricParams {
-        hmin,
-        hmax,
-        eps,
-        band: params.band.unwrap_or(0.0),
-        gradation: params.gradation,
-        isotropic: params.isotropic,
-        neighbours: params.neighbours,
-    };
-    let mut metric = CurveMetric::new(&field, metric_params);
-    let noise = metric.noise_estimate();
-    if params.band.is_none() {
-        metric_params.band = (8.0 * hmin).max(4.0 * noise);
-        metric = CurveMetric::with_frames(metric, metric_params);
+/// The distance stage's product: the kd-tree of one frame's points and the local frames
+/// of its metric, everything adaptation needs and nothing that depends on a mesh.
+#[derive(Debug)]
+pub struct MetricField {
+    /// The points' distance field (exact duplicates merged).
+    pub field: DistanceField,
+    /// One local frame per distinct point, in the field's order.
+    pub frames: Vec<crate::mesh::metric::LocalFrame>,
+    /// Resolved metric parameters (the band derived from the noise when unset).
+    pub params: MetricParams,
+    /// Median local-fit residual: a noise estimate.
+    pub noise_estimate: f64,
+    /// The points' bounding box.
+    pub bbox: BBox,
+    /// Margin around the bounding box, as a fraction of its diagonal.
+    pub padding: f64,
+    /// Adaptation's pass limit.
+    pub max_passes: usize,
+    /// Adaptation's vertex limit.
+    pub max_vertices: usize,
+    /// Time spent building the kd-tree and fitting the frames.
+    pub ms: MeshTimings,
+}
+
+impl MetricField {
+    /// Builds the kd-tree of `points` and fits the metric's local frames.
+    pub fn new(points: &[Point], params: &MeshParams) -> Result<MetricField> {
+        let t0 = Instant::now();
+        crate::distance::validate_points(points)?;
+        params.validate().map_err(|problems| Error::Config {
+            path: "mesh parameters".into(),
+            problems,
+        })?;
+        let bbox = BBox::of(points).ok_or(Error::EmptyPointSet)?;
+        let diag = bbox.diag();
+        let scale = if diag > 0.0 { diag } else { 1.0 };
+        let hmin = params.hmin.unwrap_or(scale / 1000.0);
+        let hmax = params.hmax.unwrap_or(scale / 10.0).max(hmin);
+        let eps = params.eps.unwrap_or(hmin);
+
+        let field = DistanceField::new(points)?;
+        let t_dist = t0.elapsed();
+        let mut metric_params = MetricParams {
+            hmin,
+            hmax,
+            eps,
+            band: params.band.unwrap_or(0.0),
+            gradation: params.gradation,
+            isotropic: params.isotropic,
+            neighbours: params.neighbours,
+        };
+        let metric = CurveMetric::new(&field, metric_params);
+        let noise = metric.noise_estimate();
+        if params.band.is_none() {
+            metric_params.band = (8.0 * hmin).max(4.0 * noise);
+        }
+        let frames = metric.into_frames();
+        let ms = |d: std::time::Duration| d.as_secs_f64() * 1e3;
+        Ok(MetricField {
+            field,
+            frames,
+            params: metric_params,
+            noise_estimate: noise,
+            bbox,
+            padding: params.padding,
+            max_passes: params.max_passes,
+            max_vertices: params.max_vertices,
+            ms: MeshTimings {
+                distance: ms(t_dist),
+                metric: ms(t0.elapsed() - t_dist),
+                adapt: 0.0,
+                total: ms(t0.elapsed()),
+            },
+        })
     }
-    let t_metric = t0.elapsed();
 
-    let wanted = bbox.padded(params.padding * scale + 2.0 * hmin);
-    // A start mesh will do while the data keep at least half the padding from its edge
-    // (a moving shape keeps its mesh until it has drifted that far).
-    let enough = bbox.padded(0.5 * params.padding * scale + 2.0 * hmin);
-    let (local_box, mut mesh) = match start.and_then(|m| {
-        let b = BBox::of(&m.coords)?;
-        (b.contains(enough.min) && b.contains(enough.max)).then_some((b, m))
-    }) {
-        Some(found) => found,
-        None => (wanted, Mesh::of_box(&wanted, hmax)),
-    };
-    let opts = AdaptOptions::default()
-        .with_max_passes(params.max_passes)
-        .with_max_vertices(params.max_vertices);
-    let mut adapter = Adapter::new();
-    let report = adapter.adapt(&mut mesh, &metric, &opts);
-    let metrics = adapter.metrics().to_vec();
-    let stats = mesh_stats(&mesh, &metrics);
-    drop(metric);
-    let t_adapt = t0.elapsed();
-    let ms = |d: std::time::Duration| d.as_secs_f64() * 1e3;
-    Ok((
+    /// Adapts a mesh to this field, starting from `start` (a mesh in the same
+    /// coordinates, e.g. the previous frame's) when its domain still covers the data's
+    /// box padded by half the padding, else from a lattice of the padded box.
+    pub fn adapt(&self, start: Option<Mesh>) -> AdaptedMesh {
+        let t0 = Instant::now();
+        let bbox = self.bbox;
+        let diag = bbox.diag();
+        let scale = if diag > 0.0 { diag } else { 1.0 };
+        let hmin = self.params.hmin;
+        let metric = CurveMetric::from_frames(&self.field, self.frames.clone(), self.params);
+        let wanted = bbox.padded(self.padding * scale + 2.0 * hmin);
+        // A start mesh will do while the data keep at least half the padding from its
+        // edge (a moving shape keeps its mesh until it has drifted that far).
+        let enough = bbox.padded(0.5 * self.padding * scale + 2.0 * hmin);
+        let (local_box, mut mesh) = match start.and_then(|m| {
+            let b = BBox::of(&m.coords)?;
+            (b.contains(enough.min) && b.contains(enough.max)).then_some((b, m))
+        }) {
+            Some(found) => found,
+            None => (wanted, Mesh::of_box(&wanted, self.params.hmax)),
+        };
+        let opts = AdaptOptions::default()
+            .with_max_passes(self.max_passes)
+            .with_max_vertices(self.max_vertices);
+        let mut adapter = Adapter::new();
+        let report = adapter.adapt(&mut mesh, &metric, &opts);
+        let metrics = adapter.metrics().to_vec();
+        let stats = mesh_stats(&mesh, &metrics);
+        let ms = |d: std::time::Duration| d.as_secs_f64() * 1e3;
         AdaptedMesh {
             mesh,
             metrics,
-            params: metric_params,
+            params: self.params,
             domain: local_box,
-            noise_estimate: noise,
+            noise_estimate: self.noise_estimate,
             report,
             stats,
             ms: MeshTimings {
-                distance: ms(t_dist),
-                metric: ms(t_metric - t_dist),
-                adapt: ms(t_adapt - t_metric),
-                total: ms(t0.elapsed()),
+                adapt: ms(t0.elapsed()),
+                total: self.ms.total + ms(t0.elapsed()),
+                ..self.ms
             },
-        },
-        field,
-    ))
+        }
+    }
 }

@@ -17,7 +17,7 @@ use crate::geom::{add, sub, BBox, Point, Polyline};
 use crate::levelset::init::{self, Init};
 use crate::levelset::solver::{LinearSolver, Scheme, SolveReport, Solver, SolverSettings};
 use crate::mesh::Mesh;
-use crate::meshing::{adapt_local_from, MeshParams};
+use crate::meshing::{AdaptedMesh, MeshParams, MetricField};
 
 /// What follows the capture phase on data that does not meet eq. 11 (noisy data).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
@@ -297,17 +297,82 @@ pub fn reconstruct(points: &[Point], params: &Params) -> Result<Reconstruction> 
 }
 
 /// [`reconstruct`] warm-started from `previous`, the reconstruction of an earlier frame of
-/// the same stream: adaptation starts from its mesh, and the level set from its `u`
-/// interpolated onto the new mesh (each new vertex located in the old mesh by walking)
-/// and renormalized. It falls back to a cold start when the old mesh does not cover the
-/// new data's padded box, or when the interpolated level set is farther from the new data
-/// (eq. 11 residual) than the cold tube start would be. `stats.warm_start` says which.
+/// the same stream: the five stages [`prepare`], [`adapt`], [`solve`], [`renormalize`]
+/// and [`export`] in turn, with the previous frame's mesh and level set (see [`solve`]
+/// for when the warm start is taken). `stats.warm_start` says whether it was.
 pub fn reconstruct_warm(
     points: &[Point],
     params: &Params,
     previous: Option<&Reconstruction>,
 ) -> Result<Reconstruction> {
     let _span = tracing::debug_span!("reconstruct", points = points.len()).entered();
+    let prepared = prepare(points, params)?;
+    let adapted = adapt(&prepared, previous.map(|p| &p.mesh));
+    let warm = previous.map(|p| Previous {
+        mesh: &p.mesh,
+        u: &p.u,
+        residual: p.stats.residual,
+    });
+    let mut solved = solve(&prepared, &adapted, warm, params);
+    renormalize(&adapted.mesh, &mut solved);
+    Ok(export(&prepared, adapted, solved, &params.export))
+}
+
+/// The distance stage's product: one frame's points centred on their bounding box, their
+/// kd-tree and the local frames of the metric.
+#[derive(Debug)]
+pub struct Prepared {
+    /// Input points (before duplicates are merged).
+    pub points: usize,
+    /// Centre of the data's bounding box: every later stage works in coordinates
+    /// relative to it, so that element shapes lose no precision to large offsets.
+    pub center: Point,
+    /// Diagonal `D` of the data's bounding box.
+    pub diag: f64,
+    /// The points, centred.
+    pub local: Vec<Point>,
+    /// Their distance field and metric frames.
+    pub metric: MetricField,
+    /// Milliseconds spent.
+    pub ms: f64,
+}
+
+/// The warm start a frame may take: the previous frame's mesh (in data coordinates), its
+/// renormalized level set and its eq. 11 residual.
+#[derive(Clone, Copy, Debug)]
+pub struct Previous<'a> {
+    /// The previous frame's mesh, in data coordinates.
+    pub mesh: &'a Mesh,
+    /// Its level set.
+    pub u: &'a [f64],
+    /// Its eq. 11 residual.
+    pub residual: f64,
+}
+
+/// The solve stage's product: the level set on the adapted mesh and how it was found.
+#[derive(Debug)]
+pub struct Solved {
+    /// The level set at the mesh vertices (centred coordinates, negative inside).
+    pub u: Vec<f64>,
+    /// The P1 space of the mesh (reused by renormalization).
+    pub space: P1Space,
+    /// The solver's report (its `ms_solve` includes the median settle).
+    pub report: SolveReport,
+    /// The settings used.
+    pub settings: SolverSettings,
+    /// Whether the level set started from the previous frame's.
+    pub warm_start: bool,
+    /// Milliseconds: distances at the vertices and locating the data.
+    pub ms_distance: f64,
+    /// Milliseconds: the whole solve stage.
+    pub ms: f64,
+    /// Milliseconds of fast marching outside the solver's loop (warm start, final pass).
+    pub ms_renormalize: f64,
+}
+
+/// The distance stage: validates the points, centres them and builds their distance
+/// field and metric frames.
+pub fn prepare(points: &[Point], params: &Params) -> Result<Prepared> {
     let t0 = Instant::now();
     validate_points(points)?;
     params.solver.validate().map_err(|problems| Error::Config {
@@ -323,10 +388,10 @@ pub fn reconstruct_warm(
             count: points.len(),
         });
     }
-    let margin = params.solver.margin * diag;
     let mut mesh_params = params.mesh.clone();
     if params.solver.init == Init::Circle {
         // The paper's circle must fit in the meshed box.
+        let margin = params.solver.margin * diag;
         let c = BBox::of(&local).expect("non-empty").center();
         let r = local
             .iter()
@@ -336,52 +401,99 @@ pub fn reconstruct_warm(
         let half = bbox.size()[0].min(bbox.size()[1]) / 2.0;
         mesh_params.padding = mesh_params.padding.max((r - half) / diag + 0.05);
     }
-    // The previous frame, moved into this frame's coordinates.
-    let old = previous.map(|p| {
-        let mut m = p.mesh.clone();
-        for c in &mut m.coords {
-            *c = sub(*c, center);
-        }
-        (m, &p.u, p.stats.residual)
-    });
-    let (adapted, field) =
-        adapt_local_from(&local, &mesh_params, old.as_ref().map(|o| o.0.clone()))?;
-    let hmin = adapted.params.hmin;
-    let mesh = adapted.mesh;
-    let t_adapt = t0.elapsed();
+    let metric = MetricField::new(&local, &mesh_params)?;
+    Ok(Prepared {
+        points: points.len(),
+        center,
+        diag,
+        local,
+        metric,
+        ms: t0.elapsed().as_secs_f64() * 1e3,
+    })
+}
 
-    let space = P1Space::new(&mesh);
+/// The adapt stage: an anisotropic mesh of the frame (centred coordinates), adapted from
+/// `previous` (a mesh in data coordinates, the previous frame's) when it still covers the
+/// data, else from a lattice.
+pub fn adapt(prepared: &Prepared, previous: Option<&Mesh>) -> AdaptedMesh {
+    let start = previous.map(|m| {
+        let mut m = m.clone();
+        for c in &mut m.coords {
+            *c = sub(*c, prepared.center);
+        }
+        m
+    });
+    prepared.metric.adapt(start)
+}
+
+/// The solve stage: the level set on the adapted mesh, from the previous frame's when
+/// that is a good start, else from the configured one, evolved by the solver and, on
+/// noisy data, settled on the data's median.
+///
+/// The previous level set is interpolated onto the new mesh (each vertex located in the
+/// old mesh by walking) and renormalized. Where it already lies within the median
+/// settle's reach of every new sample (`4 sigma + 4 hmin`, sigma the noise estimate), it
+/// is used as it is: the capture phase then stagnates within its patience window and the
+/// settle moves the curve the rest of the way, in either direction. Otherwise, while it is
+/// no farther from the data than a cold tube start would be (twice the larger of the tube
+/// radius and the previous residual), it is offset outward past every sample, because
+/// the evolution only moves the curve inward. Farther (a jump, a restarted stream, a mesh
+/// that no longer covers the data): cold start.
+pub fn solve(
+    prepared: &Prepared,
+    adapted: &AdaptedMesh,
+    previous: Option<Previous<'_>>,
+    params: &Params,
+) -> Solved {
+    let t0 = Instant::now();
+    let mesh = &adapted.mesh;
+    let field = &prepared.metric.field;
+    let hmin = adapted.params.hmin;
+    let space = P1Space::new(mesh);
     let mut dist = Vec::new();
     field.distances_into(&mesh.coords, &mut dist);
     // The field's points: the data with exact duplicates merged, so that the stopping
     // test and the median settle weigh each sample once.
-    let data = locate_all(&mesh, field.points());
-    let t_dist = t0.elapsed();
+    let data = locate_all(mesh, field.points());
+    let ms_distance = t0.elapsed().as_secs_f64() * 1e3;
 
-    let mut settings = params.solver.resolve(diag, hmin);
+    let mut settings = params.solver.resolve(prepared.diag, hmin);
+    let margin = params.solver.margin * prepared.diag;
     let tube_radius = params
         .solver
         .tube
-        .unwrap_or_else(|| init::tube_radius(&field, 2.0 * hmin));
-    let warm = old.and_then(|(old_mesh, old_u, old_residual)| {
+        .unwrap_or_else(|| init::tube_radius(field, 2.0 * hmin));
+    let settle_width = 4.0 * adapted.noise_estimate + 4.0 * hmin;
+    let mut fm = crate::redistance::Redistancer::new();
+    let mut ms_renormalize = 0.0;
+    let warm = previous.and_then(|prev| {
+        let mut old_mesh = prev.mesh.clone();
+        for c in &mut old_mesh.coords {
+            *c = sub(*c, prepared.center);
+        }
         let bbox_old = BBox::of(&old_mesh.coords)?;
         if !mesh.coords.iter().all(|&c| bbox_old.contains(c)) {
             return None;
         }
         let at = locate_all(&old_mesh, &mesh.coords);
-        let mut u: Vec<f64> = at.iter().map(|l| l.interpolate(&old_mesh, old_u)).collect();
-        crate::redistance::Redistancer::new().run(&mesh, &space, &mut u, f64::INFINITY);
-        let (res, _) = crate::levelset::solver::residual(&mesh, &data, &u);
+        let mut u: Vec<f64> = at
+            .iter()
+            .map(|l| l.interpolate(&old_mesh, prev.u))
+            .collect();
+        let t = Instant::now();
+        fm.run(mesh, &space, &mut u, f64::INFINITY);
+        ms_renormalize += t.elapsed().as_secs_f64() * 1e3;
+        let (res, _) = crate::levelset::solver::residual(mesh, &data, &u);
+        let near = res <= settle_width && params.solver.settle == Settle::Median;
         // A cold tube start begins about one tube radius from the data, and the previous
-        // frame ended at `old_residual` from its own: the warm start must not be much
-        // worse than either (a jump, a restarted stream).
-        let keep = res <= 2.0 * tube_radius.max(old_residual) + settings.eps;
-        tracing::debug!(residual = res, keep, "warm start");
-        // The evolution only moves the curve inwards, and part of the old curve may lie
-        // inside the moved data: push it out past every point first (u is a distance, so
-        // subtracting a constant offsets the curve), and let it close in again.
-        let offset = res + settings.eps;
-        u.iter_mut().for_each(|x| *x -= offset);
+        // frame ended at `prev.residual` from its own.
+        let keep = near || res <= 2.0 * tube_radius.max(prev.residual) + settings.eps;
+        tracing::debug!(residual = res, near, keep, "warm start");
+        if !near {
+            // u is a distance, so subtracting a constant offsets the curve outward.
+            let offset = res + settings.eps;
+            u.iter_mut().for_each(|x| *x -= offset);
+        }
         keep.then_some(u)
     });
     let warm_start = warm.is_some();
@@ -390,24 +502,25 @@ pub fn reconstruct_warm(
         (None, Init::Tube) => {
             // The pinned vertices must lie inside the starting curve, or nothing moves.
             settings.tube = settings.tube.min(0.5 * tube_radius);
-            match init::tube(&mesh, |v| space.ring(v), &dist, tube_radius) {
+            match init::tube(mesh, |v| space.ring(v), &dist, tube_radius) {
                 Some(mut u) => {
-                    crate::redistance::Redistancer::new().run(&mesh, &space, &mut u, f64::INFINITY);
+                    let t = Instant::now();
+                    fm.run(mesh, &space, &mut u, f64::INFINITY);
+                    ms_renormalize += t.elapsed().as_secs_f64() * 1e3;
                     u
                 }
                 None => {
                     tracing::debug!(tube_radius, "the tube encloses nothing: box start");
-                    init::enclosing(Init::Box, &local, margin, &mesh.coords)
+                    init::enclosing(Init::Box, &prepared.local, margin, &mesh.coords)
                 }
             }
         }
-        (None, other) => init::enclosing(other, &local, margin, &mesh.coords),
+        (None, other) => init::enclosing(other, &prepared.local, margin, &mesh.coords),
     };
-    let mut report = Solver::new().solve(&mesh, &space, &dist, &data, &mut u, &settings);
+    let mut report = Solver::new().solve(mesh, &space, &dist, &data, &mut u, &settings);
     if params.solver.settle == Settle::Median && !report.converged {
         let t = Instant::now();
-        let width = 4.0 * adapted.noise_estimate + 4.0 * hmin;
-        let (res, mean) = center_on_data(&mesh, &space, &field, &data, &mut u, width);
+        let (res, mean) = center_on_data(mesh, &space, field, &data, &mut u, settle_width);
         report.residual = res;
         report.mean_residual = mean;
         if res < settings.eps {
@@ -416,21 +529,51 @@ pub fn reconstruct_warm(
         }
         report.ms_solve += t.elapsed().as_secs_f64() * 1e3;
     }
-    let t_solve = t0.elapsed();
+    Solved {
+        u,
+        space,
+        report,
+        settings,
+        warm_start,
+        ms_distance,
+        ms: t0.elapsed().as_secs_f64() * 1e3,
+        ms_renormalize,
+    }
+}
 
-    let _export = tracing::debug_span!("export").entered();
-    let mut polylines = zero_isoline(&mesh, &u, 1e-9 * diag);
+/// The renormalize stage: `u` becomes the signed distance to its zero isoline over the
+/// whole mesh (the solver's own passes stop at twice its narrow band), which is what the
+/// next frame's warm start interpolates.
+pub fn renormalize(mesh: &Mesh, solved: &mut Solved) {
+    let t = Instant::now();
+    crate::redistance::Redistancer::new().run(mesh, &solved.space, &mut solved.u, f64::INFINITY);
+    solved.ms_renormalize += t.elapsed().as_secs_f64() * 1e3;
+}
+
+/// The export stage: the zero isoline as polylines in data coordinates, small specks
+/// dropped and optionally simplified, with the frame's statistics.
+pub fn export(
+    prepared: &Prepared,
+    adapted: AdaptedMesh,
+    solved: Solved,
+    params: &ExportParams,
+) -> Reconstruction {
+    let t0 = Instant::now();
+    let center = prepared.center;
+    let hmin = adapted.params.hmin;
+    let mut mesh = adapted.mesh;
+    let u = solved.u;
+    let mut polylines = zero_isoline(&mesh, &u, 1e-9 * prepared.diag);
     // Loops smaller than a disc of radius 3 hmin are below what the mesh resolves: specks
     // left where the level set grazes zero between samples.
     let min_area = params
-        .export
         .min_area
         .unwrap_or(std::f64::consts::PI * 9.0 * hmin * hmin);
     polylines.retain(|p| !p.closed || p.signed_area().abs() >= min_area);
-    if params.export.simplify > 0.0 {
+    if params.simplify > 0.0 {
         polylines = polylines
             .iter()
-            .map(|p| simplify(p, params.export.simplify))
+            .map(|p| simplify(p, params.simplify))
             .collect();
     }
     for pl in &mut polylines {
@@ -438,43 +581,50 @@ pub fn reconstruct_warm(
             *p = add(*p, center);
         }
     }
-    let mut mesh = mesh;
     for p in &mut mesh.coords {
         *p = add(*p, center);
     }
-    let ms = |d: std::time::Duration| d.as_secs_f64() * 1e3;
+    let report = solved.report;
+    let ms_export = t0.elapsed().as_secs_f64() * 1e3;
+    let renormalize = report.ms_renormalize + solved.ms_renormalize;
+    let ms = StageMs {
+        distance: prepared.ms + solved.ms_distance,
+        adapt: adapted.ms.adapt,
+        solve: solved.ms - solved.ms_distance - solved.ms_renormalize - report.ms_renormalize,
+        renormalize,
+        export: ms_export,
+        total: 0.0,
+        latency: None,
+    };
+    let ms = StageMs {
+        total: ms.distance + ms.adapt + ms.solve + ms.renormalize + ms.export,
+        ..ms
+    };
     let stats = FrameStats {
-        points: points.len(),
+        points: prepared.points,
         vertices: mesh.num_vertices(),
         triangles: mesh.num_triangles(),
         iterations: report.iterations,
         residual: report.residual,
         converged: report.converged,
-        warm_start,
-        ms: StageMs {
-            distance: adapted.ms.distance + ms(t_dist - t_adapt),
-            adapt: adapted.ms.metric + adapted.ms.adapt,
-            solve: report.ms_solve,
-            renormalize: report.ms_renormalize,
-            export: ms(t0.elapsed() - t_solve),
-            total: ms(t0.elapsed()),
-        },
+        warm_start: solved.warm_start,
+        ms,
         stop: report.stop.as_str().into(),
-        scheme: settings.scheme.to_string(),
+        scheme: solved.settings.scheme.to_string(),
         linear_iterations: report.linear_iterations,
         renormalizations: report.renormalizations,
         hmin,
-        eps: settings.eps,
+        eps: solved.settings.eps,
     };
-    Ok(Reconstruction {
+    Reconstruction {
         polylines,
         mesh,
         u,
         stats,
         solve: report,
-        settings,
+        settings: solved.settings,
         noise_estimate: adapted.noise_estimate,
-    })
+    }
 }
 
 /// Reconstructs one input frame into its result record (curves and stats, or the error),

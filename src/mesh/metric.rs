@@ -188,9 +188,24 @@ impl<'a> CurveMetric<'a> {
         }
     }
 
-    /// The same frames under new parameters (e.g. a band derived from the noise estimate).
-    pub fn with_frames(self, params: MetricParams) -> Self {
-        CurveMetric { params, ..self }
+    /// A metric from frames fitted earlier (by [`CurveMetric::new`] on the same field),
+    /// possibly under new parameters (e.g. a band derived from the noise estimate).
+    pub fn from_frames(
+        field: &'a DistanceField,
+        frames: Vec<LocalFrame>,
+        params: MetricParams,
+    ) -> Self {
+        assert_eq!(frames.len(), field.points().len(), "one frame per point");
+        CurveMetric {
+            field,
+            frames,
+            params,
+        }
+    }
+
+    /// The fitted frames, giving up the borrow of the field.
+    pub fn into_frames(self) -> Vec<LocalFrame> {
+        self.frames
     }
 
     /// The per-sample frames, in the distance field's point order.
