@@ -162,4 +162,7 @@ pub struct ResultRecord {
     /// Why the frame has no curves.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub error: Option<String>,
+    /// Daemon only: `true` when the frame was skipped for a newer one of its stream.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub skipped: Option<bool>,
 }

@@ -25,6 +25,7 @@ pub mod ingest;
 pub mod levelset;
 pub mod mesh;
 pub mod meshing;
+pub mod pipeline;
 pub mod reconstruct;
 pub mod redistance;
 pub mod synth;

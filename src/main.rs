@@ -108,6 +108,14 @@ enum Command {
         #[arg(long)]
         force: bool,
     },
+    /// The streaming daemon: frames from a file, stdin or TCP through the staged
+    /// pipeline, each warm-started from the previous frame of its stream.
+    Run {
+        /// Daemon configuration: [input] [output] [pipeline] [tracing], and [mesh]
+        /// [solver] [export].
+        #[arg(short, long)]
+        config: PathBuf,
+    },
     /// Adapt an anisotropic mesh to a point set and draw it.
     Mesh {
         /// Point file, or NDJSON frame stream (first frame unless --frame).
@@ -131,16 +139,74 @@ enum Command {
 }
 
 fn main() {
-    tracing_subscriber::fmt()
-        .with_env_filter(
-            tracing_subscriber::EnvFilter::try_from_default_env().unwrap_or_else(|_| "warn".into()),
-        )
-        .with_writer(std::io::stderr)
-        .init();
-    if let Err(e) = run(Cli::parse()) {
+    let cli = Cli::parse();
+    let result = match &cli.command {
+        Command::Run { config } => daemon_cmd(config),
+        _ => init_tracing("warn", None).and_then(|_| run(cli)),
+    };
+    if let Err(e) = result {
         eprintln!("isoline: {e:#}");
         std::process::exit(1);
     }
+}
+
+/// Logs to stderr, filtered by `RUST_LOG` or else `default`; with `chrome`, also writes
+/// every span of isoline's stages (whatever the log filter) as a Chrome/Perfetto trace,
+/// complete once the returned guard is dropped.
+fn init_tracing(
+    default: &str,
+    chrome: Option<&Path>,
+) -> Result<Option<tracing_chrome::FlushGuard>> {
+    use tracing_subscriber::prelude::*;
+    use tracing_subscriber::EnvFilter;
+    let filter = EnvFilter::try_from_default_env().unwrap_or_else(|_| EnvFilter::new(default));
+    let (chrome_layer, guard) = match chrome {
+        Some(path) => {
+            let file = create(path)?;
+            let (layer, guard) = tracing_chrome::ChromeLayerBuilder::new()
+                .writer(file)
+                .include_args(true)
+                .build();
+            let spans = tracing_subscriber::filter::Targets::new()
+                .with_target("isoline", tracing::Level::INFO);
+            (Some(layer.with_filter(spans)), Some(guard))
+        }
+        None => (None, None),
+    };
+    tracing_subscriber::registry()
+        .with(
+            tracing_subscriber::fmt::layer()
+                .with_writer(std::io::stderr)
+                .with_filter(filter),
+        )
+        .with(chrome_layer)
+        .try_init()
+        .context("setting up tracing")?;
+    Ok(guard)
+}
+
+/// `isoline run`: the daemon until end of input or a signal. The first SIGINT or SIGTERM
+/// stops ingest and lets the frames in flight finish; a second one exits at once.
+fn daemon_cmd(config: &Path) -> Result<()> {
+    use std::sync::atomic::AtomicBool;
+    use std::sync::Arc;
+    let cfg = isoline::pipeline::DaemonConfig::load(config)?;
+    let guard = init_tracing(&cfg.log, cfg.chrome_trace.as_deref())?;
+    let stop = Arc::new(AtomicBool::new(false));
+    for sig in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
+        // Registered first, so it sees the flag as the previous signal left it.
+        signal_hook::flag::register_conditional_shutdown(sig, 130, stop.clone())
+            .context("installing signal handlers")?;
+        signal_hook::flag::register(sig, stop.clone()).context("installing signal handlers")?;
+    }
+    let daemon = isoline::pipeline::Daemon::start(&cfg, stop)?;
+    if let Some(addr) = daemon.tcp_addr {
+        eprintln!("isoline run: listening on {addr}");
+    }
+    let summary = daemon.wait()?;
+    drop(guard);
+    eprintln!("isoline run: {summary}");
+    Ok(())
 }
 
 fn run(cli: Cli) -> Result<()> {
@@ -269,6 +335,7 @@ fn run(cli: Cli) -> Result<()> {
             )
         }
         Command::Batch { config, force } => batch_cmd(&config, force),
+        Command::Run { .. } => unreachable!("handled in main"),
         Command::Mesh {
             input,
             config,

@@ -648,7 +648,7 @@ pub fn reconstruct_frame(
                 frame: frame.frame,
                 polylines: Some(r.polylines.iter().map(PolylineJson::from).collect()),
                 stats: Some(r.stats.clone()),
-                error: None,
+                ..Default::default()
             },
             Some(r),
         ),

@@ -1,0 +1,359 @@
+//! The daemon's TOML file: `[input]`, `[output]`, `[pipeline]` and `[tracing]`, beside
+//! the `[mesh]`, `[solver]` and `[export]` tables every command shares. Unknown keys are
+//! refused, every problem is reported at once with its key path, and relative paths are
+//! taken from the configuration file's folder.
+
+use std::net::SocketAddr;
+use std::path::{Path, PathBuf};
+use std::time::Duration;
+
+use serde::Deserialize;
+
+use crate::config::{value_problem, Config};
+use crate::error::{Error, Result};
+use crate::reconstruct::Params;
+
+/// Where frames come from.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Source {
+    /// An NDJSON frame file, replayed.
+    File {
+        /// The file.
+        path: PathBuf,
+        /// At what pace.
+        replay: Replay,
+    },
+    /// NDJSON frames on standard input, as they come.
+    Stdin,
+    /// A TCP listener: one NDJSON frame per line, any number of clients.
+    Tcp {
+        /// The address to listen on.
+        bind: SocketAddr,
+    },
+}
+
+/// The pace of a file replay.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Replay {
+    /// At the frames' recorded time stamps `t` (relative to the first frame's); frames
+    /// without one are not delayed.
+    Recorded,
+    /// At a fixed number of frames per second.
+    Rate(f64),
+    /// As fast as the pipeline takes them.
+    Fast,
+}
+
+/// What a full queue does.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum Policy {
+    /// Wait: lossless, and ingest slows down to the pipeline's pace.
+    #[default]
+    Block,
+    /// Live sensors: a stage that finds several frames of one stream waiting processes the
+    /// newest and passes the older ones on as skipped (each still gets a record).
+    Latest,
+}
+
+/// A validated daemon configuration.
+#[derive(Clone, Debug)]
+pub struct DaemonConfig {
+    /// The source of frames.
+    pub source: Source,
+    /// NDJSON results: a file, or standard output when `None`.
+    pub output: Option<PathBuf>,
+    /// A folder for one SVG drawing per frame.
+    pub svg_dir: Option<PathBuf>,
+    /// Capacity of every queue between stages.
+    pub queue: usize,
+    /// What a full queue does.
+    pub policy: Policy,
+    /// Start each frame from the previous frame of its stream.
+    pub warm_start: bool,
+    /// Log filter when `RUST_LOG` is unset, e.g. `"info"` or `"isoline=debug"`.
+    pub log: String,
+    /// Where to write a Chrome/Perfetto trace of the stages' spans.
+    pub chrome_trace: Option<PathBuf>,
+    /// How often waiting sources and the ingest stage look for a shutdown request.
+    pub poll: Duration,
+    /// Reconstruction parameters.
+    pub params: Params,
+}
+
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct InputTable {
+    /// `"file"`, `"stdin"` or `"tcp"`; default `"file"` when `path` is set.
+    kind: Option<String>,
+    path: Option<PathBuf>,
+    /// `"recorded"` (default), `"fast"`, or frames per second.
+    replay: Option<toml::Value>,
+    /// TCP: address to listen on. Default `127.0.0.1:7878`.
+    bind: Option<String>,
+}
+
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct OutputTable {
+    /// NDJSON results; `"-"` or unset: standard output.
+    path: Option<PathBuf>,
+    svg_dir: Option<PathBuf>,
+}
+
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct PipelineTable {
+    queue: Option<usize>,
+    policy: Option<String>,
+    warm_start: Option<bool>,
+}
+
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct TracingTable {
+    level: Option<String>,
+    chrome_trace: Option<PathBuf>,
+}
+
+/// The default TCP address: loopback only, so a daemon is not reachable from the network
+/// unless its configuration says so.
+pub const DEFAULT_BIND: &str = "127.0.0.1:7878";
+
+impl DaemonConfig {
+    /// Reads and validates a daemon configuration file.
+    pub fn load(path: &Path) -> Result<DaemonConfig> {
+        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+        let base = path.parent().unwrap_or(Path::new(".")).to_path_buf();
+        Self::parse(&text, &path.display().to_string(), &base)
+    }
+
+    /// Parses and validates configuration text; `name` labels errors and relative paths
+    /// are resolved against `base`.
+    pub fn parse(text: &str, name: &str, base: &Path) -> Result<DaemonConfig> {
+        let fail = |problems: Vec<String>| Error::Config {
+            path: name.to_string(),
+            problems,
+        };
+        let mut table: toml::Table = toml::from_str(text)
+            .map_err(|e| fail(vec![e.to_string().trim().replace('\n', "\n  ")]))?;
+        let mut problems = Vec::new();
+        fn take<T: serde::de::DeserializeOwned + Default>(
+            table: &mut toml::Table,
+            key: &str,
+            problems: &mut Vec<String>,
+        ) -> T {
+            match table.remove(key) {
+                None => T::default(),
+                Some(v) => v.try_into().unwrap_or_else(|e| {
+                    problems.push(value_problem(&e, &format!("{key}.")));
+                    T::default()
+                }),
+            }
+        }
+        let input: InputTable = take(&mut table, "input", &mut problems);
+        let output: OutputTable = take(&mut table, "output", &mut problems);
+        let pipeline: PipelineTable = take(&mut table, "pipeline", &mut problems);
+        let tracing_t: TracingTable = take(&mut table, "tracing", &mut problems);
+        let params = match Config::from_table(table, name, "") {
+            Ok(c) => Some(c.params()),
+            Err(Error::Config { problems: p, .. }) => {
+                problems.extend(p);
+                None
+            }
+            Err(e) => return Err(e),
+        };
+        let resolve = |p: &Path| {
+            if p.is_absolute() {
+                p.to_path_buf()
+            } else {
+                base.join(p)
+            }
+        };
+
+        let kind = input.kind.clone().unwrap_or_else(|| {
+            if input.path.is_some() {
+                "file"
+            } else {
+                "stdin"
+            }
+            .into()
+        });
+        let source = match kind.as_str() {
+            "file" => match &input.path {
+                None => {
+                    problems.push("input.path: required when input.kind = \"file\"".into());
+                    None
+                }
+                Some(p) => {
+                    let replay = match &input.replay {
+                        None => Some(Replay::Recorded),
+                        Some(toml::Value::String(s)) if s == "recorded" => Some(Replay::Recorded),
+                        Some(toml::Value::String(s)) if s == "fast" => Some(Replay::Fast),
+                        Some(v) => match v.as_float().or(v.as_integer().map(|i| i as f64)) {
+                            Some(r) if r.is_finite() && r > 0.0 => Some(Replay::Rate(r)),
+                            _ => {
+                                problems.push(format!(
+                                    "input.replay = {v}: expected \"recorded\", \"fast\" or \
+                                     frames per second > 0"
+                                ));
+                                None
+                            }
+                        },
+                    };
+                    replay.map(|replay| Source::File {
+                        path: resolve(p),
+                        replay,
+                    })
+                }
+            },
+            "stdin" => Some(Source::Stdin),
+            "tcp" => {
+                let bind = input.bind.clone().unwrap_or_else(|| DEFAULT_BIND.into());
+                match bind.parse::<SocketAddr>() {
+                    Ok(bind) => Some(Source::Tcp { bind }),
+                    Err(e) => {
+                        problems.push(format!(
+                            "input.bind = {bind:?}: {e} (expected e.g. \"{DEFAULT_BIND}\")"
+                        ));
+                        None
+                    }
+                }
+            }
+            other => {
+                problems.push(format!(
+                    "input.kind = {other:?}: expected \"file\", \"stdin\" or \"tcp\""
+                ));
+                None
+            }
+        };
+        if kind != "file" && (input.path.is_some() || input.replay.is_some()) {
+            problems.push(format!(
+                "input.path and input.replay apply to kind = \"file\", not {kind:?}"
+            ));
+        }
+        if kind != "tcp" && input.bind.is_some() {
+            problems.push(format!(
+                "input.bind applies to kind = \"tcp\", not {kind:?}"
+            ));
+        }
+        let queue = pipeline.queue.unwrap_or(4);
+        if !(1..=4096).contains(&queue) {
+            problems.push(format!("pipeline.queue = {queue}: must be in 1..=4096"));
+        }
+        let policy = match pipeline.policy.as_deref() {
+            None | Some("block") => Policy::Block,
+            Some("latest") => Policy::Latest,
+            Some(other) => {
+                problems.push(format!(
+                    "pipeline.policy = {other:?}: expected \"block\" or \"latest\""
+                ));
+                Policy::Block
+            }
+        };
+        let log = tracing_t.level.clone().unwrap_or_else(|| "warn".into());
+        if let Err(e) = log.parse::<tracing_subscriber::EnvFilter>() {
+            problems.push(format!("tracing.level = {log:?}: {e}"));
+        }
+        match (source, params) {
+            (Some(source), Some(params)) if problems.is_empty() => Ok(DaemonConfig {
+                source,
+                output: output
+                    .path
+                    .filter(|p| p.as_os_str() != "-")
+                    .map(|p| resolve(&p)),
+                svg_dir: output.svg_dir.map(|p| resolve(&p)),
+                queue,
+                policy,
+                warm_start: pipeline.warm_start.unwrap_or(true),
+                log,
+                chrome_trace: tracing_t.chrome_trace.map(|p| resolve(&p)),
+                poll: Duration::from_millis(50),
+                params,
+            }),
+            _ => Err(fail(problems)),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_full_configuration_is_read_with_paths_from_its_folder() {
+        let c = DaemonConfig::parse(
+            "[input]\npath = \"frames.ndjson\"\nreplay = 20\n[output]\npath = \"out.ndjson\"\n\
+             svg_dir = \"svg\"\n[pipeline]\nqueue = 2\npolicy = \"latest\"\nwarm_start = false\n\
+             [tracing]\nlevel = \"info\"\nchrome_trace = \"trace.json\"\n[mesh]\nhmin = 0.002\n",
+            "d.toml",
+            Path::new("/cfg"),
+        )
+        .unwrap();
+        assert_eq!(
+            c.source,
+            Source::File {
+                path: "/cfg/frames.ndjson".into(),
+                replay: Replay::Rate(20.0)
+            }
+        );
+        assert_eq!(c.output.as_deref(), Some(Path::new("/cfg/out.ndjson")));
+        assert_eq!(c.svg_dir.as_deref(), Some(Path::new("/cfg/svg")));
+        assert_eq!(
+            (c.queue, c.policy, c.warm_start),
+            (2, Policy::Latest, false)
+        );
+        assert_eq!(
+            c.chrome_trace.as_deref(),
+            Some(Path::new("/cfg/trace.json"))
+        );
+        assert_eq!(c.params.mesh.hmin, Some(0.002));
+    }
+
+    #[test]
+    fn defaults_are_stdin_to_stdout_blocking_and_warm() {
+        let c = DaemonConfig::parse("", "d.toml", Path::new(".")).unwrap();
+        assert_eq!(c.source, Source::Stdin);
+        assert_eq!(c.output, None);
+        assert_eq!((c.queue, c.policy, c.warm_start), (4, Policy::Block, true));
+        let tcp =
+            DaemonConfig::parse("[input]\nkind = \"tcp\"\n", "d.toml", Path::new(".")).unwrap();
+        assert_eq!(
+            tcp.source,
+            Source::Tcp {
+                bind: DEFAULT_BIND.parse().unwrap()
+            }
+        );
+    }
+
+    #[test]
+    fn every_problem_is_named_with_its_key() {
+        let e = DaemonConfig::parse(
+            "[input]\nkind = \"tcp\"\nbind = \"nowhere\"\nreplay = -1\n[pipeline]\nqueue = 0\n\
+             policy = \"newest\"\nspeed = 2\n[solver]\ncfl = 3.0\n",
+            "d.toml",
+            Path::new("."),
+        )
+        .unwrap_err()
+        .to_string();
+        for key in [
+            "input.bind",
+            "input.path and input.replay",
+            "pipeline",
+            "speed",
+            "solver.cfl",
+        ] {
+            assert!(e.contains(key), "{key} missing from: {e}");
+        }
+        let e = DaemonConfig::parse(
+            "[pipeline]\nqueue = 0\npolicy = \"newest\"\n",
+            "d.toml",
+            Path::new("."),
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(
+            e.contains("pipeline.queue = 0") && e.contains("pipeline.policy"),
+            "{e}"
+        );
+    }
+}

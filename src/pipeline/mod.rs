@@ -1,0 +1,233 @@
+//! The streaming daemon (`isoline run`): the stages of [`crate::reconstruct`] as threads
+//! connected by bounded crossbeam channels (DESIGN.md sections 2-5).
+//!
+//! ```text
+//! sources -> ingest -> distance -> adapt -> solve -> renormalize -> export -> sinks
+//!                                    ^        ^  <- level set ----'
+//!                                 last mesh  (per stream)
+//! ```
+//!
+//! Each stage is one thread that calls the library's plain stage function on each frame
+//! and passes the frame on; the numerical work inside a stage runs on the shared rayon
+//! pool. Every stage takes frames in order, so the frames of a stream stay in order, and
+//! a frame that fails or is skipped travels on as such, so that every frame read gets one
+//! record, in its place. The adapt stage keeps each stream's last mesh, so that the next
+//! frame's adaptation overlaps with this frame's solve; the solve stage keeps each
+//! stream's last renormalized level set, which the renormalize stage sends back, and
+//! waits for it before solving the stream's next frame.
+
+pub mod config;
+pub mod source;
+mod stages;
+
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+use std::time::Instant;
+
+use crossbeam_channel::bounded;
+use serde::Serialize;
+
+pub use config::{DaemonConfig, Policy, Replay, Source};
+
+use crate::error::{Error, Result};
+
+/// What a daemon run did, for the closing log line.
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+pub struct RunSummary {
+    /// Records written (one per frame read).
+    pub records: usize,
+    /// Records with curves.
+    pub reconstructed: usize,
+    /// Error records (bad frames).
+    pub errors: usize,
+    /// Frames skipped under the `latest` policy.
+    pub skipped: usize,
+    /// Reconstructed frames that started from their predecessor's level set.
+    pub warm: usize,
+    /// Seconds from the first frame read to the last record written.
+    pub seconds: f64,
+    /// Records per second over that time.
+    pub frames_per_second: f64,
+    /// Median latency (frame read to record written), milliseconds.
+    pub latency_p50: f64,
+    /// 99th percentile latency, milliseconds.
+    pub latency_p99: f64,
+    /// Median solver iterations of warm-started frames.
+    pub iterations_warm: Option<f64>,
+    /// Median solver iterations of cold-started frames.
+    pub iterations_cold: Option<f64>,
+}
+
+impl std::fmt::Display for RunSummary {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "{} records ({} reconstructed, {} errors, {} skipped) in {:.2} s: {:.1} frames/s, \
+             latency p50 {:.1} ms p99 {:.1} ms",
+            self.records,
+            self.reconstructed,
+            self.errors,
+            self.skipped,
+            self.seconds,
+            self.frames_per_second,
+            self.latency_p50,
+            self.latency_p99
+        )?;
+        let its = |x: Option<f64>| x.map_or("-".to_string(), |v| format!("{v}"));
+        write!(
+            f,
+            "; {} warm starts; median iterations warm {} cold {}",
+            self.warm,
+            its(self.iterations_warm),
+            its(self.iterations_cold)
+        )
+    }
+}
+
+/// Handles of a running daemon.
+pub struct Daemon {
+    threads: Vec<(&'static str, std::thread::JoinHandle<()>)>,
+    export: std::thread::JoinHandle<Result<RunSummary>>,
+    /// The TCP address listened on, when the source is TCP.
+    pub tcp_addr: Option<std::net::SocketAddr>,
+}
+
+impl Daemon {
+    /// Starts sources and stages. It runs until the input ends or `stop` is set; then
+    /// ingest stops, frames in flight finish and the sinks flush.
+    pub fn start(cfg: &DaemonConfig, stop: Arc<AtomicBool>) -> Result<Daemon> {
+        let sink = open_sink(cfg.output.as_deref())?;
+        if let Some(dir) = &cfg.svg_dir {
+            std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+        }
+        let q = cfg.queue;
+        // Lines can arrive from many clients at once: a few more of them may wait.
+        let (line_tx, line_rx) = bounded(4 * q);
+        let mut threads = Vec::new();
+        let mut tcp_addr = None;
+        match &cfg.source {
+            Source::File { path, replay } => threads.push((
+                "source",
+                source::spawn_file(path, *replay, line_tx, stop.clone())?,
+            )),
+            Source::Stdin => threads.push(("source", source::spawn_stdin(line_tx, stop.clone())?)),
+            Source::Tcp { bind } => {
+                let (addr, h) = source::spawn_tcp(*bind, line_tx, stop.clone(), cfg.poll)?;
+                tcp_addr = Some(addr);
+                threads.push(("source", h));
+            }
+        }
+        let (to_distance, distance_rx) = bounded(q);
+        let (to_adapt, adapt_rx) = bounded(q);
+        let (to_solve, solve_rx) = bounded(q);
+        let (to_renorm, renorm_rx) = bounded(q);
+        let (to_export, export_rx) = bounded(q);
+        // The renormalize stage can finish at most its queue plus the frame in hand while
+        // the solve stage is blocked sending: that bounds the level sets in flight.
+        let (feedback_tx, feedback_rx) = bounded(q + 2);
+        let params = Arc::new(cfg.params.clone());
+        let warm = cfg.warm_start;
+        let policy = cfg.policy;
+        threads.push((
+            "ingest",
+            stages::spawn_ingest(line_rx, to_distance, stop.clone(), cfg.poll)?,
+        ));
+        threads.push((
+            "distance",
+            stages::spawn_distance(distance_rx, to_adapt, policy, params.clone())?,
+        ));
+        threads.push((
+            "adapt",
+            stages::spawn_adapt(adapt_rx, to_solve, policy, warm)?,
+        ));
+        threads.push((
+            "solve",
+            stages::spawn_solve(
+                solve_rx,
+                to_renorm,
+                feedback_rx,
+                policy,
+                warm,
+                params.clone(),
+            )?,
+        ));
+        threads.push((
+            "renormalize",
+            stages::spawn_renormalize(renorm_rx, to_export, warm.then_some(feedback_tx))?,
+        ));
+        let export = stages::spawn_export(export_rx, sink, cfg.svg_dir.clone(), params, stop)?;
+        Ok(Daemon {
+            threads,
+            export,
+            tcp_addr,
+        })
+    }
+
+    /// Waits for the end of the run (end of input, or the stop flag and the drain).
+    pub fn wait(self) -> Result<RunSummary> {
+        let summary = self
+            .export
+            .join()
+            .map_err(|_| Error::Internal("the export stage panicked".into()))?;
+        for (name, t) in self.threads {
+            // A source blocked reading standard input cannot be interrupted; it ends with
+            // the process.
+            if name == "source" && !t.is_finished() {
+                continue;
+            }
+            t.join()
+                .map_err(|_| Error::Internal(format!("the {name} stage panicked")))?;
+        }
+        summary
+    }
+}
+
+/// Runs the daemon to completion: [`Daemon::start`] then [`Daemon::wait`].
+pub fn run(cfg: &DaemonConfig, stop: Arc<AtomicBool>) -> Result<RunSummary> {
+    let t0 = Instant::now();
+    let summary = Daemon::start(cfg, stop.clone())?.wait()?;
+    tracing::info!(
+        seconds = t0.elapsed().as_secs_f64(),
+        stopped = stop.load(Ordering::Relaxed),
+        "daemon finished"
+    );
+    Ok(summary)
+}
+
+/// The NDJSON sink: a file (created, truncated) or standard output.
+pub(crate) type Sink = Box<dyn std::io::Write + Send>;
+
+fn open_sink(path: Option<&Path>) -> Result<Sink> {
+    Ok(match path {
+        None => Box::new(std::io::stdout()),
+        Some(p) => {
+            if let Some(dir) = p.parent().filter(|d| !d.as_os_str().is_empty()) {
+                std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+            }
+            Box::new(std::io::BufWriter::new(
+                std::fs::File::create(p).map_err(|e| Error::io(p, e))?,
+            ))
+        }
+    })
+}
+
+/// The SVG file of one frame: `DIR/STREAM-FRAME.svg` (`frame-FRAME.svg` without a
+/// stream), with characters other than letters, digits, `-`, `_` and `.` replaced.
+pub fn svg_path(dir: &Path, stream: Option<&str>, frame: u64) -> PathBuf {
+    let clean = |s: &str| -> String {
+        s.chars()
+            .map(|c| {
+                if c.is_ascii_alphanumeric() || "-_.".contains(c) {
+                    c
+                } else {
+                    '_'
+                }
+            })
+            .collect()
+    };
+    match stream {
+        Some(s) if !s.is_empty() => dir.join(format!("{}-{frame:06}.svg", clean(s))),
+        _ => dir.join(format!("frame-{frame:06}.svg")),
+    }
+}

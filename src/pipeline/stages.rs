@@ -1,0 +1,621 @@
+//! The stage threads: each receives frames, calls the plain stage function of
+//! [`crate::reconstruct`] under a span named after the stage (with the stream, frame and
+//! queue depth), and sends the frame on.
+
+use std::collections::HashMap;
+use std::io::Write;
+use std::path::PathBuf;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+use std::thread::JoinHandle;
+use std::time::{Duration, Instant};
+
+use crossbeam_channel::{Receiver, RecvTimeoutError, Sender};
+
+use super::config::Policy;
+use super::source::Line;
+use super::{RunSummary, Sink};
+use crate::error::{Error, Result};
+use crate::format::{PolylineJson, ResultRecord};
+use crate::geom::{add, Point};
+use crate::mesh::Mesh;
+use crate::meshing::AdaptedMesh;
+use crate::reconstruct::{self, Params, Prepared, Previous, Solved};
+
+/// A frame on its way through the stages.
+pub(crate) struct Msg {
+    /// Stream id as in the input (or the TCP client's).
+    stream: Option<String>,
+    frame: u64,
+    arrived: Instant,
+    work: Work,
+}
+
+impl Msg {
+    /// The key of the stream's state.
+    fn key(&self) -> &str {
+        self.stream.as_deref().unwrap_or("")
+    }
+    fn live(&self) -> bool {
+        !matches!(self.work, Work::Failed(_) | Work::Skipped)
+    }
+}
+
+/// What has been made of a frame so far.
+enum Work {
+    Points(Vec<Point>),
+    Prepared(Box<Prepared>),
+    Adapted(Box<(Prepared, AdaptedMesh)>),
+    Solved(Box<(Prepared, AdaptedMesh, Solved)>),
+    Failed(String),
+    Skipped,
+}
+
+/// The renormalized level set of a stream's last frame, sent back to the solve stage.
+pub(crate) struct Feedback {
+    key: String,
+    level_set: Option<LevelSet>,
+}
+
+/// A level set in data coordinates: what the next frame of the stream starts from.
+struct LevelSet {
+    mesh: Mesh,
+    u: Vec<f64>,
+    residual: f64,
+}
+
+fn spawn<T: Send + 'static>(
+    name: &str,
+    f: impl FnOnce() -> T + Send + 'static,
+) -> Result<JoinHandle<T>> {
+    std::thread::Builder::new()
+        .name(name.into())
+        .spawn(f)
+        .map_err(|e| Error::Internal(format!("cannot start thread {name}: {e}")))
+}
+
+/// Under [`Policy::Latest`], takes everything waiting in `rx` behind `first` and marks
+/// every live frame that has a newer live frame of its stream behind it as skipped; the
+/// order is kept. Under [`Policy::Block`], just `first`.
+pub(crate) fn take_batch(first: Msg, rx: &Receiver<Msg>, policy: Policy) -> Vec<Msg> {
+    let mut batch = vec![first];
+    if policy == Policy::Latest {
+        batch.extend(rx.try_iter());
+        mark_stale(&mut batch);
+    }
+    batch
+}
+
+/// Marks as skipped every live frame followed by a newer live frame of its stream.
+fn mark_stale(batch: &mut [Msg]) {
+    let mut newest: HashMap<&str, usize> = HashMap::new();
+    for (i, m) in batch.iter().enumerate() {
+        if m.live() {
+            newest.insert(m.key(), i);
+        }
+    }
+    let stale: Vec<usize> = batch
+        .iter()
+        .enumerate()
+        .filter(|(i, m)| m.live() && newest[m.key()] != *i)
+        .map(|(i, _)| i)
+        .collect();
+    for i in stale {
+        batch[i].work = Work::Skipped;
+    }
+}
+
+macro_rules! stage_span {
+    ($name:literal, $m:expr, $depth:expr) => {
+        tracing::info_span!($name, stream = $m.key(), frame = $m.frame, queue = $depth)
+    };
+}
+
+/// Runs `f` on every live frame of `rx` (under `policy`) and sends the results to `tx`;
+/// failed and skipped frames pass through. Ends when `rx` closes or `tx` does.
+fn run_stage(
+    rx: Receiver<Msg>,
+    tx: Sender<Msg>,
+    policy: Policy,
+    span: impl Fn(&Msg, usize) -> tracing::Span,
+    mut f: impl FnMut(&mut Msg),
+) {
+    while let Ok(first) = rx.recv() {
+        for mut m in take_batch(first, &rx, policy) {
+            if m.live() {
+                let s = span(&m, rx.len());
+                let _e = s.enter();
+                f(&mut m);
+            }
+            if tx.send(m).is_err() {
+                return;
+            }
+        }
+    }
+}
+
+/// Ingest: parses lines into frames; a line that is not a frame becomes a failed frame
+/// carrying the error. On `stop`, it takes what the sources have already read and ends,
+/// which closes the pipeline behind it.
+pub(crate) fn spawn_ingest(
+    rx: Receiver<Line>,
+    tx: Sender<Msg>,
+    stop: Arc<AtomicBool>,
+    poll: Duration,
+) -> Result<JoinHandle<()>> {
+    spawn("ingest", move || {
+        let mut last_frame: HashMap<Option<String>, u64> = HashMap::new();
+        let mut handle = |line: Line| -> bool {
+            let _s = tracing::info_span!(
+                "ingest",
+                origin = &*line.origin,
+                line = line.line,
+                queue = rx.len()
+            )
+            .entered();
+            let m = parse_line(line, &mut last_frame);
+            tx.send(m).is_ok()
+        };
+        loop {
+            if stop.load(Ordering::Relaxed) {
+                // Lines already read get their records; the sources see the flag and
+                // read no more.
+                while let Ok(line) = rx.recv_timeout(poll) {
+                    if !handle(line) {
+                        return;
+                    }
+                }
+                return;
+            }
+            match rx.recv_timeout(poll) {
+                Ok(line) => {
+                    if !handle(line) {
+                        return;
+                    }
+                }
+                Err(RecvTimeoutError::Timeout) => {}
+                Err(RecvTimeoutError::Disconnected) => return,
+            }
+        }
+    })
+}
+
+/// A line as a frame, or as a failed frame whose stream and number are read from the
+/// line if it is JSON with them, else the source's stream and the frame after its last.
+fn parse_line(line: Line, last_frame: &mut HashMap<Option<String>, u64>) -> Msg {
+    let default_stream = line.default_stream.as_deref().map(str::to_string);
+    let parsed = match &line.text {
+        Err(e) => Err((
+            format!("{}, line {}: {e}", line.origin, line.line),
+            (None, None),
+        )),
+        Ok(text) => crate::ingest::parse_frame(text, &line.origin, line.line)
+            .map_err(|e| (e.to_string(), guess_ids(text))),
+    };
+    let (stream, frame, work) = match parsed {
+        Ok(f) => (f.stream.or(default_stream), f.frame, Work::Points(f.points)),
+        Err((message, (stream, frame))) => {
+            tracing::warn!(error = %message, "bad input line");
+            let stream = stream.or(default_stream);
+            let frame = frame.unwrap_or_else(|| last_frame.get(&stream).map_or(0, |f| f + 1));
+            (stream, frame, Work::Failed(message))
+        }
+    };
+    last_frame.insert(stream.clone(), frame);
+    Msg {
+        stream,
+        frame,
+        arrived: line.arrived,
+        work,
+    }
+}
+
+/// The stream and frame of a line that is JSON but not a valid frame.
+fn guess_ids(text: &str) -> (Option<String>, Option<u64>) {
+    match serde_json::from_str::<serde_json::Value>(text) {
+        Ok(v) => (
+            v.get("stream").and_then(|s| s.as_str()).map(str::to_string),
+            v.get("frame").and_then(|f| f.as_u64()),
+        ),
+        Err(_) => (None, None),
+    }
+}
+
+/// Distance: validates and centres the points, builds their kd-tree and metric frames.
+pub(crate) fn spawn_distance(
+    rx: Receiver<Msg>,
+    tx: Sender<Msg>,
+    policy: Policy,
+    params: Arc<Params>,
+) -> Result<JoinHandle<()>> {
+    spawn("distance", move || {
+        run_stage(
+            rx,
+            tx,
+            policy,
+            |m, d| stage_span!("distance", m, d),
+            |m| {
+                let Work::Points(points) = std::mem::replace(&mut m.work, Work::Skipped) else {
+                    unreachable!("distance takes points")
+                };
+                m.work = match reconstruct::prepare(&points, &params) {
+                    Ok(p) => Work::Prepared(Box::new(p)),
+                    Err(e) => Work::Failed(e.to_string()),
+                };
+            },
+        )
+    })
+}
+
+/// Adapt: adapts each stream's frame from the stream's last mesh (when warm starts are
+/// on and the frame number went up; a lower one means the stream restarted).
+pub(crate) fn spawn_adapt(
+    rx: Receiver<Msg>,
+    tx: Sender<Msg>,
+    policy: Policy,
+    warm: bool,
+) -> Result<JoinHandle<()>> {
+    spawn("adapt", move || {
+        let mut last: HashMap<String, (u64, Mesh)> = HashMap::new();
+        run_stage(
+            rx,
+            tx,
+            policy,
+            |m, d| stage_span!("adapt", m, d),
+            |m| {
+                let Work::Prepared(p) = std::mem::replace(&mut m.work, Work::Skipped) else {
+                    unreachable!("adapt takes prepared frames")
+                };
+                let previous = last
+                    .get(m.key())
+                    .filter(|(f, _)| warm && *f < m.frame)
+                    .map(|(_, mesh)| mesh);
+                let adapted = reconstruct::adapt(&p, previous);
+                if warm {
+                    let mut mesh = adapted.mesh.clone();
+                    for c in &mut mesh.coords {
+                        *c = add(*c, p.center);
+                    }
+                    last.insert(m.key().to_string(), (m.frame, mesh));
+                }
+                m.work = Work::Adapted(Box::new((*p, adapted)));
+            },
+        )
+    })
+}
+
+/// Per-stream state of the solve stage.
+#[derive(Default)]
+struct SolveState {
+    /// Frames sent to renormalization whose level set has not come back.
+    pending: usize,
+    last_frame: Option<u64>,
+    level_set: Option<LevelSet>,
+}
+
+/// Solve: the level set of each frame, warm-started from the stream's last renormalized
+/// one. Before solving a frame it waits until the renormalize stage has sent back the
+/// level set of every earlier frame of the stream.
+pub(crate) fn spawn_solve(
+    rx: Receiver<Msg>,
+    tx: Sender<Msg>,
+    feedback: Receiver<Feedback>,
+    policy: Policy,
+    warm: bool,
+    params: Arc<Params>,
+) -> Result<JoinHandle<()>> {
+    spawn("solve", move || {
+        let mut state: HashMap<String, SolveState> = HashMap::new();
+        let apply = |state: &mut HashMap<String, SolveState>, fb: Feedback| {
+            let s = state.entry(fb.key).or_default();
+            s.pending = s.pending.saturating_sub(1);
+            if fb.level_set.is_some() {
+                s.level_set = fb.level_set;
+            }
+        };
+        run_stage(
+            rx,
+            tx,
+            policy,
+            |m, d| stage_span!("solve", m, d),
+            |m| {
+                let Work::Adapted(b) = std::mem::replace(&mut m.work, Work::Skipped) else {
+                    unreachable!("solve takes adapted frames")
+                };
+                let (p, adapted) = *b;
+                if warm {
+                    for fb in feedback.try_iter() {
+                        apply(&mut state, fb);
+                    }
+                    while state.get(m.key()).is_some_and(|s| s.pending > 0) {
+                        match feedback.recv() {
+                            Ok(fb) => apply(&mut state, fb),
+                            Err(_) => break,
+                        }
+                    }
+                }
+                let s = state.entry(m.key().to_string()).or_default();
+                if s.last_frame.is_some_and(|f| f >= m.frame) {
+                    tracing::info!(frame = m.frame, "stream restarted: cold start");
+                    s.level_set = None;
+                }
+                s.last_frame = Some(m.frame);
+                let previous = s.level_set.as_ref().filter(|_| warm).map(|l| Previous {
+                    mesh: &l.mesh,
+                    u: &l.u,
+                    residual: l.residual,
+                });
+                let solved = reconstruct::solve(&p, &adapted, previous, &params);
+                if warm {
+                    s.pending += 1;
+                }
+                m.work = Work::Solved(Box::new((p, adapted, solved)));
+            },
+        )
+    })
+}
+
+/// Renormalize: the final fast marching over the whole mesh; the result goes on to
+/// export and, as the stream's new warm-start state, back to the solve stage.
+pub(crate) fn spawn_renormalize(
+    rx: Receiver<Msg>,
+    tx: Sender<Msg>,
+    feedback: Option<Sender<Feedback>>,
+) -> Result<JoinHandle<()>> {
+    spawn("renormalize", move || {
+        run_stage(
+            rx,
+            tx,
+            Policy::Block,
+            |m, d| stage_span!("renormalize", m, d),
+            |m| {
+                let Work::Solved(b) = &mut m.work else {
+                    unreachable!("renormalize takes solved frames")
+                };
+                let (p, adapted, solved) = &mut **b;
+                reconstruct::renormalize(&adapted.mesh, solved);
+                if let Some(fb) = &feedback {
+                    let mut mesh = adapted.mesh.clone();
+                    for c in &mut mesh.coords {
+                        *c = add(*c, p.center);
+                    }
+                    let level_set = LevelSet {
+                        mesh,
+                        u: solved.u.clone(),
+                        residual: solved.report.residual,
+                    };
+                    // The solve stage outlives this one unless the pipeline is being torn
+                    // down; then nobody needs the level set.
+                    let _ = fb.send(Feedback {
+                        key: m.key().to_string(),
+                        level_set: Some(level_set),
+                    });
+                }
+            },
+        )
+    })
+}
+
+/// Export: the curves and statistics of each frame as an NDJSON record (flushed per
+/// frame) and optionally an SVG drawing; failed and skipped frames get their record too.
+/// A sink that cannot be written ends the run with an error and sets `stop`.
+pub(crate) fn spawn_export(
+    rx: Receiver<Msg>,
+    mut sink: Sink,
+    svg_dir: Option<PathBuf>,
+    params: Arc<Params>,
+    stop: Arc<AtomicBool>,
+) -> Result<JoinHandle<Result<RunSummary>>> {
+    spawn("export", move || {
+        let mut summary = RunSummary::default();
+        let mut latencies = Vec::new();
+        let (mut warm_its, mut cold_its) = (Vec::new(), Vec::new());
+        let mut first: Option<Instant> = None;
+        let mut result = Ok(());
+        while let Ok(m) = rx.recv() {
+            let s = stage_span!("export", m, rx.len());
+            let _e = s.enter();
+            first = Some(first.map_or(m.arrived, |f| f.min(m.arrived)));
+            let mut rec = ResultRecord {
+                stream: m.stream.clone(),
+                frame: m.frame,
+                ..Default::default()
+            };
+            let mut drawing = None;
+            match m.work {
+                Work::Solved(b) => {
+                    let (p, adapted, solved) = *b;
+                    let points: Vec<Point> = if svg_dir.is_some() {
+                        p.local.iter().map(|&q| add(q, p.center)).collect()
+                    } else {
+                        Vec::new()
+                    };
+                    let r = reconstruct::export(&p, adapted, solved, &params.export);
+                    let mut stats = r.stats.clone();
+                    let latency = m.arrived.elapsed().as_secs_f64() * 1e3;
+                    stats.ms.latency = Some(latency);
+                    latencies.push(latency);
+                    if stats.warm_start {
+                        summary.warm += 1;
+                        warm_its.push(stats.iterations as f64);
+                    } else {
+                        cold_its.push(stats.iterations as f64);
+                    }
+                    summary.reconstructed += 1;
+                    rec.polylines = Some(r.polylines.iter().map(PolylineJson::from).collect());
+                    rec.stats = Some(stats);
+                    if svg_dir.is_some() {
+                        drawing = Some((points, r.polylines));
+                    }
+                }
+                Work::Failed(e) => {
+                    summary.errors += 1;
+                    rec.error = Some(e);
+                }
+                Work::Skipped => {
+                    summary.skipped += 1;
+                    rec.error = Some(
+                        "skipped: a newer frame of the stream was waiting (pipeline.policy = \"latest\")"
+                            .into(),
+                    );
+                    rec.skipped = Some(true);
+                }
+                Work::Points(_) | Work::Prepared(_) | Work::Adapted(_) => {
+                    unreachable!("export takes frames that went through every stage")
+                }
+            }
+            let written =
+                crate::export::writers::write_ndjson(&mut sink, &rec).and_then(|()| sink.flush());
+            if let Err(e) = written {
+                result = Err(Error::Io {
+                    path: "the NDJSON output".into(),
+                    source: e,
+                });
+                stop.store(true, Ordering::Relaxed);
+                break;
+            }
+            summary.records += 1;
+            if let (Some(dir), Some((points, polylines))) = (&svg_dir, drawing) {
+                let doc = crate::export::svg::render(
+                    &crate::export::svg::Drawing {
+                        points: &points,
+                        polylines: &polylines,
+                        view: crate::geom::BBox::of(&points).map(|b| b.padded(0.05 * b.diag())),
+                        ..Default::default()
+                    },
+                    800.0,
+                );
+                let path = super::svg_path(dir, m.stream.as_deref(), m.frame);
+                if let Err(e) = std::fs::write(&path, doc) {
+                    tracing::warn!(path = %path.display(), error = %e, "SVG not written");
+                }
+            }
+        }
+        // Whatever is still queued behind a failed sink is dropped with the pipeline.
+        result?;
+        summary.seconds = first.map_or(0.0, |f| f.elapsed().as_secs_f64());
+        if summary.seconds > 0.0 {
+            summary.frames_per_second = summary.records as f64 / summary.seconds;
+        }
+        summary.latency_p50 = percentile(&mut latencies, 0.5).unwrap_or(0.0);
+        summary.latency_p99 = percentile(&mut latencies, 0.99).unwrap_or(0.0);
+        summary.iterations_warm = percentile(&mut warm_its, 0.5);
+        summary.iterations_cold = percentile(&mut cold_its, 0.5);
+        Ok(summary)
+    })
+}
+
+/// The `q`-quantile of `v` (nearest rank), `None` when empty.
+fn percentile(v: &mut [f64], q: f64) -> Option<f64> {
+    if v.is_empty() {
+        return None;
+    }
+    v.sort_by(f64::total_cmp);
+    let i = ((q * v.len() as f64).ceil() as usize).clamp(1, v.len()) - 1;
+    Some(v[i])
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn msg(stream: &str, frame: u64, live: bool) -> Msg {
+        Msg {
+            stream: Some(stream.into()),
+            frame,
+            arrived: Instant::now(),
+            work: if live {
+                Work::Points(vec![])
+            } else {
+                Work::Failed("bad".into())
+            },
+        }
+    }
+
+    #[test]
+    fn latest_keeps_the_newest_live_frame_of_each_stream_in_order() {
+        let mut batch = vec![
+            msg("a", 1, true),
+            msg("b", 1, true),
+            msg("a", 2, false),
+            msg("a", 3, true),
+            msg("a", 4, true),
+        ];
+        mark_stale(&mut batch);
+        let kept: Vec<(String, u64, bool)> = batch
+            .iter()
+            .map(|m| {
+                (
+                    m.key().to_string(),
+                    m.frame,
+                    matches!(m.work, Work::Skipped),
+                )
+            })
+            .collect();
+        assert_eq!(
+            kept,
+            vec![
+                ("a".into(), 1, true),
+                ("b".into(), 1, false),
+                ("a".into(), 2, false),
+                ("a".into(), 3, true),
+                ("a".into(), 4, false),
+            ]
+        );
+    }
+
+    #[test]
+    fn block_takes_one_frame_at_a_time() {
+        let (tx, rx) = crossbeam_channel::unbounded();
+        tx.send(msg("a", 2, true)).unwrap();
+        let batch = take_batch(msg("a", 1, true), &rx, Policy::Block);
+        assert_eq!(batch.len(), 1);
+        assert_eq!(rx.len(), 1);
+        let batch = take_batch(msg("a", 1, true), &rx, Policy::Latest);
+        assert_eq!(batch.len(), 2);
+        assert!(matches!(batch[0].work, Work::Skipped));
+    }
+
+    #[test]
+    fn bad_lines_become_failed_frames_with_the_best_ids_available() {
+        let line = |text: &str, n| Line {
+            origin: "in.ndjson".into(),
+            default_stream: None,
+            line: n,
+            text: Ok(text.into()),
+            arrived: Instant::now(),
+        };
+        let mut last = HashMap::new();
+        let ok = parse_line(
+            line(r#"{"stream":"s","frame":7,"points":[[0,0]]}"#, 1),
+            &mut last,
+        );
+        assert!(matches!(ok.work, Work::Points(_)) && ok.frame == 7);
+        let bad = parse_line(
+            line(r#"{"stream":"s","frame":8,"points":[[0]]}"#, 2),
+            &mut last,
+        );
+        assert_eq!((bad.stream.as_deref(), bad.frame), (Some("s"), 8));
+        let Work::Failed(e) = &bad.work else { panic!() };
+        assert!(e.contains("in.ndjson, line 2"), "{e}");
+        let cut = parse_line(line(r#"{"stream":"s","fra"#, 3), &mut last);
+        assert_eq!((cut.stream.as_deref(), cut.frame), (None, 0));
+        let Work::Failed(e) = &cut.work else { panic!() };
+        assert!(e.contains("line 3"), "{e}");
+        let invalid = Line {
+            text: Err("the line is not valid UTF-8".into()),
+            ..line("", 4)
+        };
+        let m = parse_line(invalid, &mut last);
+        let Work::Failed(e) = &m.work else { panic!() };
+        assert!(e.contains("line 4") && e.contains("UTF-8"), "{e}");
+    }
+
+    #[test]
+    fn percentiles_use_the_nearest_rank() {
+        let mut v: Vec<f64> = (1..=100).map(f64::from).collect();
+        assert_eq!(percentile(&mut v, 0.5), Some(50.0));
+        assert_eq!(percentile(&mut v, 0.99), Some(99.0));
+        assert_eq!(percentile(&mut [], 0.5), None);
+    }
+}
