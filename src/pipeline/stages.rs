@@ -144,7 +144,7 @@ pub(crate) fn spawn_ingest(
     poll: Duration,
 ) -> Result<JoinHandle<()>> {
     spawn("ingest", move || {
-        let mut last_frame: HashMap<Option<String>, u64> = HashMap::new();
+        let mut last_frame = HashMap::new();
         let mut handle = |line: Line| -> bool {
             let _s = tracing::info_span!(
                 "ingest",
@@ -180,9 +180,10 @@ pub(crate) fn spawn_ingest(
     })
 }
 
-/// A line as a frame, or as a failed frame whose stream and number are read from the
-/// line if it is JSON with them, else the source's stream and the frame after its last.
-fn parse_line(line: Line, last_frame: &mut HashMap<Option<String>, u64>) -> Msg {
+/// A line as a frame, or as a failed frame. A failed frame's stream and number are read
+/// from the line if it is JSON with them; otherwise they are those of the source's last
+/// frame, plus one.
+fn parse_line(line: Line, last: &mut HashMap<Arc<str>, (Option<String>, u64)>) -> Msg {
     let default_stream = line.default_stream.as_deref().map(str::to_string);
     let parsed = match &line.text {
         Err(e) => Err((
@@ -196,12 +197,15 @@ fn parse_line(line: Line, last_frame: &mut HashMap<Option<String>, u64>) -> Msg 
         Ok(f) => (f.stream.or(default_stream), f.frame, Work::Points(f.points)),
         Err((message, (stream, frame))) => {
             tracing::warn!(error = %message, "bad input line");
-            let stream = stream.or(default_stream);
-            let frame = frame.unwrap_or_else(|| last_frame.get(&stream).map_or(0, |f| f + 1));
+            let before = last.get(&line.origin);
+            let stream = stream
+                .or_else(|| before.and_then(|b| b.0.clone()))
+                .or(default_stream);
+            let frame = frame.unwrap_or_else(|| before.map_or(0, |b| b.1 + 1));
             (stream, frame, Work::Failed(message))
         }
     };
-    last_frame.insert(stream.clone(), frame);
+    last.insert(line.origin.clone(), (stream.clone(), frame));
     Msg {
         stream,
         frame,
@@ -599,7 +603,7 @@ mod tests {
         let Work::Failed(e) = &bad.work else { panic!() };
         assert!(e.contains("in.ndjson, line 2"), "{e}");
         let cut = parse_line(line(r#"{"stream":"s","fra"#, 3), &mut last);
-        assert_eq!((cut.stream.as_deref(), cut.frame), (None, 0));
+        assert_eq!((cut.stream.as_deref(), cut.frame), (Some("s"), 9));
         let Work::Failed(e) = &cut.work else { panic!() };
         assert!(e.contains("line 3"), "{e}");
         let invalid = Line {

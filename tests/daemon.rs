@@ -1,0 +1,341 @@
+//! The daemon (`isoline run`) as a user runs it: the real binary, real files, sockets and
+//! signals.
+
+use std::io::{BufRead, BufReader, Write};
+use std::net::TcpStream;
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+use serde_json::Value;
+
+fn bin() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_isoline"))
+}
+
+fn fixture(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("fixtures")
+        .join(name)
+}
+
+/// Writes `toml` as `dir/daemon.toml`; relative paths in it are taken from `dir`.
+fn config(dir: &Path, toml: &str) -> PathBuf {
+    let path = dir.join("daemon.toml");
+    std::fs::write(&path, toml).unwrap();
+    path
+}
+
+fn run_to_end(cfg: &Path) -> std::process::Output {
+    bin()
+        .args(["run", "-c", cfg.to_str().unwrap()])
+        .output()
+        .expect("run isoline")
+}
+
+/// Every line of an NDJSON file, parsed; panics on a line that is not JSON (a record cut
+/// short by a shutdown would be one).
+fn records(path: &Path) -> Vec<Value> {
+    std::fs::read_to_string(path)
+        .unwrap()
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap_or_else(|e| panic!("not JSON ({e}): {l}")))
+        .collect()
+}
+
+fn frame_ids(recs: &[Value]) -> Vec<u64> {
+    recs.iter().map(|r| r["frame"].as_u64().unwrap()).collect()
+}
+
+#[test]
+fn a_replayed_stream_gets_one_record_per_frame_in_order_mostly_warm() {
+    let dir = tempfile::tempdir().unwrap();
+    let cfg = config(
+        dir.path(),
+        &format!(
+            "[input]\npath = {:?}\nreplay = \"fast\"\n[output]\npath = \"out.ndjson\"\n\
+             svg_dir = \"svg\"\n[mesh]\nhmin = 0.002\n",
+            fixture("ellipse-stream-20.ndjson")
+        ),
+    );
+    let out = run_to_end(&cfg);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    assert!(
+        stderr.contains("20 records (20 reconstructed, 0 errors, 0 skipped)"),
+        "{stderr}"
+    );
+    let recs = records(&dir.path().join("out.ndjson"));
+    assert_eq!(frame_ids(&recs), (0..20).collect::<Vec<_>>());
+    for r in &recs {
+        assert_eq!(r["stream"], "lidar0");
+        assert_eq!(
+            r["polylines"].as_array().unwrap().len(),
+            1,
+            "{}",
+            r["stats"]
+        );
+        let ms = &r["stats"]["ms"];
+        assert!(ms["latency"].as_f64().unwrap() >= ms["total"].as_f64().unwrap() * 0.99);
+    }
+    let warm = recs
+        .iter()
+        .filter(|r| r["stats"]["warm_start"] == true)
+        .count();
+    // The first frame has nothing to start from; the motion (0.003 per frame) is within
+    // every later frame's warm-start reach.
+    assert_eq!(recs[0]["stats"]["warm_start"], false);
+    assert_eq!(warm, 19);
+    assert!(dir.path().join("svg/lidar0-000019.svg").exists());
+}
+
+#[test]
+fn a_malformed_line_gets_an_error_record_and_the_stream_goes_on() {
+    let dir = tempfile::tempdir().unwrap();
+    let text = std::fs::read_to_string(fixture("ellipse-stream-20.ndjson")).unwrap();
+    let mut lines: Vec<String> = text.lines().take(4).map(str::to_string).collect();
+    lines[1] = r#"{"stream":"lidar0","frame":1,"points":[[0.1,"#.to_string();
+    lines[2] = r#"{"stream":"lidar0","frame":2,"points":[[0.5,0.5]]}"#.to_string();
+    let input = dir.path().join("in.ndjson");
+    std::fs::write(&input, lines.join("\n") + "\n").unwrap();
+    let cfg = config(
+        dir.path(),
+        "[input]\npath = \"in.ndjson\"\nreplay = \"fast\"\n[output]\npath = \"out.ndjson\"\n\
+         [mesh]\nhmin = 0.002\n",
+    );
+    let out = run_to_end(&cfg);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let recs = records(&dir.path().join("out.ndjson"));
+    assert_eq!(frame_ids(&recs), vec![0, 1, 2, 3]);
+    let e1 = recs[1]["error"].as_str().unwrap();
+    assert!(e1.contains("in.ndjson, line 2"), "{e1}");
+    // A truncated line is not JSON: its stream and number are those of the frame before
+    // it, plus one.
+    assert_eq!(recs[1]["stream"], "lidar0");
+    let e2 = recs[2]["error"].as_str().unwrap();
+    assert!(e2.contains("point") || e2.contains("coincide"), "{e2}");
+    assert_eq!(recs[2]["stream"], "lidar0");
+    assert!(recs[3]["polylines"]
+        .as_array()
+        .is_some_and(|p| !p.is_empty()));
+    assert_eq!(recs[3]["stats"]["warm_start"], true);
+}
+
+/// Starts the daemon with piped stderr; returns it and its stderr lines.
+fn spawn(cfg: &Path) -> (Child, std::sync::mpsc::Receiver<String>) {
+    let mut child = bin()
+        .args(["run", "-c", cfg.to_str().unwrap()])
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("start isoline");
+    let stderr = child.stderr.take().unwrap();
+    let (tx, rx) = std::sync::mpsc::channel();
+    std::thread::spawn(move || {
+        for line in BufReader::new(stderr).lines().map_while(Result::ok) {
+            let _ = tx.send(line);
+        }
+    });
+    (child, rx)
+}
+
+fn signal(child: &Child, sig: &str) {
+    let ok = Command::new("kill")
+        .args([sig, &child.id().to_string()])
+        .status()
+        .unwrap()
+        .success();
+    assert!(ok, "kill {sig}");
+}
+
+fn wait(child: &mut Child, limit: Duration) -> std::process::ExitStatus {
+    let t0 = Instant::now();
+    loop {
+        if let Some(s) = child.try_wait().unwrap() {
+            return s;
+        }
+        assert!(
+            t0.elapsed() < limit,
+            "the daemon did not exit within {limit:?}"
+        );
+        std::thread::sleep(Duration::from_millis(20));
+    }
+}
+
+#[test]
+fn frames_from_two_tcp_clients_are_kept_apart() {
+    let dir = tempfile::tempdir().unwrap();
+    let cfg = config(
+        dir.path(),
+        "[input]\nkind = \"tcp\"\nbind = \"127.0.0.1:0\"\n[output]\npath = \"out.ndjson\"\n\
+         [mesh]\nhmin = 0.002\n",
+    );
+    let (mut child, stderr) = spawn(&cfg);
+    let addr = loop {
+        let line = stderr
+            .recv_timeout(Duration::from_secs(30))
+            .expect("the daemon says where it listens");
+        if let Some(a) = line.strip_prefix("isoline run: listening on ") {
+            break a.to_string();
+        }
+    };
+    let frames: Vec<String> = std::fs::read_to_string(fixture("ellipse-stream-20.ndjson"))
+        .unwrap()
+        .lines()
+        .take(3)
+        .map(str::to_string)
+        .collect();
+    // Client A names its stream; client B sends frames without one, which get the
+    // stream "tcp:PEER".
+    let clients: Vec<_> = (0..2)
+        .map(|c| {
+            let (addr, frames) = (addr.clone(), frames.clone());
+            std::thread::spawn(move || {
+                let mut s = TcpStream::connect(&addr).unwrap();
+                for f in &frames {
+                    let mut v: Value = serde_json::from_str(f).unwrap();
+                    if c == 0 {
+                        v["stream"] = "a".into();
+                    } else {
+                        v.as_object_mut().unwrap().remove("stream");
+                    }
+                    writeln!(s, "{v}").unwrap();
+                }
+                s.local_addr().unwrap().to_string()
+            })
+        })
+        .collect();
+    let peers: Vec<String> = clients.into_iter().map(|c| c.join().unwrap()).collect();
+    // The listener never ends by itself: wait for the six records, then stop it.
+    let out = dir.path().join("out.ndjson");
+    let t0 = Instant::now();
+    while std::fs::read_to_string(&out).map_or(0, |s| s.lines().count()) < 6 {
+        assert!(
+            t0.elapsed() < Duration::from_secs(60),
+            "records did not arrive"
+        );
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    signal(&child, "-TERM");
+    assert!(wait(&mut child, Duration::from_secs(30)).success());
+    let recs = records(&out);
+    assert_eq!(recs.len(), 6);
+    let b = format!("tcp:{}", peers[1]);
+    for stream in ["a", b.as_str()] {
+        let mine: Vec<&Value> = recs.iter().filter(|r| r["stream"] == stream).collect();
+        assert_eq!(
+            frame_ids(&mine.iter().map(|r| (*r).clone()).collect::<Vec<_>>()),
+            vec![0, 1, 2],
+            "{stream}"
+        );
+        // Each stream has its own warm-start state: its first frame starts cold.
+        let warm: Vec<bool> = mine
+            .iter()
+            .map(|r| r["stats"]["warm_start"] == true)
+            .collect();
+        assert_eq!(warm, vec![false, true, true], "{stream}");
+    }
+}
+
+#[test]
+fn sigterm_mid_stream_finishes_the_frames_read_and_exits_cleanly() {
+    let dir = tempfile::tempdir().unwrap();
+    let trace = dir.path().join("trace.json");
+    let cfg = config(
+        dir.path(),
+        &format!(
+            "[input]\npath = {:?}\nreplay = 8\n[output]\npath = \"out.ndjson\"\n\
+             [tracing]\nchrome_trace = \"trace.json\"\n[mesh]\nhmin = 0.002\n",
+            fixture("ellipse-stream-20.ndjson")
+        ),
+    );
+    let (mut child, _stderr) = spawn(&cfg);
+    // At 8 frames per second, 20 frames take 2.5 s: stop after about half of them.
+    let out = dir.path().join("out.ndjson");
+    let t0 = Instant::now();
+    while std::fs::read_to_string(&out).map_or(0, |s| s.lines().count()) < 4 {
+        assert!(
+            t0.elapsed() < Duration::from_secs(60),
+            "records did not arrive"
+        );
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    signal(&child, "-TERM");
+    let status = wait(&mut child, Duration::from_secs(30));
+    assert!(status.success(), "{status:?}");
+    let recs = records(&out);
+    let n = recs.len() as u64;
+    assert!((4..20).contains(&n), "{n} records");
+    // No gap: every frame read before the signal has its record.
+    assert_eq!(frame_ids(&recs), (0..n).collect::<Vec<_>>());
+    assert!(recs.iter().all(|r| r["polylines"].is_array()));
+
+    // The trace: one span per stage per frame, each with the frame's id.
+    let events: Vec<Value> =
+        serde_json::from_str(&std::fs::read_to_string(&trace).unwrap()).expect("the trace is JSON");
+    for stage in ["distance", "adapt", "solve", "renormalize", "export"] {
+        let mut frames: Vec<u64> = events
+            .iter()
+            .filter(|e| e["name"] == stage && e["ph"] == "B")
+            .map(|e| {
+                let id = e["args"]["frame"].as_str().expect("frame id in the span");
+                id.parse::<u64>().unwrap()
+            })
+            .collect();
+        frames.sort_unstable();
+        assert_eq!(frames, (0..n).collect::<Vec<_>>(), "{stage}");
+        // tracing-chrome writes field values in their Debug form: "\"lidar0\"".
+        assert!(events.iter().any(|e| e["name"] == stage
+            && e["args"]["stream"].as_str().map(|s| s.trim_matches('"')) == Some("lidar0")));
+    }
+}
+
+/// Accuracy under streaming: each frame of a moving stream, warm-started, within the
+/// bound the one-shot reconstruction meets (3 sigma + 2 hmin, issue 3).
+#[test]
+fn every_streamed_frame_is_as_accurate_as_a_one_shot_reconstruction() {
+    let dir = tempfile::tempdir().unwrap();
+    let frames = dir.path().join("frames.ndjson");
+    let truth = dir.path().join("truth.json");
+    let (sigma, hmin) = (0.003, 0.002);
+    let out = bin()
+        .args([
+            "synth", "ellipse", "--points", "1000", "--noise", "0.003", "--frames", "8",
+        ])
+        .args(["--motion", "0.003", "--seed", "11", "-o"])
+        .arg(&frames)
+        .arg("--truth")
+        .arg(&truth)
+        .output()
+        .unwrap();
+    assert!(out.status.success());
+    let cfg = config(
+        dir.path(),
+        "[input]\npath = \"frames.ndjson\"\nreplay = \"fast\"\n[output]\npath = \"out.ndjson\"\n\
+         [mesh]\nhmin = 0.002\n",
+    );
+    let out = run_to_end(&cfg);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let truth: isoline::format::TruthFile =
+        serde_json::from_str(&std::fs::read_to_string(&truth).unwrap()).unwrap();
+    let recs = records(&dir.path().join("out.ndjson"));
+    assert_eq!(recs.len(), 8);
+    let bound = 3.0 * sigma + 2.0 * hmin;
+    for r in &recs {
+        let rec: isoline::format::ResultRecord = serde_json::from_value(r.clone()).unwrap();
+        let polylines: Vec<isoline::geom::Polyline> =
+            rec.polylines.unwrap().into_iter().map(Into::into).collect();
+        let acc = isoline::eval::compare(&polylines, &truth.for_frame(Some(rec.frame)), None);
+        let h = acc.hausdorff.unwrap();
+        assert!(h <= bound, "frame {}: Hausdorff {h} > {bound}", rec.frame);
+        assert_eq!(acc.components_recon, 1);
+    }
+}
