@@ -47,6 +47,8 @@ pub struct SolverConfig {
     /// A solver phase ends when the mean residual improves by less than 1% over this many
     /// steps. Default 10 (semi-implicit), 1,000 (explicit).
     pub patience: Option<usize>,
+    /// Patience of a frame warm-started at the data (daemon). Default `patience / 2`.
+    pub warm_patience: Option<usize>,
     /// Starting curve: `"tube"` (default), `"box"` or `"circle"` (the paper's).
     pub init: Option<String>,
     /// After the capture phase on noisy data: `"median"` (default) or `"flow"`.
@@ -124,6 +126,7 @@ impl SolverConfig {
         p.renormalize_every = self.renormalize_every;
         p.max_iterations = self.max_iterations;
         p.patience = self.patience;
+        p.warm_patience = self.warm_patience;
         p.margin = self.margin.unwrap_or(p.margin);
         p.tube = self.tube;
         p.linear_tolerance = self.linear_tolerance.unwrap_or(p.linear_tolerance);
@@ -188,6 +191,8 @@ pub struct MeshConfig {
     pub isotropic: Option<bool>,
     /// Most adaptation passes. Default 24.
     pub max_passes: Option<usize>,
+    /// Adaptation passes from the previous frame's mesh (daemon). Default 1.
+    pub warm_passes: Option<usize>,
     /// Most vertices. Default 2,000,000.
     pub max_vertices: Option<usize>,
 }
@@ -206,6 +211,7 @@ impl MeshConfig {
             padding: self.padding.unwrap_or(d.padding),
             isotropic: self.isotropic.unwrap_or(d.isotropic),
             max_passes: self.max_passes.unwrap_or(d.max_passes),
+            warm_passes: self.warm_passes.unwrap_or(d.warm_passes),
             max_vertices: self.max_vertices.unwrap_or(d.max_vertices),
         };
         p.validate().map(|()| p)

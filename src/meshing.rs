@@ -36,6 +36,11 @@ pub struct MeshParams {
     pub isotropic: bool,
     /// Upper bound on adaptation passes. Default 24.
     pub max_passes: usize,
+    /// Adaptation passes when starting from the previous frame's mesh. That mesh is
+    /// already adapted to a metric that differs by the motion and the noise only; one
+    /// pass follows it (measured: vertex count and accuracy steady over 200 frames).
+    /// Default 1.
+    pub warm_passes: usize,
     /// Refinement stops at this many vertices. Default 2,000,000.
     pub max_vertices: usize,
 }
@@ -52,6 +57,7 @@ impl Default for MeshParams {
             padding: 0.2,
             isotropic: false,
             max_passes: 24,
+            warm_passes: 1,
             max_vertices: 2_000_000,
         }
     }
@@ -115,6 +121,12 @@ impl MeshParams {
             problems.push(format!(
                 "mesh.max_passes = {}: must be in 1..=1000",
                 self.max_passes
+            ));
+        }
+        if !(1..=1000).contains(&self.warm_passes) {
+            problems.push(format!(
+                "mesh.warm_passes = {}: must be in 1..=1000",
+                self.warm_passes
             ));
         }
         if self.max_vertices < 16 {
@@ -237,6 +249,8 @@ pub struct MetricField {
     pub padding: f64,
     /// Adaptation's pass limit.
     pub max_passes: usize,
+    /// Adaptation's pass limit from a previous frame's mesh.
+    pub warm_passes: usize,
     /// Adaptation's vertex limit.
     pub max_vertices: usize,
     /// Time spent building the kd-tree and fitting the frames.
@@ -285,6 +299,7 @@ impl MetricField {
             bbox,
             padding: params.padding,
             max_passes: params.max_passes,
+            warm_passes: params.warm_passes,
             max_vertices: params.max_vertices,
             ms: MeshTimings {
                 distance: ms(t_dist),
@@ -309,15 +324,19 @@ impl MetricField {
         // A start mesh will do while the data keep at least half the padding from its
         // edge (a moving shape keeps its mesh until it has drifted that far).
         let enough = bbox.padded(0.5 * self.padding * scale + 2.0 * hmin);
-        let (local_box, mut mesh) = match start.and_then(|m| {
+        let (local_box, mut mesh, warm) = match start.and_then(|m| {
             let b = BBox::of(&m.coords)?;
             (b.contains(enough.min) && b.contains(enough.max)).then_some((b, m))
         }) {
-            Some(found) => found,
-            None => (wanted, Mesh::of_box(&wanted, self.params.hmax)),
+            Some((b, m)) => (b, m, true),
+            None => (wanted, Mesh::of_box(&wanted, self.params.hmax), false),
         };
         let opts = AdaptOptions::default()
-            .with_max_passes(self.max_passes)
+            .with_max_passes(if warm {
+                self.warm_passes
+            } else {
+                self.max_passes
+            })
             .with_max_vertices(self.max_vertices);
         let mut adapter = Adapter::new();
         let report = adapter.adapt(&mut mesh, &metric, &opts);

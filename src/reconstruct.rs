@@ -72,6 +72,10 @@ pub struct SolverParams {
     /// A solver phase ends when the mean residual improves by less than 1% over this
     /// many steps. Default 1,000 (explicit) or 10 (semi-implicit).
     pub patience: Option<usize>,
+    /// The patience of a frame warm-started at the data (see [`solve`]): its curve is
+    /// already in place, so the capture phase only has to confirm it. Default
+    /// `patience / 2`.
+    pub warm_patience: Option<usize>,
     /// Narrow band half-width in units of `D`: only vertices with `|u|` below it move.
     /// Default 0.1; 0 disables the band.
     pub band: f64,
@@ -109,6 +113,7 @@ impl Default for SolverParams {
             renormalize_every: None,
             max_iterations: None,
             patience: None,
+            warm_patience: None,
             band: 0.1,
             linear: LinearSolver::Cg,
             linear_tolerance: 1e-2,
@@ -182,6 +187,9 @@ impl SolverParams {
         }
         if self.patience == Some(0) {
             problems.push("solver.patience = 0: must be at least 1".into());
+        }
+        if self.warm_patience == Some(0) {
+            problems.push("solver.warm_patience = 0: must be at least 1".into());
         }
         if problems.is_empty() {
             Ok(())
@@ -431,10 +439,10 @@ pub fn adapt(prepared: &Prepared, previous: Option<&Mesh>) -> AdaptedMesh {
 /// noisy data, settled on the data's median.
 ///
 /// The previous level set is interpolated onto the new mesh (each vertex located in the
-/// old mesh by walking) and renormalized. Where it already lies within the median
-/// settle's reach of every new sample (`4 sigma + 4 hmin`, sigma the noise estimate), it
-/// is used as it is: the capture phase then stagnates within its patience window and the
-/// settle moves the curve the rest of the way, in either direction. Otherwise, while it is
+/// old mesh by walking). Where it already lies within the median settle's reach of every
+/// new sample (`4 sigma + 4 hmin`, sigma the noise estimate), it is used as it is: the
+/// capture phase then stagnates within its (warm) patience window and the settle moves
+/// the curve the rest of the way, in either direction. Otherwise, while it is
 /// no farther from the data than a cold tube start would be (twice the larger of the tube
 /// radius and the previous residual), it is offset outward past every sample, because
 /// the evolution only moves the curve inward. Farther (a jump, a restarted stream, a mesh
@@ -450,8 +458,9 @@ pub fn solve(
     let field = &prepared.metric.field;
     let hmin = adapted.params.hmin;
     let space = P1Space::new(mesh);
-    let mut dist = Vec::new();
-    field.distances_into(&mesh.coords, &mut dist);
+    let nearest = field.nearest_all(&mesh.coords);
+    let dist: Vec<f64> = nearest.iter().map(|n| n.dist).collect();
+    let nearest: Vec<u32> = nearest.iter().map(|n| n.index).collect();
     // The field's points: the data with exact duplicates merged, so that the stopping
     // test and the median settle weigh each sample once.
     let data = locate_all(mesh, field.points());
@@ -475,14 +484,13 @@ pub fn solve(
         if !mesh.coords.iter().all(|&c| bbox_old.contains(c)) {
             return None;
         }
+        // The previous level set was renormalized: interpolated, it is a signed distance
+        // to within the interpolation error, and the solver renormalizes on its own.
         let at = locate_all(&old_mesh, &mesh.coords);
         let mut u: Vec<f64> = at
             .iter()
             .map(|l| l.interpolate(&old_mesh, prev.u))
             .collect();
-        let t = Instant::now();
-        fm.run(mesh, &space, &mut u, f64::INFINITY);
-        ms_renormalize += t.elapsed().as_secs_f64() * 1e3;
         let (res, _) = crate::levelset::solver::residual(mesh, &data, &u);
         let near = res <= settle_width && params.solver.settle == Settle::Median;
         // A cold tube start begins about one tube radius from the data, and the previous
@@ -494,7 +502,16 @@ pub fn solve(
             let offset = res + settings.eps;
             u.iter_mut().for_each(|x| *x -= offset);
         }
-        keep.then_some(u)
+        keep.then_some((u, near))
+    });
+    let warm = warm.map(|(u, near)| {
+        if near {
+            settings.patience = params
+                .solver
+                .warm_patience
+                .unwrap_or((settings.patience / 2).max(1));
+        }
+        u
     });
     let warm_start = warm.is_some();
     let mut u = match (warm, params.solver.init) {
@@ -520,7 +537,8 @@ pub fn solve(
     let mut report = Solver::new().solve(mesh, &space, &dist, &data, &mut u, &settings);
     if params.solver.settle == Settle::Median && !report.converged {
         let t = Instant::now();
-        let (res, mean) = center_on_data(mesh, &space, field, &data, &mut u, settle_width);
+        let (res, mean) =
+            center_on_data(mesh, &space, field, &data, &nearest, &mut u, settle_width);
         report.residual = res;
         report.mean_residual = mean;
         if res < settings.eps {
@@ -665,15 +683,19 @@ pub fn reconstruct_frame(
 }
 
 /// Moves the zero level set to the local median of the data: each vertex within `width`
-/// of it is lowered by the median of `u` at its `k` nearest data points (`data` holds
-/// the locations of `field`'s points, in its order), then `u` is
-/// renormalized; repeated (at most 4 times) while the mean `|u|` at the data improves by
-/// 1%. Returns the eq. 11 residual and the mean `|u|` at the data afterwards.
+/// of it is lowered by the median of `u` over the `k` nearest samples of its nearest
+/// sample (`nearest[v]`; `data` holds the locations of `field`'s points, in its order),
+/// then `u` is renormalized; repeated (at most 4 times) while the mean `|u|` at the data
+/// improves by 1%. Returns the eq. 11 residual and the mean `|u|` at the data afterwards.
+///
+/// The samples' neighbourhoods are found once: the data do not move between rounds, so
+/// a round costs one median per sample and one fast marching.
 fn center_on_data(
     mesh: &Mesh,
     space: &P1Space,
     field: &crate::distance::DistanceField,
     data: &[crate::fem::locate::Location],
+    nearest: &[u32],
     u: &mut [f64],
     width: f64,
 ) -> (f64, f64) {
@@ -692,33 +714,46 @@ fn center_on_data(
         .get(counts.len() / 2)
         .copied()
         .unwrap_or(32)
-        .clamp(32, 512);
+        .clamp(32, 512)
+        .min(pts.len());
+    // Allocation is fine here: this runs once per frame, not per step.
+    let mut neighbours = vec![0u32; pts.len() * k];
+    neighbours
+        .par_chunks_mut(k)
+        .zip(pts.par_iter())
+        .for_each_init(Vec::new, |buf, (out, &p)| {
+            field.nearest_k(p, k, buf);
+            out.copy_from_slice(&buf[..k]);
+        });
+    let mut at = vec![0.0; pts.len()];
+    let mut medians = vec![0.0; pts.len()];
+    let mut trial = u.to_vec();
     let mut fm = crate::redistance::Redistancer::new();
     let (mut best_res, mut best) = crate::levelset::solver::residual(mesh, data, u);
     for _ in 0..4 {
-        // Allocation is fine here: this runs a few times per frame, not per step.
-        let at: Vec<f64> = data.iter().map(|l| l.interpolate(mesh, u)).collect();
-        let offsets: Vec<f64> = mesh
-            .coords
-            .par_iter()
+        at.par_iter_mut()
+            .zip(data.par_iter())
+            .for_each(|(a, l)| *a = l.interpolate(mesh, u));
+        medians
+            .par_iter_mut()
+            .zip(neighbours.par_chunks(k))
+            .for_each_init(Vec::new, |vals, (m, nb)| {
+                vals.clear();
+                vals.extend(nb.iter().map(|&j| at[j as usize]));
+                let mid = vals.len() / 2;
+                *m = *vals.select_nth_unstable_by(mid, f64::total_cmp).1;
+            });
+        trial
+            .par_iter_mut()
             .zip(u.par_iter())
-            .map_init(Vec::new, |buf, (&c, &ui)| {
-                if ui.abs() > width {
-                    return 0.0;
-                }
-                field.nearest_k(c, k, buf);
-                let mut vals: Vec<f64> = buf.iter().map(|&j| at[j as usize]).collect();
-                if vals.is_empty() {
-                    return 0.0;
-                }
-                let m = vals.len() / 2;
-                *vals.select_nth_unstable_by(m, f64::total_cmp).1
-            })
-            .collect();
-        let mut trial = u.to_vec();
-        for (t, o) in trial.iter_mut().zip(&offsets) {
-            *t -= o;
-        }
+            .zip(nearest.par_iter())
+            .for_each(|((t, &ui), &j)| {
+                *t = if ui.abs() > width {
+                    ui
+                } else {
+                    ui - medians[j as usize]
+                };
+            });
         fm.run(mesh, space, &mut trial, f64::INFINITY);
         let (res, mean) = crate::levelset::solver::residual(mesh, data, &trial);
         tracing::debug!(mean, best, "center");

@@ -19,6 +19,10 @@ const SPLIT_ABOVE: f64 = std::f64::consts::SQRT_2;
 const COLLAPSE_BELOW: f64 = std::f64::consts::FRAC_1_SQRT_2;
 /// A collapse may not create an edge longer than this (it would only be split again).
 const COLLAPSE_MAX_NEW: f64 = 1.3;
+/// A smoothing move must raise the worst quality around the vertex by this factor. Any
+/// gain at all would move nearly every vertex on every sweep, chasing the noise in the
+/// metric: on a warm re-adaptation that is most of the work.
+const SMOOTH_GAIN: f64 = 1.01;
 
 /// Options of [`Adapter::adapt`].
 #[derive(Clone, Debug, PartialEq)]
@@ -84,6 +88,8 @@ pub struct Adapter {
     ring2: Vec<u32>,
     free_tris: Vec<u32>,
     candidates: Vec<(f64, u32, u32)>,
+    flip_work: Vec<u32>,
+    flip_next: Vec<u32>,
 }
 
 impl Adapter {
@@ -404,29 +410,45 @@ impl Adapter {
         true
     }
 
+    /// Flips until no flip helps: one sweep over every triangle, then sweeps over the
+    /// triangles the previous sweep changed (at most 4 in all), since only their edges
+    /// can have become worth flipping.
     fn flip_pass(&mut self, mesh: &mut Mesh) -> usize {
         let mut flips = 0;
-        for _sweep in 0..4 {
-            let mut this = 0;
-            for t in 0..mesh.tris.len() as u32 {
+        let mut work = std::mem::take(&mut self.flip_work);
+        let mut next = std::mem::take(&mut self.flip_next);
+        work.clear();
+        work.extend((0..mesh.tris.len() as u32).filter(|&t| !mesh.is_dead_tri(t)));
+        for sweep in 0..4 {
+            next.clear();
+            for &t in &work {
                 if mesh.is_dead_tri(t) {
                     continue;
                 }
                 for i in 0..3 {
                     let o = mesh.adj[t as usize][i];
-                    if o == INVALID || o < t {
+                    // In the full sweep each interior edge is seen from both sides: take
+                    // it once. Later sweeps see only changed triangles: take every edge.
+                    if o == INVALID || (sweep == 0 && o < t) {
                         continue;
                     }
                     if self.try_flip(mesh, t, i) {
-                        this += 1;
+                        next.push(t);
+                        next.push(o);
+                        break;
                     }
                 }
             }
-            flips += this;
-            if this == 0 {
+            flips += next.len() / 2;
+            if next.is_empty() {
                 break;
             }
+            next.sort_unstable();
+            next.dedup();
+            std::mem::swap(&mut work, &mut next);
         }
+        self.flip_work = work;
+        self.flip_next = next;
         flips
     }
 
@@ -511,7 +533,7 @@ impl Adapter {
                     .iter()
                     .map(|&t| self.tri_quality(mesh, mesh.tris[t as usize]))
                     .fold(f64::INFINITY, f64::min);
-                if new_min > old_min {
+                if new_min > old_min * SMOOTH_GAIN {
                     moves += 1;
                     break;
                 }
