@@ -239,6 +239,11 @@ pub struct MetricField {
     pub field: DistanceField,
     /// One local frame per distinct point, in the field's order.
     pub frames: Vec<crate::mesh::metric::LocalFrame>,
+    /// The `k` nearest points of each point (itself included), nearest first, flat in
+    /// the field's order: the neighbourhoods of the local fits.
+    pub neighbours: Vec<u32>,
+    /// Neighbours per point in `neighbours`.
+    pub k: usize,
     /// Resolved metric parameters (the band derived from the noise when unset).
     pub params: MetricParams,
     /// Median local-fit residual: a noise estimate.
@@ -289,11 +294,13 @@ impl MetricField {
         if params.band.is_none() {
             metric_params.band = (8.0 * hmin).max(4.0 * noise);
         }
-        let frames = metric.into_frames();
+        let (frames, neighbours, k) = metric.into_parts();
         let ms = |d: std::time::Duration| d.as_secs_f64() * 1e3;
         Ok(MetricField {
             field,
             frames,
+            neighbours,
+            k,
             params: metric_params,
             noise_estimate: noise,
             bbox,

@@ -370,6 +370,9 @@ pub struct Solved {
     pub settings: SolverSettings,
     /// Whether the level set started from the previous frame's.
     pub warm_start: bool,
+    /// Whether `u` is already the signed distance to its zero isoline over the whole mesh
+    /// (the median settle's last accepted round leaves it so).
+    pub renormalized: bool,
     /// Milliseconds: distances at the vertices and locating the data.
     pub ms_distance: f64,
     /// Milliseconds: the whole solve stage.
@@ -535,10 +538,19 @@ pub fn solve(
         (None, other) => init::enclosing(other, &prepared.local, margin, &mesh.coords),
     };
     let mut report = Solver::new().solve(mesh, &space, &dist, &data, &mut u, &settings);
+    let mut renormalized = false;
     if params.solver.settle == Settle::Median && !report.converged {
         let t = Instant::now();
-        let (res, mean) =
-            center_on_data(mesh, &space, field, &data, &nearest, &mut u, settle_width);
+        let (res, mean, moved) = center_on_data(
+            mesh,
+            &space,
+            &prepared.metric,
+            &data,
+            &nearest,
+            &mut u,
+            settle_width,
+        );
+        renormalized = moved;
         report.residual = res;
         report.mean_residual = mean;
         if res < settings.eps {
@@ -553,6 +565,7 @@ pub fn solve(
         report,
         settings,
         warm_start,
+        renormalized,
         ms_distance,
         ms: t0.elapsed().as_secs_f64() * 1e3,
         ms_renormalize,
@@ -561,10 +574,15 @@ pub fn solve(
 
 /// The renormalize stage: `u` becomes the signed distance to its zero isoline over the
 /// whole mesh (the solver's own passes stop at twice its narrow band), which is what the
-/// next frame's warm start interpolates.
+/// next frame's warm start interpolates. Nothing to do when the median settle already
+/// left it so.
 pub fn renormalize(mesh: &Mesh, solved: &mut Solved) {
+    if solved.renormalized {
+        return;
+    }
     let t = Instant::now();
     crate::redistance::Redistancer::new().run(mesh, &solved.space, &mut solved.u, f64::INFINITY);
+    solved.renormalized = true;
     solved.ms_renormalize += t.elapsed().as_secs_f64() * 1e3;
 }
 
@@ -686,20 +704,22 @@ pub fn reconstruct_frame(
 /// of it is lowered by the median of `u` over the `k` nearest samples of its nearest
 /// sample (`nearest[v]`; `data` holds the locations of `field`'s points, in its order),
 /// then `u` is renormalized; repeated (at most 4 times) while the mean `|u|` at the data
-/// improves by 1%. Returns the eq. 11 residual and the mean `|u|` at the data afterwards.
+/// improves by 1%. Returns the eq. 11 residual and the mean `|u|` at the data afterwards,
+/// and whether any round was kept (`u` is then a signed distance over the whole mesh).
 ///
 /// The samples' neighbourhoods are found once: the data do not move between rounds, so
 /// a round costs one median per sample and one fast marching.
 fn center_on_data(
     mesh: &Mesh,
     space: &P1Space,
-    field: &crate::distance::DistanceField,
+    metric: &MetricField,
     data: &[crate::fem::locate::Location],
     nearest: &[u32],
     u: &mut [f64],
     width: f64,
-) -> (f64, f64) {
+) -> (f64, f64, bool) {
     use rayon::prelude::*;
+    let field = &metric.field;
     // Enough neighbours to span the noise band: the median count of samples within
     // `width` of a sample (checked on up to 64 of them), at least 32, at most 512.
     let pts = field.points();
@@ -716,30 +736,38 @@ fn center_on_data(
         .unwrap_or(32)
         .clamp(32, 512)
         .min(pts.len());
-    // Allocation is fine here: this runs once per frame, not per step.
-    let mut neighbours = vec![0u32; pts.len() * k];
-    neighbours
-        .par_chunks_mut(k)
-        .zip(pts.par_iter())
-        .for_each_init(Vec::new, |buf, (out, &p)| {
-            field.nearest_k(p, k, buf);
-            out.copy_from_slice(&buf[..k]);
-        });
+    // The metric's fits found each sample's nearest neighbours already; the first `k` of
+    // them will do when there are that many. Allocation is fine here: once per frame.
+    let found;
+    let (neighbours, stride) = if k <= metric.k {
+        (&metric.neighbours[..], metric.k)
+    } else {
+        let mut nb = vec![0u32; pts.len() * k];
+        nb.par_chunks_mut(k)
+            .zip(pts.par_iter())
+            .for_each_init(Vec::new, |buf, (out, &p)| {
+                field.nearest_k(p, k, buf);
+                out.copy_from_slice(&buf[..k]);
+            });
+        found = nb;
+        (&found[..], k)
+    };
     let mut at = vec![0.0; pts.len()];
     let mut medians = vec![0.0; pts.len()];
     let mut trial = u.to_vec();
     let mut fm = crate::redistance::Redistancer::new();
     let (mut best_res, mut best) = crate::levelset::solver::residual(mesh, data, u);
+    let mut moved = false;
     for _ in 0..4 {
         at.par_iter_mut()
             .zip(data.par_iter())
             .for_each(|(a, l)| *a = l.interpolate(mesh, u));
         medians
             .par_iter_mut()
-            .zip(neighbours.par_chunks(k))
+            .zip(neighbours.par_chunks(stride))
             .for_each_init(Vec::new, |vals, (m, nb)| {
                 vals.clear();
-                vals.extend(nb.iter().map(|&j| at[j as usize]));
+                vals.extend(nb[..k].iter().map(|&j| at[j as usize]));
                 let mid = vals.len() / 2;
                 *m = *vals.select_nth_unstable_by(mid, f64::total_cmp).1;
             });
@@ -761,9 +789,10 @@ fn center_on_data(
             best = mean;
             best_res = res;
             u.copy_from_slice(&trial);
+            moved = true;
         } else {
             break;
         }
     }
-    (best_res, best)
+    (best_res, best, moved)
 }

@@ -148,6 +148,18 @@ pub struct SolverSettings {
     pub cg_max: usize,
 }
 
+/// Where a solve stands between stopping tests.
+struct Progress {
+    /// Smallest mean `|u|` at the data so far.
+    best: f64,
+    /// `best` when the current patience window opened.
+    window_mean: f64,
+    /// The iteration that opened it.
+    window_start: usize,
+    /// In the settle phase.
+    settling: bool,
+}
+
 /// Why the iteration stopped.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
 pub enum StopReason {
@@ -450,10 +462,12 @@ impl Solver {
             report.ms_solve = t_start.elapsed().as_secs_f64() * 1e3;
             return report;
         }
-        let check = s.check_every.max(1);
-        let mut best = mean0;
-        // The best mean at the start of the current patience window.
-        let (mut window_mean, mut window_start) = (mean0, 0usize);
+        let mut state = Progress {
+            best: mean0,
+            window_mean: mean0,
+            window_start: 0,
+            settling: false,
+        };
         let mut settling = false;
         let mut settle_settings = s.clone();
         self.pin(s.tube);
@@ -472,49 +486,24 @@ impl Solver {
                 }
             }
             report.iterations = it;
+            if self.stop_test(it, mesh, data, u, s, &mut state, &mut report) {
+                break;
+            }
+            // After the test: a renormalization on the step that ends the solve would be
+            // wasted (callers renormalize what they keep).
             if s.renormalize_every > 0 && it % s.renormalize_every == 0 {
                 let t = Instant::now();
                 self.redistancer.run(mesh, space, u, 2.0 * s.band);
                 renorm_time += t.elapsed().as_secs_f64();
                 report.renormalizations += 1;
             }
-            if it % check != 0 && it != s.max_iterations {
-                continue;
-            }
-            let (res, mean) = residual(mesh, data, u);
-            tracing::trace!(iteration = it, residual = res, mean, settling, "step");
-            if res < s.eps {
-                report.residual = res;
-                report.mean_residual = mean;
-                report.best_iteration = it;
-                report.stop = StopReason::Converged;
-                report.converged = true;
-                break;
-            }
-            if mean < best {
-                best = mean;
-                report.best_iteration = it;
-                report.residual = res;
-                report.mean_residual = mean;
-                self.best.copy_from_slice(u);
-            }
-            if it - window_start >= s.patience {
-                // Less than 1% better over a whole window: this phase is done.
-                if best > 0.99 * window_mean {
-                    if settling || !s.settle_flow {
-                        report.stop = StopReason::Settled;
-                        break;
-                    }
-                    settling = true;
-                    report.capture_iterations = it;
-                    self.pin(0.0);
-                    // No attraction while settling: the d-weighted curvature flow alone
-                    // smooths the curve off the outermost samples into the noise band,
-                    // without the drive that would carry it on through the data.
-                    settle_settings.alpha = 0.0;
-                }
-                window_mean = best;
-                window_start = it;
+            if state.settling && !settling {
+                settling = true;
+                self.pin(0.0);
+                // No attraction while settling: the d-weighted curvature flow alone
+                // smooths the curve off the outermost samples into the noise band,
+                // without the drive that would carry it on through the data.
+                settle_settings.alpha = 0.0;
             }
         }
         if report.capture_iterations == 0 {
@@ -526,6 +515,62 @@ impl Solver {
         report.ms_renormalize = renorm_time * 1e3;
         report.ms_solve = t_start.elapsed().as_secs_f64() * 1e3 - report.ms_renormalize;
         report
+    }
+
+    /// The stopping tests after step `it`: true when the solve is over. Tracks the best
+    /// level set (into `self.best`) and the patience window, and switches `progress` to
+    /// the settle phase when the capture phase stagnates and `s.settle_flow` asks for it.
+    #[allow(clippy::too_many_arguments)]
+    fn stop_test(
+        &mut self,
+        it: usize,
+        mesh: &Mesh,
+        data: &[Location],
+        u: &[f64],
+        s: &SolverSettings,
+        progress: &mut Progress,
+        report: &mut SolveReport,
+    ) -> bool {
+        if it % s.check_every.max(1) != 0 && it != s.max_iterations {
+            return false;
+        }
+        let (res, mean) = residual(mesh, data, u);
+        tracing::trace!(
+            iteration = it,
+            residual = res,
+            mean,
+            progress.settling,
+            "step"
+        );
+        if res < s.eps {
+            report.residual = res;
+            report.mean_residual = mean;
+            report.best_iteration = it;
+            report.stop = StopReason::Converged;
+            report.converged = true;
+            return true;
+        }
+        if mean < progress.best {
+            progress.best = mean;
+            report.best_iteration = it;
+            report.residual = res;
+            report.mean_residual = mean;
+            self.best.copy_from_slice(u);
+        }
+        if it - progress.window_start >= s.patience {
+            // Less than 1% better over a whole window: this phase is done.
+            if progress.best > 0.99 * progress.window_mean {
+                if progress.settling || !s.settle_flow {
+                    report.stop = StopReason::Settled;
+                    return true;
+                }
+                progress.settling = true;
+                report.capture_iterations = it;
+            }
+            progress.window_mean = progress.best;
+            progress.window_start = it;
+        }
+        false
     }
 
     /// One forward Euler step; returns the (smallest) step used.

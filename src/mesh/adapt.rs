@@ -148,11 +148,9 @@ impl Adapter {
                 break;
             }
         }
-        mesh.renumber_spatially();
-        mesh.coords
-            .par_iter()
-            .map(|&p| metric.metric(p))
-            .collect_into_vec(&mut self.metrics);
+        let order = mesh.renumber_spatially();
+        let metrics: Vec<Sym2> = order.iter().map(|&v| self.metrics[v as usize]).collect();
+        self.metrics = metrics;
         tracing::debug!(?report, vertices = mesh.num_vertices(), "adapted");
         report
     }

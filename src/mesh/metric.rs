@@ -135,6 +135,9 @@ pub fn fit_frame(center: Point, pts: &[Point]) -> LocalFrame {
 pub struct CurveMetric<'a> {
     field: &'a DistanceField,
     frames: Vec<LocalFrame>,
+    /// The `k` nearest samples of each sample (itself included), nearest first, flat.
+    neighbours: Vec<u32>,
+    k: usize,
     params: MetricParams,
 }
 
@@ -143,24 +146,32 @@ impl<'a> CurveMetric<'a> {
     /// neighbours so that the tangential size varies smoothly along the data.
     pub fn new(field: &'a DistanceField, params: MetricParams) -> Self {
         let points = field.points();
-        let k = params.neighbours.max(3);
+        let k = params.neighbours.max(3).min(points.len());
+        // Each sample's neighbours, found once for both passes (and kept for callers).
+        let mut neighbours = vec![0u32; points.len() * k];
+        if k > 0 {
+            neighbours
+                .par_chunks_mut(k)
+                .zip(points.par_iter())
+                .for_each_init(Vec::new, |idx, (out, &p)| {
+                    field.nearest_k(p, k, idx);
+                    out.copy_from_slice(&idx[..k]);
+                });
+        }
+        let lists = || neighbours.par_chunks(k.max(1));
         let raw: Vec<LocalFrame> = points
             .par_iter()
-            .map_init(
-                || (Vec::new(), Vec::new()),
-                |(idx, pts): &mut (Vec<u32>, Vec<Point>), &p| {
-                    field.nearest_k(p, k, idx);
-                    pts.clear();
-                    pts.extend(idx.iter().map(|&i| points[i as usize]));
-                    fit_frame(p, pts)
-                },
-            )
+            .zip(lists())
+            .map_init(Vec::new, |pts: &mut Vec<Point>, (&p, idx)| {
+                pts.clear();
+                pts.extend(idx.iter().map(|&i| points[i as usize]));
+                fit_frame(p, pts)
+            })
             .collect();
-        let frames = points
+        let frames = raw
             .par_iter()
-            .zip(raw.par_iter())
-            .map_init(Vec::new, |idx, (&p, f)| {
-                field.nearest_k(p, k, idx);
+            .zip(lists())
+            .map(|(f, idx)| {
                 // Average the signed curvature with each neighbour's normal turned to
                 // agree with this one: averaging |kappa| would turn noise into curvature.
                 let (sum, cnt) = idx
@@ -184,6 +195,8 @@ impl<'a> CurveMetric<'a> {
         CurveMetric {
             field,
             frames,
+            neighbours,
+            k,
             params,
         }
     }
@@ -199,13 +212,16 @@ impl<'a> CurveMetric<'a> {
         CurveMetric {
             field,
             frames,
+            neighbours: Vec::new(),
+            k: 0,
             params,
         }
     }
 
-    /// The fitted frames, giving up the borrow of the field.
-    pub fn into_frames(self) -> Vec<LocalFrame> {
-        self.frames
+    /// The fitted frames and the neighbour lists (`k` per sample, flat, nearest first),
+    /// giving up the borrow of the field.
+    pub fn into_parts(self) -> (Vec<LocalFrame>, Vec<u32>, usize) {
+        (self.frames, self.neighbours, self.k)
     }
 
     /// The per-sample frames, in the distance field's point order.

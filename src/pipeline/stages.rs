@@ -111,6 +111,21 @@ macro_rules! stage_span {
     };
 }
 
+/// Makes the calling stage thread the only worker of its own rayon pool, so that the
+/// stage's parallel loops run on it: with as many busy stages as cores, per-stage
+/// parallelism only adds hand-offs and spinning between stages that compete for them.
+fn own_pool() {
+    let built = rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .use_current_thread()
+        .build();
+    match built {
+        // The pool lives as long as the thread.
+        Ok(pool) => std::mem::forget(pool),
+        Err(e) => tracing::warn!(error = %e, "no per-stage pool: using the global one"),
+    }
+}
+
 /// Runs `f` on every live frame of `rx` (under `policy`) and sends the results to `tx`;
 /// failed and skipped frames pass through. Ends when `rx` closes or `tx` does.
 fn run_stage(
@@ -120,6 +135,7 @@ fn run_stage(
     span: impl Fn(&Msg, usize) -> tracing::Span,
     mut f: impl FnMut(&mut Msg),
 ) {
+    own_pool();
     while let Ok(first) = rx.recv() {
         for mut m in take_batch(first, &rx, policy) {
             if m.live() {
