@@ -782,17 +782,23 @@ fn center_on_data(
                     ui - medians[j as usize]
                 };
             });
-        fm.run(mesh, space, &mut trial, f64::INFINITY);
-        let (res, mean) = crate::levelset::solver::residual(mesh, data, &trial);
-        tracing::debug!(mean, best, "center");
-        if mean < best * 0.99 {
-            best = mean;
-            best_res = res;
-            u.copy_from_slice(&trial);
-            moved = true;
-        } else {
+        // Within `width` of the curve the shifted `u` is still a distance to its own zero
+        // set, so the test can be made before the fast marching, which a rejected round
+        // then does not pay for.
+        let (_, before) = crate::levelset::solver::residual(mesh, data, &trial);
+        tracing::debug!(mean = before, best, "center");
+        if before >= best * 0.99 {
             break;
         }
+        fm.run(mesh, space, &mut trial, f64::INFINITY);
+        let (res, mean) = crate::levelset::solver::residual(mesh, data, &trial);
+        if mean >= best {
+            break;
+        }
+        best = mean;
+        best_res = res;
+        u.copy_from_slice(&trial);
+        moved = true;
     }
     (best_res, best, moved)
 }
