@@ -1,11 +1,14 @@
 //! Benchmarks of reconstruction: the cold `reconstruct` of the noisy circle
 //! (2,000 points, sigma 0.002) with each scheme's stages, one renormalization of its
 //! level set by fast marching, and a cold reconstruct of 20,000 points (how time grows
-//! with the number of points; 200,000 points are timed in the README).
+//! with the number of points; 200,000 points are timed in the README); and one frame of
+//! the README's daemon stream (moving ellipse, 1,000 points, sigma 0.003, hmin 0.002),
+//! warm-started from the frame before it and cold.
 
 use criterion::{criterion_group, criterion_main, Criterion};
 use isoline::fem::P1Space;
-use isoline::reconstruct::{reconstruct, Params};
+use isoline::meshing::MeshParams;
+use isoline::reconstruct::{reconstruct, reconstruct_warm, ExportParams, Params, SolverParams};
 use isoline::redistance::Redistancer;
 use isoline::synth::{generate, Shape, SynthParams};
 
@@ -61,5 +64,42 @@ fn renormalize(c: &mut Criterion) {
     );
 }
 
-criterion_group!(benches, cold, renormalize);
+fn stream_frame(c: &mut Criterion) {
+    let mut p = SynthParams::new(Shape::Ellipse);
+    p.points = 1000;
+    p.noise = 0.003;
+    p.frames = 2;
+    p.motion = 0.003;
+    p.seed = 8;
+    let frames = generate(&p).unwrap();
+    let params = Params::new(
+        MeshParams::default().with_hmin(0.002),
+        SolverParams::default(),
+        ExportParams::default(),
+    );
+    let first = reconstruct(&frames[0].points, &params).unwrap();
+    let next = &frames[1].points;
+    assert!(
+        reconstruct_warm(next, &params, Some(&first))
+            .unwrap()
+            .stats
+            .warm_start
+    );
+    let mut g = c.benchmark_group("stream_frame");
+    g.sample_size(20);
+    g.bench_function("ellipse_1000_warm", |b| {
+        b.iter(|| {
+            reconstruct_warm(next, &params, Some(&first))
+                .unwrap()
+                .stats
+                .iterations
+        })
+    });
+    g.bench_function("ellipse_1000_cold", |b| {
+        b.iter(|| reconstruct(next, &params).unwrap().stats.iterations)
+    });
+    g.finish();
+}
+
+criterion_group!(benches, cold, renormalize, stream_frame);
 criterion_main!(benches);

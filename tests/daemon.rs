@@ -339,3 +339,35 @@ fn every_streamed_frame_is_as_accurate_as_a_one_shot_reconstruction() {
         assert_eq!(acc.components_recon, 1);
     }
 }
+
+#[test]
+fn latest_skips_stale_frames_and_records_each_one() {
+    let dir = tempfile::tempdir().unwrap();
+    // Replayed as fast as it reads, the stream outruns the stages by far: with one-frame
+    // queues and the `latest` policy they drop the frames that went stale meanwhile.
+    let cfg = config(
+        dir.path(),
+        &format!(
+            "[input]\npath = {:?}\nreplay = \"fast\"\n[output]\npath = \"out.ndjson\"\n\
+             [pipeline]\nqueue = 1\npolicy = \"latest\"\n[mesh]\nhmin = 0.002\n",
+            fixture("ellipse-stream-20.ndjson")
+        ),
+    );
+    let out = run_to_end(&cfg);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    let recs = records(&dir.path().join("out.ndjson"));
+    assert_eq!(frame_ids(&recs), (0..20).collect::<Vec<_>>());
+    let skipped: Vec<&Value> = recs.iter().filter(|r| r["skipped"] == true).collect();
+    assert!(!skipped.is_empty(), "nothing skipped: {stderr}");
+    for r in &skipped {
+        assert!(r["error"].as_str().unwrap().contains("skipped"));
+        assert!(r.get("polylines").is_none());
+    }
+    // The newest frame is never stale.
+    assert!(recs[19]["polylines"].is_array());
+    assert!(
+        stderr.contains(&format!("{} skipped", skipped.len())),
+        "{stderr}"
+    );
+}

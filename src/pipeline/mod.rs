@@ -102,8 +102,9 @@ impl Daemon {
             std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
         }
         let q = cfg.queue;
-        // Lines can arrive from many clients at once: a few more of them may wait.
-        let (line_tx, line_rx) = bounded(4 * q);
+        // Read lines wait here for ingest; on shutdown each still gets its record, so
+        // this queue is no longer than the others.
+        let (line_tx, line_rx) = bounded(q);
         let mut threads = Vec::new();
         let mut tcp_addr = None;
         match &cfg.source {
