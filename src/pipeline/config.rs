@@ -326,6 +326,17 @@ mod tests {
     }
 
     #[test]
+    fn the_shipped_replay_configuration_loads() {
+        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("config/stream-replay.toml");
+        let c = DaemonConfig::load(&path).unwrap();
+        let Source::File { path, replay } = c.source else {
+            panic!("{:?}", c.source)
+        };
+        assert!(path.exists(), "{}", path.display());
+        assert_eq!(replay, Replay::Recorded);
+    }
+
+    #[test]
     fn every_problem_is_named_with_its_key() {
         let e = DaemonConfig::parse(
             "[input]\nkind = \"tcp\"\nbind = \"nowhere\"\nreplay = -1\n[pipeline]\nqueue = 0\n\
