@@ -26,11 +26,24 @@ fn config(dir: &Path, toml: &str) -> PathBuf {
     path
 }
 
-fn run_to_end(cfg: &Path) -> std::process::Output {
-    bin()
+/// Replays `input` as fast as the daemon takes it into `dir/out.ndjson`, with hmin 0.002,
+/// `output` added to the `[output]` table and `tables` after the others; the run must
+/// succeed. Returns the records and the daemon's stderr.
+fn replay(dir: &Path, input: &Path, output: &str, tables: &str) -> (Vec<Value>, String) {
+    let cfg = config(
+        dir,
+        &format!(
+            "[input]\npath = {input:?}\nreplay = \"fast\"\n[output]\npath = \"out.ndjson\"\n\
+             {output}\n[mesh]\nhmin = 0.002\n{tables}\n"
+        ),
+    );
+    let out = bin()
         .args(["run", "-c", cfg.to_str().unwrap()])
         .output()
-        .expect("run isoline")
+        .expect("run isoline");
+    let stderr = String::from_utf8_lossy(&out.stderr).to_string();
+    assert!(out.status.success(), "{stderr}");
+    (records(&dir.join("out.ndjson")), stderr)
 }
 
 /// Every line of an NDJSON file, parsed; panics on a line that is not JSON (a record cut
@@ -50,22 +63,12 @@ fn frame_ids(recs: &[Value]) -> Vec<u64> {
 #[test]
 fn a_replayed_stream_gets_one_record_per_frame_in_order_mostly_warm() {
     let dir = tempfile::tempdir().unwrap();
-    let cfg = config(
-        dir.path(),
-        &format!(
-            "[input]\npath = {:?}\nreplay = \"fast\"\n[output]\npath = \"out.ndjson\"\n\
-             svg_dir = \"svg\"\n[mesh]\nhmin = 0.002\n",
-            fixture("ellipse-stream-20.ndjson")
-        ),
-    );
-    let out = run_to_end(&cfg);
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(out.status.success(), "{stderr}");
+    let input = fixture("ellipse-stream-20.ndjson");
+    let (recs, stderr) = replay(dir.path(), &input, "svg_dir = \"svg\"", "");
     assert!(
         stderr.contains("20 records (20 reconstructed, 0 errors, 0 skipped)"),
         "{stderr}"
     );
-    let recs = records(&dir.path().join("out.ndjson"));
     assert_eq!(frame_ids(&recs), (0..20).collect::<Vec<_>>());
     for r in &recs {
         assert_eq!(r["stream"], "lidar0");
@@ -98,18 +101,7 @@ fn a_malformed_line_gets_an_error_record_and_the_stream_goes_on() {
     lines[2] = r#"{"stream":"lidar0","frame":2,"points":[[0.5,0.5]]}"#.to_string();
     let input = dir.path().join("in.ndjson");
     std::fs::write(&input, lines.join("\n") + "\n").unwrap();
-    let cfg = config(
-        dir.path(),
-        "[input]\npath = \"in.ndjson\"\nreplay = \"fast\"\n[output]\npath = \"out.ndjson\"\n\
-         [mesh]\nhmin = 0.002\n",
-    );
-    let out = run_to_end(&cfg);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let recs = records(&dir.path().join("out.ndjson"));
+    let (recs, _) = replay(dir.path(), &input, "", "");
     assert_eq!(frame_ids(&recs), vec![0, 1, 2, 3]);
     let e1 = recs[1]["error"].as_str().unwrap();
     assert!(e1.contains("in.ndjson, line 2"), "{e1}");
@@ -313,20 +305,9 @@ fn every_streamed_frame_is_as_accurate_as_a_one_shot_reconstruction() {
         .output()
         .unwrap();
     assert!(out.status.success());
-    let cfg = config(
-        dir.path(),
-        "[input]\npath = \"frames.ndjson\"\nreplay = \"fast\"\n[output]\npath = \"out.ndjson\"\n\
-         [mesh]\nhmin = 0.002\n",
-    );
-    let out = run_to_end(&cfg);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    let (recs, _) = replay(dir.path(), &frames, "", "");
     let truth: isoline::format::TruthFile =
         serde_json::from_str(&std::fs::read_to_string(&truth).unwrap()).unwrap();
-    let recs = records(&dir.path().join("out.ndjson"));
     assert_eq!(recs.len(), 8);
     let bound = 3.0 * sigma + 2.0 * hmin;
     for r in &recs {
@@ -345,18 +326,13 @@ fn latest_skips_stale_frames_and_records_each_one() {
     let dir = tempfile::tempdir().unwrap();
     // Replayed as fast as it reads, the stream outruns the stages by far: with one-frame
     // queues and the `latest` policy they drop the frames that went stale meanwhile.
-    let cfg = config(
+    let input = fixture("ellipse-stream-20.ndjson");
+    let (recs, stderr) = replay(
         dir.path(),
-        &format!(
-            "[input]\npath = {:?}\nreplay = \"fast\"\n[output]\npath = \"out.ndjson\"\n\
-             [pipeline]\nqueue = 1\npolicy = \"latest\"\n[mesh]\nhmin = 0.002\n",
-            fixture("ellipse-stream-20.ndjson")
-        ),
+        &input,
+        "",
+        "[pipeline]\nqueue = 1\npolicy = \"latest\"",
     );
-    let out = run_to_end(&cfg);
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(out.status.success(), "{stderr}");
-    let recs = records(&dir.path().join("out.ndjson"));
     assert_eq!(frame_ids(&recs), (0..20).collect::<Vec<_>>());
     let skipped: Vec<&Value> = recs.iter().filter(|r| r["skipped"] == true).collect();
     assert!(!skipped.is_empty(), "nothing skipped: {stderr}");
@@ -370,4 +346,42 @@ fn latest_skips_stale_frames_and_records_each_one() {
         stderr.contains(&format!("{} skipped", skipped.len())),
         "{stderr}"
     );
+}
+
+#[test]
+fn frames_on_stdin_give_records_on_stdout() {
+    let dir = tempfile::tempdir().unwrap();
+    let cfg = config(
+        dir.path(),
+        "[input]\nkind = \"stdin\"\n[mesh]\nhmin = 0.002\n",
+    );
+    let text = std::fs::read_to_string(fixture("ellipse-stream-20.ndjson")).unwrap();
+    let input: String = text.lines().take(3).map(|l| format!("{l}\n")).collect();
+    let mut child = bin()
+        .args(["run", "-c", cfg.to_str().unwrap()])
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    // Closing stdin is the end of input.
+    child
+        .stdin
+        .take()
+        .unwrap()
+        .write_all(input.as_bytes())
+        .unwrap();
+    let out = child.wait_with_output().unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let recs: Vec<Value> = String::from_utf8(out.stdout)
+        .unwrap()
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    assert_eq!(frame_ids(&recs), vec![0, 1, 2]);
+    assert!(recs.iter().all(|r| r["polylines"].is_array()));
 }
