@@ -462,12 +462,14 @@ impl Solver {
             report.ms_solve = t_start.elapsed().as_secs_f64() * 1e3;
             return report;
         }
-        let mut state = Progress {
+        let mut progress = Progress {
             best: mean0,
             window_mean: mean0,
             window_start: 0,
             settling: false,
         };
+        // Whether the settle phase's settings are in force (`progress.settling` says
+        // whether it has begun).
         let mut settling = false;
         let mut settle_settings = s.clone();
         self.pin(s.tube);
@@ -486,7 +488,7 @@ impl Solver {
                 }
             }
             report.iterations = it;
-            if self.stop_test(it, mesh, data, u, s, &mut state, &mut report) {
+            if self.stop_test(it, mesh, data, u, s, &mut progress, &mut report) {
                 break;
             }
             // After the test: a renormalization on the step that ends the solve would be
@@ -497,7 +499,7 @@ impl Solver {
                 renorm_time += t.elapsed().as_secs_f64();
                 report.renormalizations += 1;
             }
-            if state.settling && !settling {
+            if progress.settling && !settling {
                 settling = true;
                 self.pin(0.0);
                 // No attraction while settling: the d-weighted curvature flow alone

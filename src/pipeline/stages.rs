@@ -4,6 +4,7 @@
 
 use std::collections::HashMap;
 use std::io::Write;
+use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
@@ -47,6 +48,8 @@ enum Work {
     Prepared(Box<Prepared>),
     Adapted(Box<(Prepared, AdaptedMesh)>),
     Solved(Box<(Prepared, AdaptedMesh, Solved)>),
+    /// In the export stage only: the reconstruction and the frame's points (for drawing).
+    Exported(Box<reconstruct::Reconstruction>, Vec<Point>),
     Failed(String),
     Skipped,
 }
@@ -127,8 +130,11 @@ fn own_pool() {
 }
 
 /// Runs `f` on every live frame of `rx` (under `policy`) and sends the results to `tx`;
-/// failed and skipped frames pass through. Ends when `rx` closes or `tx` does.
+/// failed and skipped frames pass through. A panic in `f` (a bug, not bad input) fails
+/// that frame only: it gets an error record and the stream goes on. Ends when `rx`
+/// closes or `tx` does.
 fn run_stage(
+    name: &str,
     rx: Receiver<Msg>,
     tx: Sender<Msg>,
     policy: Policy,
@@ -141,13 +147,26 @@ fn run_stage(
             if m.live() {
                 let s = span(&m, rx.len());
                 let _e = s.enter();
-                f(&mut m);
+                if let Err(panic) = catch_unwind(AssertUnwindSafe(|| f(&mut m))) {
+                    m.work = Work::Failed(internal_error(name, panic.as_ref()));
+                }
             }
             if tx.send(m).is_err() {
                 return;
             }
         }
     }
+}
+
+/// The record text of a frame whose stage panicked.
+fn internal_error(stage: &str, panic: &(dyn std::any::Any + Send)) -> String {
+    let what = panic
+        .downcast_ref::<&str>()
+        .map(|s| s.to_string())
+        .or_else(|| panic.downcast_ref::<String>().cloned())
+        .unwrap_or_else(|| "unknown panic".into());
+    tracing::error!(stage, %what, "a stage panicked on a frame");
+    format!("internal error in the {stage} stage (a bug in isoline): {what}")
 }
 
 /// Ingest: parses lines into frames; a line that is not a frame becomes a failed frame
@@ -162,14 +181,14 @@ pub(crate) fn spawn_ingest(
     spawn("ingest", move || {
         let mut last_frame = HashMap::new();
         let mut handle = |line: Line| -> bool {
-            let _s = tracing::info_span!(
+            // The span covers the parsing, not the wait for room downstream.
+            let m = tracing::info_span!(
                 "ingest",
-                origin = &*line.origin,
+                origin = %line.origin,
                 line = line.line,
                 queue = rx.len()
             )
-            .entered();
-            let m = parse_line(line, &mut last_frame);
+            .in_scope(|| parse_line(line, &mut last_frame));
             tx.send(m).is_ok()
         };
         loop {
@@ -250,6 +269,7 @@ pub(crate) fn spawn_distance(
 ) -> Result<JoinHandle<()>> {
     spawn("distance", move || {
         run_stage(
+            "distance",
             rx,
             tx,
             policy,
@@ -278,6 +298,7 @@ pub(crate) fn spawn_adapt(
     spawn("adapt", move || {
         let mut last: HashMap<String, (u64, Mesh)> = HashMap::new();
         run_stage(
+            "adapt",
             rx,
             tx,
             policy,
@@ -334,6 +355,7 @@ pub(crate) fn spawn_solve(
             }
         };
         run_stage(
+            "solve",
             rx,
             tx,
             policy,
@@ -384,32 +406,44 @@ pub(crate) fn spawn_renormalize(
 ) -> Result<JoinHandle<()>> {
     spawn("renormalize", move || {
         run_stage(
+            "renormalize",
             rx,
             tx,
             Policy::Block,
             |m, d| stage_span!("renormalize", m, d),
             |m| {
+                let key = m.key().to_string();
                 let Work::Solved(b) = &mut m.work else {
                     unreachable!("renormalize takes solved frames")
                 };
-                let (p, adapted, solved) = &mut **b;
-                reconstruct::renormalize(&adapted.mesh, solved);
-                if let Some(fb) = &feedback {
-                    let mut mesh = adapted.mesh.clone();
-                    for c in &mut mesh.coords {
-                        *c = add(*c, p.center);
+                // The solve stage waits for this frame's level set: it must get an answer
+                // even if renormalizing fails.
+                let level_set = catch_unwind(AssertUnwindSafe(|| {
+                    let (p, adapted, solved) = &mut **b;
+                    reconstruct::renormalize(&adapted.mesh, solved);
+                    feedback.as_ref().map(|_| {
+                        let mut mesh = adapted.mesh.clone();
+                        for c in &mut mesh.coords {
+                            *c = add(*c, p.center);
+                        }
+                        LevelSet {
+                            mesh,
+                            u: solved.u.clone(),
+                            residual: solved.report.residual,
+                        }
+                    })
+                }));
+                let level_set = match level_set {
+                    Ok(l) => l,
+                    Err(panic) => {
+                        m.work = Work::Failed(internal_error("renormalize", panic.as_ref()));
+                        None
                     }
-                    let level_set = LevelSet {
-                        mesh,
-                        u: solved.u.clone(),
-                        residual: solved.report.residual,
-                    };
+                };
+                if let Some(fb) = &feedback {
                     // The solve stage outlives this one unless the pipeline is being torn
                     // down; then nobody needs the level set.
-                    let _ = fb.send(Feedback {
-                        key: m.key().to_string(),
-                        level_set: Some(level_set),
-                    });
+                    let _ = fb.send(Feedback { key, level_set });
                 }
             },
         )
@@ -442,7 +476,8 @@ pub(crate) fn spawn_export(
                 ..Default::default()
             };
             let mut drawing = None;
-            match m.work {
+            // A panic while extracting the curves (a bug) fails this frame only.
+            let work = match m.work {
                 Work::Solved(b) => {
                     let (p, adapted, solved) = *b;
                     let points: Vec<Point> = if svg_dir.is_some() {
@@ -450,7 +485,16 @@ pub(crate) fn spawn_export(
                     } else {
                         Vec::new()
                     };
-                    let r = reconstruct::export(&p, adapted, solved, &params.export);
+                    catch_unwind(AssertUnwindSafe(|| {
+                        reconstruct::export(&p, adapted, solved, &params.export)
+                    }))
+                    .map(|r| Work::Exported(Box::new(r), points))
+                    .unwrap_or_else(|panic| Work::Failed(internal_error("export", panic.as_ref())))
+                }
+                other => other,
+            };
+            match work {
+                Work::Exported(r, points) => {
                     let mut stats = r.stats.clone();
                     let latency = m.arrived.elapsed().as_secs_f64() * 1e3;
                     stats.ms.latency = Some(latency);
@@ -480,7 +524,7 @@ pub(crate) fn spawn_export(
                     );
                     rec.skipped = Some(true);
                 }
-                Work::Points(_) | Work::Prepared(_) | Work::Adapted(_) => {
+                Work::Points(_) | Work::Prepared(_) | Work::Adapted(_) | Work::Solved(_) => {
                     unreachable!("export takes frames that went through every stage")
                 }
             }
@@ -629,6 +673,42 @@ mod tests {
         let m = parse_line(invalid, &mut last);
         let Work::Failed(e) = &m.work else { panic!() };
         assert!(e.contains("line 4") && e.contains("UTF-8"), "{e}");
+    }
+
+    #[test]
+    fn a_panic_fails_its_frame_only() {
+        let (in_tx, in_rx) = crossbeam_channel::unbounded();
+        let (out_tx, out_rx) = crossbeam_channel::unbounded();
+        for f in 0..3 {
+            in_tx.send(msg("a", f, true)).unwrap();
+        }
+        drop(in_tx);
+        // The default hook would print the expected panic among the test output.
+        let hook = std::panic::take_hook();
+        std::panic::set_hook(Box::new(|_| {}));
+        run_stage(
+            "test",
+            in_rx,
+            out_tx,
+            Policy::Block,
+            |_, _| tracing::Span::none(),
+            |m| assert!(m.frame != 1, "frame one is cursed"),
+        );
+        std::panic::set_hook(hook);
+        let out: Vec<Msg> = out_rx.iter().collect();
+        assert_eq!(
+            out.iter().map(|m| m.frame).collect::<Vec<_>>(),
+            vec![0, 1, 2]
+        );
+        assert!(matches!(out[0].work, Work::Points(_)));
+        let Work::Failed(e) = &out[1].work else {
+            panic!("frame 1 not failed")
+        };
+        assert!(
+            e.contains("internal error in the test stage") && e.contains("cursed"),
+            "{e}"
+        );
+        assert!(matches!(out[2].work, Work::Points(_)));
     }
 
     #[test]
