@@ -191,8 +191,9 @@ pub struct MeshConfig {
     pub isotropic: Option<bool>,
     /// Most adaptation passes. Default 24.
     pub max_passes: Option<usize>,
-    /// Adaptation passes from the previous frame's mesh (daemon). Default 1.
-    pub warm_passes: Option<usize>,
+    /// A warm adaptation (daemon) stops after a pass changing less than this fraction of
+    /// the vertices. Default 0.35.
+    pub warm_change: Option<f64>,
     /// Most vertices. Default 2,000,000.
     pub max_vertices: Option<usize>,
 }
@@ -211,7 +212,7 @@ impl MeshConfig {
             padding: self.padding.unwrap_or(d.padding),
             isotropic: self.isotropic.unwrap_or(d.isotropic),
             max_passes: self.max_passes.unwrap_or(d.max_passes),
-            warm_passes: self.warm_passes.unwrap_or(d.warm_passes),
+            warm_change: self.warm_change.unwrap_or(d.warm_change),
             max_vertices: self.max_vertices.unwrap_or(d.max_vertices),
         };
         p.validate().map(|()| p)

@@ -36,11 +36,13 @@ pub struct MeshParams {
     pub isotropic: bool,
     /// Upper bound on adaptation passes. Default 24.
     pub max_passes: usize,
-    /// Adaptation passes when starting from the previous frame's mesh (each with one
-    /// smoothing sweep instead of two). That mesh is already adapted to a metric that
-    /// differs by the motion and the noise only; one pass follows it (measured: vertex
-    /// count and accuracy steady over 200 frames). Default 1.
-    pub warm_passes: usize,
+    /// Adapting from the previous frame's mesh (the daemon's warm start) stops after the
+    /// first pass that splits or collapses fewer than this fraction of the vertices.
+    /// A new frame's noise alone changes about 20% per pass (measured on the README's
+    /// stream), which the next frame's pass follows up; a jump or a new shape changes
+    /// more and gets more passes. Each warm pass smooths once instead of twice.
+    /// Default 0.35.
+    pub warm_change: f64,
     /// Refinement stops at this many vertices. Default 2,000,000.
     pub max_vertices: usize,
 }
@@ -57,7 +59,7 @@ impl Default for MeshParams {
             padding: 0.2,
             isotropic: false,
             max_passes: 24,
-            warm_passes: 1,
+            warm_change: 0.35,
             max_vertices: 2_000_000,
         }
     }
@@ -123,10 +125,10 @@ impl MeshParams {
                 self.max_passes
             ));
         }
-        if !(1..=1000).contains(&self.warm_passes) {
+        if !(self.warm_change > 0.0 && self.warm_change <= 1.0) {
             problems.push(format!(
-                "mesh.warm_passes = {}: must be in 1..=1000",
-                self.warm_passes
+                "mesh.warm_change = {}: must be in (0, 1]",
+                self.warm_change
             ));
         }
         if self.max_vertices < 16 {
@@ -254,8 +256,8 @@ pub struct MetricField {
     pub padding: f64,
     /// Adaptation's pass limit.
     pub max_passes: usize,
-    /// Adaptation's pass limit from a previous frame's mesh.
-    pub warm_passes: usize,
+    /// The change below which a warm adaptation stops.
+    pub warm_change: f64,
     /// Adaptation's vertex limit.
     pub max_vertices: usize,
     /// Time spent building the kd-tree and fitting the frames.
@@ -306,7 +308,7 @@ impl MetricField {
             bbox,
             padding: params.padding,
             max_passes: params.max_passes,
-            warm_passes: params.warm_passes,
+            warm_change: params.warm_change,
             max_vertices: params.max_vertices,
             ms: MeshTimings {
                 distance: ms(t_dist),
@@ -339,13 +341,10 @@ impl MetricField {
             None => (wanted, Mesh::of_box(&wanted, self.params.hmax), false),
         };
         let mut opts = AdaptOptions::default()
-            .with_max_passes(if warm {
-                self.warm_passes
-            } else {
-                self.max_passes
-            })
+            .with_max_passes(self.max_passes)
             .with_max_vertices(self.max_vertices);
         if warm {
+            opts.stop_change = self.warm_change;
             // One sweep follows a mesh already adapted to a nearby metric; a second
             // mostly chases the noise in it (measured: 12% more frames per second on the
             // README's stream, the same accuracy).

@@ -802,3 +802,68 @@ fn center_on_data(
     }
     (best_res, best, moved)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::synth::{generate, Shape, SynthParams};
+
+    fn stream() -> Vec<crate::synth::SynthFrame> {
+        let mut p = SynthParams::new(Shape::Ellipse);
+        p.points = 1000;
+        p.noise = 0.003;
+        p.frames = 4;
+        p.motion = 0.003;
+        p.seed = 3;
+        generate(&p).unwrap()
+    }
+
+    fn hausdorff(r: &Reconstruction, truth: &[crate::geom::Polyline]) -> f64 {
+        crate::eval::compare(&r.polylines, truth, None)
+            .hausdorff
+            .unwrap()
+    }
+
+    /// Warm frames meet the one-shot bound 3 sigma + 2 hmin, and so does a frame after a
+    /// jump of 40 hmin (far beyond the mesh's fine band, within its domain): its level set
+    /// starts cold, and its mesh, adapted from the old one, is about as fine as a cold
+    /// frame's.
+    #[test]
+    fn warm_frames_and_a_jump_stay_within_the_one_shot_bound() {
+        let frames = stream();
+        let params = Params::new(
+            MeshParams::default().with_hmin(0.002),
+            SolverParams::default(),
+            ExportParams::default(),
+        );
+        let bound = 3.0 * 0.003 + 2.0 * 0.002;
+        let mut prev = reconstruct(&frames[0].points, &params).unwrap();
+        for f in &frames[1..] {
+            let r = reconstruct_warm(&f.points, &params, Some(&prev)).unwrap();
+            assert!(r.stats.warm_start, "frame {}", f.frame);
+            let h = hausdorff(&r, &f.truth);
+            assert!(h <= bound, "frame {}: {h} > {bound}", f.frame);
+            prev = r;
+        }
+        let jump = [0.08, 0.0];
+        let last = frames.last().unwrap();
+        let moved: Vec<Point> = last.points.iter().map(|&p| add(p, jump)).collect();
+        let mut truth = last.truth.clone();
+        truth
+            .iter_mut()
+            .flat_map(|pl| pl.points.iter_mut())
+            .for_each(|p| *p = add(*p, jump));
+        let r = reconstruct_warm(&moved, &params, Some(&prev)).unwrap();
+        assert!(!r.stats.warm_start);
+        let h = hausdorff(&r, &truth);
+        assert!(h <= bound, "after the jump: {h} > {bound}");
+        let cold = reconstruct(&moved, &params).unwrap();
+        let ratio = r.stats.vertices as f64 / cold.stats.vertices as f64;
+        assert!(
+            (0.8..1.25).contains(&ratio),
+            "{} vs {} cold",
+            r.stats.vertices,
+            cold.stats.vertices
+        );
+    }
+}

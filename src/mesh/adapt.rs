@@ -34,6 +34,9 @@ pub struct AdaptOptions {
     pub smoothing_sweeps: usize,
     /// Refinement stops once the mesh has this many vertices (reported, not an error).
     pub max_vertices: usize,
+    /// Adaptation stops after a pass whose splits and collapses number at most this
+    /// fraction of the vertices.
+    pub stop_change: f64,
 }
 
 impl Default for AdaptOptions {
@@ -42,6 +45,7 @@ impl Default for AdaptOptions {
             max_passes: 24,
             smoothing_sweeps: 2,
             max_vertices: 2_000_000,
+            stop_change: 0.005,
         }
     }
 }
@@ -141,9 +145,9 @@ impl Adapter {
             debug_assert_eq!(mesh.sanity_check(), Ok(()));
             // Near the fixed point a few edges keep being split and re-collapsed where the
             // metric changes fast (a limit cycle of ~0.2% of the vertices on noisy data):
-            // stop once a pass touches at most 0.5% of them.
+            // by default, stop once a pass touches at most 0.5% of them.
             let live = mesh.num_vertices().max(1);
-            if (splits + collapses) * 200 <= live {
+            if (splits + collapses) as f64 <= opts.stop_change * live as f64 {
                 report.converged = true;
                 break;
             }
