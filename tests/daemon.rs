@@ -385,3 +385,41 @@ fn frames_on_stdin_give_records_on_stdout() {
     assert_eq!(frame_ids(&recs), vec![0, 1, 2]);
     assert!(recs.iter().all(|r| r["polylines"].is_array()));
 }
+
+#[test]
+fn a_recorded_replay_keeps_the_time_stamps() {
+    let dir = tempfile::tempdir().unwrap();
+    // Six frames stamped 0.2 s apart: a recorded replay takes at least 1 s, where the
+    // same frames as fast as possible take about a third of that here.
+    let text = std::fs::read_to_string(fixture("ellipse-stream-20.ndjson")).unwrap();
+    let input = dir.path().join("in.ndjson");
+    let six: String = text
+        .lines()
+        .take(6)
+        .enumerate()
+        .map(|(k, l)| {
+            let mut v: Value = serde_json::from_str(l).unwrap();
+            v["t"] = (0.2 * k as f64).into();
+            format!("{v}\n")
+        })
+        .collect();
+    std::fs::write(&input, six).unwrap();
+    let cfg = config(
+        dir.path(),
+        "[input]\npath = \"in.ndjson\"\nreplay = \"recorded\"\n[output]\npath = \"out.ndjson\"\n\
+         [mesh]\nhmin = 0.002\n",
+    );
+    let t0 = Instant::now();
+    let out = bin()
+        .args(["run", "-c", cfg.to_str().unwrap()])
+        .output()
+        .unwrap();
+    assert!(out.status.success());
+    // A lower bound only: how much longer the run takes depends on the machine.
+    assert!(
+        t0.elapsed() >= Duration::from_millis(1000),
+        "{:?}",
+        t0.elapsed()
+    );
+    assert_eq!(records(&dir.path().join("out.ndjson")).len(), 6);
+}
