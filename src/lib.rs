@@ -4,8 +4,9 @@
 //! The pipeline's stages are modules: [`distance`] (kd-tree distance field), [`meshing`]
 //! and [`mesh`] (anisotropic adaptation), [`levelset`] (starting level sets and the
 //! solver), [`redistance`] (fast-marching renormalization) and [`export`] (the zero
-//! isoline and writers); [`reconstruct()`] runs them in turn, and [`batch`] runs it over
-//! many files. Beside them: [`geom`] and [`fem`] (the numerical ground), the file formats
+//! isoline and writers); [`reconstruct()`] runs them in turn, [`batch`] runs it over
+//! many files, and [`pipeline`] runs the stages as threads on channels for streams of
+//! frames (`isoline run`), each frame warm-started from its predecessor. Beside them: [`geom`] and [`fem`] (the numerical ground), the file formats
 //! ([`mod@format`], [`ingest`]), configuration ([`config`]), the scanner simulator
 //! ([`synth`]) and accuracy metrics ([`eval`]). The numerical modules know nothing of
 //! serde, files or threads beyond rayon.
