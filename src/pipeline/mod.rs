@@ -1,4 +1,4 @@
-//! The streaming daemon (`isoline run`): the stages of [`crate::reconstruct`] as threads
+//! The streaming daemon (`isoline run`): the stages of [`mod@crate::reconstruct`] as threads
 //! connected by bounded crossbeam channels (DESIGN.md sections 2-5).
 //!
 //! ```text

@@ -1,5 +1,5 @@
 //! The stage threads: each receives frames, calls the plain stage function of
-//! [`crate::reconstruct`] under a span named after the stage (with the stream, frame and
+//! [`mod@crate::reconstruct`] under a span named after the stage (with the stream, frame and
 //! queue depth), and sends the frame on.
 
 use std::collections::HashMap;
