@@ -49,7 +49,7 @@ pub struct SolverConfig {
     pub patience: Option<usize>,
     /// Patience of a frame warm-started at the data (daemon). Default `patience / 2`.
     pub warm_patience: Option<usize>,
-    /// Starting curve: `"tube"` (default), `"box"` or `"circle"` (the paper's).
+    /// Starting curve: `"medial"` (default), `"tube"`, `"box"` or `"circle"` (the paper's).
     pub init: Option<String>,
     /// After the capture phase on noisy data: `"median"` (default) or `"flow"`.
     pub settle: Option<String>,

@@ -85,7 +85,7 @@ pub struct SolverParams {
     pub linear_tolerance: f64,
     /// Its iterations per step at most. Default 10.
     pub linear_max_iterations: usize,
-    /// The starting curve. Default [`Init::Tube`].
+    /// The starting curve. Default [`Init::Medial`].
     pub init: Init,
     /// What follows the capture phase on noisy data. Default [`Settle::Median`].
     pub settle: Settle,
@@ -118,7 +118,7 @@ impl Default for SolverParams {
             linear: LinearSolver::Cg,
             linear_tolerance: 1e-2,
             linear_max_iterations: 10,
-            init: Init::Tube,
+            init: Init::Medial,
             settle: Settle::Median,
             tube: None,
             margin: 0.05,
@@ -519,10 +519,27 @@ pub fn solve(
     let warm_start = warm.is_some();
     let mut u = match (warm, params.solver.init) {
         (Some(u), _) => u,
-        (None, Init::Tube) => {
-            // The pinned vertices must lie inside the starting curve, or nothing moves.
-            settings.tube = settings.tube.min(0.5 * tube_radius);
-            match init::tube(mesh, |v| space.ring(v), &dist, tube_radius) {
+        (None, init @ (Init::Tube | Init::Medial)) => {
+            let t = Instant::now();
+            let start = if init == Init::Medial {
+                let u = init::medial(mesh, &space, &dist, tube_radius, &mut fm);
+                if u.is_some() && params.solver.settle == Settle::Median {
+                    // Like a warm start at the data: nothing to capture, the settle
+                    // places the curve.
+                    settings.patience = params
+                        .solver
+                        .warm_patience
+                        .unwrap_or((settings.patience / 2).max(1));
+                }
+                u
+            } else {
+                // The pinned vertices must lie inside the starting curve, or nothing
+                // moves.
+                settings.tube = settings.tube.min(0.5 * tube_radius);
+                init::tube(mesh, |v| space.ring(v), &dist, tube_radius)
+            };
+            ms_renormalize += t.elapsed().as_secs_f64() * 1e3;
+            match start {
                 Some(mut u) => {
                     let t = Instant::now();
                     fm.run(mesh, &space, &mut u, f64::INFINITY);
@@ -539,7 +556,7 @@ pub fn solve(
     };
     let mut report = Solver::new().solve(mesh, &space, &dist, &data, &mut u, &settings);
     let mut renormalized = false;
-    if params.solver.settle == Settle::Median && !report.converged {
+    if params.solver.settle == Settle::Median {
         let t = Instant::now();
         let (res, mean, moved) = center_on_data(
             mesh,
@@ -553,9 +570,15 @@ pub fn solve(
         renormalized = moved;
         report.residual = res;
         report.mean_residual = mean;
-        if res < settings.eps {
-            report.converged = true;
-            report.stop = crate::levelset::StopReason::Converged;
+        // Rounds are kept by the mean distance, so the maximum can move either way.
+        let converged = res < settings.eps;
+        if converged != report.converged {
+            report.converged = converged;
+            report.stop = if converged {
+                crate::levelset::StopReason::Converged
+            } else {
+                crate::levelset::StopReason::Settled
+            };
         }
         report.ms_solve += t.elapsed().as_secs_f64() * 1e3;
     }

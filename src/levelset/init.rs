@@ -5,8 +5,10 @@ use rayon::prelude::*;
 
 use crate::distance::DistanceField;
 use crate::eval::SegmentIndex;
+use crate::fem::P1Space;
 use crate::geom::{dist, BBox, Point, Polyline};
 use crate::mesh::{Mesh, VertexTag};
+use crate::redistance::Redistancer;
 
 /// Where the evolution starts.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
@@ -22,8 +24,11 @@ pub enum Init {
     /// crossings separate them from the domain boundary, so holes and separate components
     /// start out right, and the curve starts `delta` from the data everywhere, concavities
     /// included.
-    #[default]
     Tube,
+    /// The middle of that tube (see [`medial`]): the same labelling, the curve starting
+    /// in the middle of the noise band instead of `delta` outside it.
+    #[default]
+    Medial,
 }
 
 impl std::str::FromStr for Init {
@@ -33,8 +38,9 @@ impl std::str::FromStr for Init {
             "circle" => Ok(Init::Circle),
             "box" => Ok(Init::Box),
             "tube" => Ok(Init::Tube),
+            "medial" => Ok(Init::Medial),
             _ => Err(format!(
-                "unknown init {s:?}: expected \"tube\", \"box\" or \"circle\""
+                "unknown init {s:?}: expected \"medial\", \"tube\", \"box\" or \"circle\""
             )),
         }
     }
@@ -52,7 +58,9 @@ pub fn enclosing(init: Init, points: &[Point], margin: f64, coords: &[Point]) ->
             let r = points.iter().map(|&p| dist(p, c)).fold(0.0, f64::max) + margin;
             circle(c, r, coords)
         }
-        Init::Tube => unreachable!("the tube start needs the mesh: use `tube`"),
+        Init::Tube | Init::Medial => {
+            unreachable!("the tube starts need the mesh: use `tube` or `medial`")
+        }
         Init::Box => {
             let size = bbox.size();
             let half = [0.5 * size[0] + margin, 0.5 * size[1] + margin];
@@ -83,17 +91,29 @@ pub fn tube_radius(field: &DistanceField, floor: f64) -> f64 {
     (2.0 * *p95).max(floor)
 }
 
-/// The tube start: `dist` is the distance to the data at each vertex of `mesh`,
-/// `neighbours(v)` its ring. Returns a level set whose zero isoline is the boundary
-/// between the regions labelled outside and the rest; it is a signed distance only up
-/// to the tube, so renormalize it before use. `None` when no region comes out inside
-/// (the tube leaks, or the data encloses nothing): use an enclosing start then.
-pub fn tube<'a>(
+/// Which side of the tube `{d < delta}` around the data a vertex lies on.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Side {
+    /// In a region outside the tube labelled outside the curve.
+    Outside,
+    /// In a region outside the tube labelled inside the curve.
+    Inside,
+    /// In the tube, or in a pocket of it (a free region never farther than `2 delta`
+    /// from the data, such as the space between noisy samples).
+    Tube,
+}
+
+/// Labels each vertex of `mesh` by its side of the tube of radius `delta` around the
+/// data (`dist`: the distance to the data at each vertex; `neighbours(v)`: its ring).
+/// The regions outside the tube are outside or inside by how many tube crossings
+/// separate them from the domain boundary. `None` when no region comes out inside (the
+/// tube leaks, or the data encloses nothing).
+pub fn tube_sides<'a>(
     mesh: &Mesh,
     neighbours: impl Fn(usize) -> &'a [u32],
     dist: &[f64],
     delta: f64,
-) -> Option<Vec<f64>> {
+) -> Option<Vec<Side>> {
     let n = dist.len();
     const NONE: u32 = u32::MAX;
     // Label connected regions of free (d >= delta) and tube vertices separately.
@@ -174,20 +194,83 @@ pub fn tube<'a>(
     if !any_inside {
         return None;
     }
-    let u = (0..n)
-        .map(|v| {
-            let r = region[v] as usize;
-            let outside = kinds[r] && depth[r] != u32::MAX && (depth[r] / 2) % 2 == 0;
-            if outside {
-                dist[v] - delta
-            } else if kinds[r] {
-                -dist[v]
-            } else {
-                (dist[v] - delta).min(-f64::EPSILON)
+    let sides = region
+        .iter()
+        .map(|&r| {
+            let r = r as usize;
+            match (kinds[r], depth[r]) {
+                (false, _) => Side::Tube,
+                (true, d) if d != u32::MAX && (d / 2) % 2 == 0 => Side::Outside,
+                (true, _) => Side::Inside,
             }
         })
         .collect();
+    Some(sides)
+}
+
+/// The tube start: `dist` is the distance to the data at each vertex of `mesh`,
+/// `neighbours(v)` its ring. Returns a level set whose zero isoline is the boundary
+/// between the regions labelled outside and the rest; it is a signed distance only up
+/// to the tube, so renormalize it before use. `None` when no region comes out inside
+/// (the tube leaks, or the data encloses nothing): use an enclosing start then.
+pub fn tube<'a>(
+    mesh: &Mesh,
+    neighbours: impl Fn(usize) -> &'a [u32],
+    dist: &[f64],
+    delta: f64,
+) -> Option<Vec<f64>> {
+    let sides = tube_sides(mesh, neighbours, dist, delta)?;
+    let u = sides
+        .iter()
+        .zip(dist)
+        .map(|(side, &d)| match side {
+            Side::Outside => d - delta,
+            Side::Inside => -d,
+            Side::Tube => (d - delta).min(-f64::EPSILON),
+        })
+        .collect();
     Some(u)
+}
+
+/// The medial start: the curve midway across the tube of radius `delta`, between its
+/// boundary with the outside regions and its boundary with the inside regions (see
+/// [`tube_sides`]). The tube is the union of the discs around the samples, so its middle
+/// runs through the middle of the noise band: the curve starts at the data rather than
+/// `delta` away from it, and the evolution has nothing left to capture.
+///
+/// `u = (a - b) / 2`, with `a` and `b` the signed distances (fast marching, within
+/// `4 delta` of the tube) to the tube's outer and inner boundaries; it is a signed
+/// distance only near the curve, so renormalize it before use. A stretch of tube with
+/// no inside on either side (a whisker, an open end) comes out outside. `None` as for
+/// [`tube`].
+pub fn medial(
+    mesh: &Mesh,
+    space: &P1Space,
+    dist: &[f64],
+    delta: f64,
+    fm: &mut Redistancer,
+) -> Option<Vec<f64>> {
+    let sides = tube_sides(mesh, |v| space.ring(v), dist, delta)?;
+    let mut boundary = |of: Side| -> Vec<f64> {
+        let mut phi: Vec<f64> = sides
+            .iter()
+            .zip(dist)
+            .map(|(&side, &d)| {
+                if side == of {
+                    d - delta
+                } else {
+                    // Everything else is the far side of the boundary: the tube
+                    // (pockets included) and the regions of the other label.
+                    (d - delta).min(-f64::EPSILON)
+                }
+            })
+            .collect();
+        fm.run(mesh, space, &mut phi, 4.0 * delta);
+        phi
+    };
+    let a = boundary(Side::Outside);
+    let b = boundary(Side::Inside);
+    Some(a.iter().zip(&b).map(|(a, b)| 0.5 * (a - b)).collect())
 }
 
 /// Signed distance to the circle of centre `c` and radius `r`.
@@ -312,6 +395,48 @@ mod tests {
             at([0.5, 0.5]) > 0.0 && at([0.62, 0.0]) > 0.0,
             "the gap is outside"
         );
+    }
+
+    #[test]
+    fn medial_start_runs_through_the_data_and_drops_whiskers() {
+        // A circle of radius 0.3 with a radial whisker out to 0.5, on a mesh of size h.
+        let mut pts = Vec::new();
+        for i in 0..600 {
+            let a = i as f64 / 600.0 * std::f64::consts::TAU;
+            pts.push([0.3 * a.cos(), 0.3 * a.sin()]);
+        }
+        for i in 0..60 {
+            pts.push([0.3 + 0.2 * i as f64 / 60.0, 0.0]);
+        }
+        let field = DistanceField::new(&pts).unwrap();
+        let bbox = BBox {
+            min: [-0.6, -0.6],
+            max: [0.6, 0.6],
+        };
+        let n = 120;
+        let h = 1.2 / n as f64;
+        let mesh = Mesh::structured(&bbox, n);
+        let space = P1Space::new(&mesh);
+        let mut d = Vec::new();
+        field.distances_into(&mesh.coords, &mut d);
+        let delta = 3.0 * h;
+        let mut fm = Redistancer::new();
+        let mut u = medial(&mesh, &space, &d, delta, &mut fm).unwrap();
+        fm.run(&mesh, &space, &mut u, f64::INFINITY);
+        // The tube's middle is the circle itself, up to the first-order error of fast
+        // marching and of the P1 tube boundaries: O(h) each.
+        let circle: Vec<Point> = pts[..600].to_vec();
+        let at = crate::fem::locate::locate_all(&mesh, &circle);
+        let worst = at
+            .iter()
+            .map(|l| l.interpolate(&mesh, &u).abs())
+            .fold(0.0, f64::max);
+        assert!(worst < 1.5 * h, "{worst} against h = {h}");
+        let at = crate::fem::locate::locate_all(&mesh, &[[0.0, 0.0], [0.45, 0.0], [0.5, 0.5]]);
+        let u: Vec<f64> = at.iter().map(|l| l.interpolate(&mesh, &u)).collect();
+        assert!(u[0] < -0.25, "the disc is inside: {u:?}");
+        assert!(u[1] > 0.0, "the whisker is outside: {u:?}");
+        assert!(u[2] > 0.0, "{u:?}");
     }
 
     #[test]
