@@ -94,6 +94,10 @@ pub struct Adapter {
     candidates: Vec<(f64, u32, u32)>,
     flip_work: Vec<u32>,
     flip_next: Vec<u32>,
+    /// Per vertex: whether its ring changed (topology, or a neighbour's position) since
+    /// smoothing last looked at it. A clean vertex would be rejected again, so smoothing
+    /// skips it: late passes, which change little, then cost little.
+    dirty: Vec<bool>,
 }
 
 impl Adapter {
@@ -122,6 +126,8 @@ impl Adapter {
             .par_iter()
             .map(|&p| metric.metric(p))
             .collect_into_vec(&mut self.metrics);
+        self.dirty.clear();
+        self.dirty.resize(mesh.coords.len(), true);
         let mut report = AdaptReport::default();
         for _ in 0..opts.max_passes {
             report.passes += 1;
@@ -258,6 +264,10 @@ impl Adapter {
             VertexTag::Interior
         });
         self.metrics.push(metric.metric(xm));
+        self.dirty.push(true);
+        for x in [a, p, q] {
+            self.dirty[x as usize] = true;
+        }
         let n_qa = mesh.adj[t as usize][(i + 1) % 3];
         let n_ap = mesh.adj[t as usize][(i + 2) % 3];
         let t1 = self.alloc_tri(mesh);
@@ -286,6 +296,7 @@ impl Adapter {
             mesh.adj[o1 as usize] = [t, n_pd, o];
             replace_adj(mesh, n_pd, o, o1);
             mesh.vert_tri[d as usize] = o;
+            self.dirty[d as usize] = true;
         }
         true
     }
@@ -409,6 +420,9 @@ impl Adapter {
         mesh.vert_tri[w as usize] = w_tri;
         mesh.vert_tri[v as usize] = INVALID;
         self.ball = ball;
+        for &x in &self.ring {
+            self.dirty[x as usize] = true;
+        }
         true
     }
 
@@ -489,6 +503,9 @@ impl Adapter {
         replace_adj(mesh, n_qa, t, o);
         mesh.vert_tri[p as usize] = t;
         mesh.vert_tri[q as usize] = o;
+        for x in [a, p, q, d] {
+            self.dirty[x as usize] = true;
+        }
         true
     }
 
@@ -496,7 +513,10 @@ impl Adapter {
     fn smooth_pass(&mut self, mesh: &mut Mesh, metric: &impl MetricSource) -> usize {
         let mut moves = 0;
         for v in 0..mesh.coords.len() as u32 {
-            if mesh.vert_tri[v as usize] == INVALID || mesh.tag[v as usize] != VertexTag::Interior {
+            if !std::mem::take(&mut self.dirty[v as usize])
+                || mesh.vert_tri[v as usize] == INVALID
+                || mesh.tag[v as usize] != VertexTag::Interior
+            {
                 continue;
             }
             mesh.ring(v, &mut self.ball, &mut self.ring);
@@ -537,6 +557,10 @@ impl Adapter {
                     .fold(f64::INFINITY, f64::min);
                 if new_min > old_min * SMOOTH_GAIN {
                     moves += 1;
+                    self.dirty[v as usize] = true;
+                    for &j in &self.ring {
+                        self.dirty[j as usize] = true;
+                    }
                     break;
                 }
                 (mesh.coords[v as usize], self.metrics[v as usize]) = saved;
