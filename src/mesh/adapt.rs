@@ -23,6 +23,8 @@ const COLLAPSE_MAX_NEW: f64 = 1.3;
 /// gain at all would move nearly every vertex on every sweep, chasing the noise in the
 /// metric: on a warm re-adaptation that is most of the work.
 const SMOOTH_GAIN: f64 = 1.01;
+/// Split rounds per pass at most (see [`Adapter::adapt`]).
+const MAX_SPLIT_ROUNDS: usize = 5;
 
 /// Options of [`Adapter::adapt`].
 #[derive(Clone, Debug, PartialEq)]
@@ -131,8 +133,19 @@ impl Adapter {
         let mut report = AdaptReport::default();
         for _ in 0..opts.max_passes {
             report.passes += 1;
-            let splits = self.split_pass(mesh, metric, opts.max_vertices, &mut report);
-            report.flips += self.flip_pass(mesh);
+            // Refining a coarse start takes a round of splits per halving of the edges;
+            // collapsing and smoothing the meshes in between is wasted work, so split
+            // rounds (with flips, which keep the shapes sound) repeat while they still
+            // add a tenth of the vertices.
+            let mut splits = 0;
+            for _ in 0..MAX_SPLIT_ROUNDS {
+                let round = self.split_pass(mesh, metric, opts.max_vertices, &mut report);
+                report.flips += self.flip_pass(mesh);
+                splits += round;
+                if round * 10 < mesh.num_vertices() || report.vertex_cap_reached {
+                    break;
+                }
+            }
             let collapses = self.collapse_pass(mesh);
             report.flips += self.flip_pass(mesh);
             for _ in 0..opts.smoothing_sweeps {
