@@ -100,6 +100,12 @@ pub struct Adapter {
     /// smoothing last looked at it. A clean vertex would be rejected again, so smoothing
     /// skips it: late passes, which change little, then cost little.
     dirty: Vec<bool>,
+    /// Per vertex: whether it moved, got a new metric or new triangles since the last
+    /// flip pass looked at its triangles. A flip pass starts from the triangles with a
+    /// changed vertex: the others were found not worth flipping and still are not.
+    changed: Vec<bool>,
+    /// Per triangle: in the current flip pass's first sweep.
+    in_work: Vec<bool>,
 }
 
 impl Adapter {
@@ -130,6 +136,8 @@ impl Adapter {
             .collect_into_vec(&mut self.metrics);
         self.dirty.clear();
         self.dirty.resize(mesh.coords.len(), true);
+        self.changed.clear();
+        self.changed.resize(mesh.coords.len(), true);
         let mut report = AdaptReport::default();
         for _ in 0..opts.max_passes {
             report.passes += 1;
@@ -278,8 +286,10 @@ impl Adapter {
         });
         self.metrics.push(metric.metric(xm));
         self.dirty.push(true);
+        self.changed.push(true);
         for x in [a, p, q] {
             self.dirty[x as usize] = true;
+            self.changed[x as usize] = true;
         }
         let n_qa = mesh.adj[t as usize][(i + 1) % 3];
         let n_ap = mesh.adj[t as usize][(i + 2) % 3];
@@ -310,6 +320,7 @@ impl Adapter {
             replace_adj(mesh, n_pd, o, o1);
             mesh.vert_tri[d as usize] = o;
             self.dirty[d as usize] = true;
+            self.changed[d as usize] = true;
         }
         true
     }
@@ -435,19 +446,29 @@ impl Adapter {
         self.ball = ball;
         for &x in &self.ring {
             self.dirty[x as usize] = true;
+            self.changed[x as usize] = true;
         }
         true
     }
 
-    /// Flips until no flip helps: one sweep over every triangle, then sweeps over the
-    /// triangles the previous sweep changed (at most 4 in all), since only their edges
-    /// can have become worth flipping.
+    /// Flips until no flip helps: one sweep over the triangles with a changed vertex (at
+    /// first, every triangle), then sweeps over the triangles the previous sweep changed
+    /// (at most 4 in all), since only their edges can have become worth flipping.
     fn flip_pass(&mut self, mesh: &mut Mesh) -> usize {
         let mut flips = 0;
         let mut work = std::mem::take(&mut self.flip_work);
         let mut next = std::mem::take(&mut self.flip_next);
         work.clear();
-        work.extend((0..mesh.tris.len() as u32).filter(|&t| !mesh.is_dead_tri(t)));
+        let changed = &self.changed;
+        work.extend((0..mesh.tris.len() as u32).filter(|&t| {
+            !mesh.is_dead_tri(t) && mesh.tris[t as usize].iter().any(|&v| changed[v as usize])
+        }));
+        self.changed.iter_mut().for_each(|c| *c = false);
+        self.in_work.clear();
+        self.in_work.resize(mesh.tris.len(), false);
+        for &t in &work {
+            self.in_work[t as usize] = true;
+        }
         for sweep in 0..4 {
             next.clear();
             for &t in &work {
@@ -456,9 +477,10 @@ impl Adapter {
                 }
                 for i in 0..3 {
                     let o = mesh.adj[t as usize][i];
-                    // In the full sweep each interior edge is seen from both sides: take
-                    // it once. Later sweeps see only changed triangles: take every edge.
-                    if o == INVALID || (sweep == 0 && o < t) {
+                    // In the first sweep an edge between two triangles of the work list
+                    // is seen from both sides: take it once. Later sweeps see only
+                    // changed triangles: take every edge.
+                    if o == INVALID || (sweep == 0 && o < t && self.in_work[o as usize]) {
                         continue;
                     }
                     if self.try_flip(mesh, t, i) {
@@ -518,6 +540,7 @@ impl Adapter {
         mesh.vert_tri[q as usize] = o;
         for x in [a, p, q, d] {
             self.dirty[x as usize] = true;
+            self.changed[x as usize] = true;
         }
         true
     }
@@ -570,6 +593,7 @@ impl Adapter {
                     .fold(f64::INFINITY, f64::min);
                 if new_min > old_min * SMOOTH_GAIN {
                     moves += 1;
+                    self.changed[v as usize] = true;
                     self.dirty[v as usize] = true;
                     for &j in &self.ring {
                         self.dirty[j as usize] = true;
