@@ -168,6 +168,9 @@ pub struct AdaptedMesh {
     pub mesh: Mesh,
     /// The metric at each vertex.
     pub metrics: Vec<Sym2>,
+    /// Each vertex's nearest data point, as an index into the distance field's points
+    /// (found by adaptation anyway, so later stages need not search again).
+    pub nearest: Vec<u32>,
     /// The concrete parameters used (derived ones filled in).
     pub params: MetricParams,
     /// The meshed domain.
@@ -335,7 +338,13 @@ impl MetricField {
         let diag = bbox.diag();
         let scale = if diag > 0.0 { diag } else { 1.0 };
         let hmin = self.params.hmin;
-        let metric = CurveMetric::from_frames(&self.field, self.frames.clone(), self.params);
+        let metric = CurveMetric::from_frames(
+            &self.field,
+            self.frames.clone(),
+            self.neighbours.clone(),
+            self.k,
+            self.params,
+        );
         let wanted = bbox.padded(self.padding * scale + 2.0 * hmin);
         // A start mesh will do while the data keep at least half the padding from its
         // edge (a moving shape keeps its mesh until it has drifted that far).
@@ -360,11 +369,13 @@ impl MetricField {
         let mut adapter = Adapter::new();
         let report = adapter.adapt(&mut mesh, &metric, &opts);
         let metrics = adapter.metrics().to_vec();
+        let nearest = adapter.nearest().to_vec();
         let stats = mesh_stats(&mesh, &metrics);
         let ms = |d: std::time::Duration| d.as_secs_f64() * 1e3;
         AdaptedMesh {
             mesh,
             metrics,
+            nearest,
             params: self.params,
             domain: local_box,
             noise_estimate: self.noise_estimate,

@@ -461,9 +461,22 @@ pub fn solve(
     let field = &prepared.metric.field;
     let hmin = adapted.params.hmin;
     let space = P1Space::new(mesh);
-    let nearest = field.nearest_all(&mesh.coords);
-    let dist: Vec<f64> = nearest.iter().map(|n| n.dist).collect();
-    let nearest: Vec<u32> = nearest.iter().map(|n| n.index).collect();
+    let pts = field.points();
+    let (dist, nearest): (Vec<f64>, Vec<u32>) = if adapted.nearest.len() == mesh.coords.len()
+        && adapted.nearest.iter().all(|&j| (j as usize) < pts.len())
+    {
+        mesh.coords
+            .iter()
+            .zip(&adapted.nearest)
+            .map(|(&x, &j)| (crate::geom::dist(x, pts[j as usize]), j))
+            .unzip()
+    } else {
+        field
+            .nearest_all(&mesh.coords)
+            .iter()
+            .map(|n| (n.dist, n.index))
+            .unzip()
+    };
     // The field's points: the data with exact duplicates merged, so that the stopping
     // test and the median settle weigh each sample once.
     let data = locate_all(mesh, field.points());

@@ -10,7 +10,7 @@
 
 use rayon::prelude::*;
 
-use super::metric::MetricSource;
+use super::metric::{MetricSource, NO_HINT};
 use super::quality::{edge_length, quality};
 use super::{local_index, Mesh, VertexTag, INVALID};
 use crate::geom::{add, mid, orient, scale, sub, Sym2};
@@ -88,6 +88,10 @@ pub struct AdaptReport {
 #[derive(Debug, Default)]
 pub struct Adapter {
     metrics: Vec<Sym2>,
+    /// Per vertex: the data point its metric was taken from ([`NO_HINT`] if none), the
+    /// starting point of the search for its moves and for the vertices split off next
+    /// to it.
+    near: Vec<u32>,
     ball: Vec<u32>,
     ball2: Vec<u32>,
     ring: Vec<u32>,
@@ -119,6 +123,12 @@ impl Adapter {
         &self.metrics
     }
 
+    /// The data point each vertex's metric was taken from (same numbering; its nearest,
+    /// for metrics based on data points), or [`NO_HINT`].
+    pub fn nearest(&self) -> &[u32] {
+        &self.near
+    }
+
     /// Adapts `mesh` in place until its edges have length about 1 in `metric`, then
     /// renumbers it for locality. The mesh stays valid throughout.
     pub fn adapt(
@@ -130,10 +140,12 @@ impl Adapter {
         let _span = tracing::debug_span!("adapt", vertices = mesh.num_vertices()).entered();
         self.free_tris.clear();
         self.metrics.clear();
-        mesh.coords
+        let (metrics, near): (Vec<Sym2>, Vec<u32>) = mesh
+            .coords
             .par_iter()
-            .map(|&p| metric.metric(p))
-            .collect_into_vec(&mut self.metrics);
+            .map(|&p| metric.metric_near(p, NO_HINT))
+            .unzip();
+        (self.metrics, self.near) = (metrics, near);
         self.dirty.clear();
         self.dirty.resize(mesh.coords.len(), true);
         self.changed.clear();
@@ -181,7 +193,8 @@ impl Adapter {
         }
         let order = mesh.renumber_spatially();
         let metrics: Vec<Sym2> = order.iter().map(|&v| self.metrics[v as usize]).collect();
-        self.metrics = metrics;
+        let near: Vec<u32> = order.iter().map(|&v| self.near[v as usize]).collect();
+        (self.metrics, self.near) = (metrics, near);
         tracing::debug!(?report, vertices = mesh.num_vertices(), "adapted");
         report
     }
@@ -284,7 +297,9 @@ impl Adapter {
         } else {
             VertexTag::Interior
         });
-        self.metrics.push(metric.metric(xm));
+        let (mm, near) = metric.metric_near(xm, self.near[p as usize]);
+        self.metrics.push(mm);
+        self.near.push(near);
         self.dirty.push(true);
         self.changed.push(true);
         for x in [a, p, q] {
@@ -582,7 +597,7 @@ impl Adapter {
                 if !ok {
                     continue;
                 }
-                let mn = metric.metric(xn);
+                let (mn, near) = metric.metric_near(xn, self.near[v as usize]);
                 let saved = (mesh.coords[v as usize], self.metrics[v as usize]);
                 mesh.coords[v as usize] = xn;
                 self.metrics[v as usize] = mn;
@@ -592,6 +607,7 @@ impl Adapter {
                     .map(|&t| self.tri_quality(mesh, mesh.tris[t as usize]))
                     .fold(f64::INFINITY, f64::min);
                 if new_min > old_min * SMOOTH_GAIN {
+                    self.near[v as usize] = near;
                     moves += 1;
                     self.changed[v as usize] = true;
                     self.dirty[v as usize] = true;

@@ -18,14 +18,26 @@
 use nalgebra::{Matrix3, Vector3};
 use rayon::prelude::*;
 
-use crate::distance::DistanceField;
-use crate::geom::{dot, sub, Point, Sym2};
+use crate::distance::{DistanceField, Nearest};
+use crate::geom::{dist, dot, sub, Point, Sym2};
 
 /// Anything that gives a metric at a point; adaptation asks it for every new vertex.
 pub trait MetricSource: Sync {
     /// The SPD metric tensor at `p`.
     fn metric(&self, p: Point) -> Sym2;
+
+    /// The metric at `p` and the index of the data point it was taken from, given the
+    /// index returned for a point nearby (`hint`, or [`NO_HINT`]), which may make the
+    /// search cheaper; the result is the same. Sources not based on data points return
+    /// [`NO_HINT`].
+    fn metric_near(&self, p: Point, hint: u32) -> (Sym2, u32) {
+        let _ = hint;
+        (self.metric(p), NO_HINT)
+    }
 }
+
+/// "No data point": a [`MetricSource::metric_near`] hint to search from scratch.
+pub const NO_HINT: u32 = u32::MAX;
 
 /// A constant metric, mostly for tests.
 #[derive(Clone, Copy, Debug)]
@@ -203,19 +215,79 @@ impl<'a> CurveMetric<'a> {
 
     /// A metric from frames fitted earlier (by [`CurveMetric::new`] on the same field),
     /// possibly under new parameters (e.g. a band derived from the noise estimate).
+    /// `neighbours` are the lists [`CurveMetric::into_parts`] gave with them (`k` per
+    /// sample; empty if not kept), which [`MetricSource::metric_near`] searches first.
     pub fn from_frames(
         field: &'a DistanceField,
         frames: Vec<LocalFrame>,
+        neighbours: Vec<u32>,
+        k: usize,
         params: MetricParams,
     ) -> Self {
         assert_eq!(frames.len(), field.points().len(), "one frame per point");
+        let k = if neighbours.len() == k * frames.len() {
+            k
+        } else {
+            0
+        };
         CurveMetric {
             field,
             frames,
-            neighbours: Vec::new(),
-            k: 0,
+            neighbours,
+            k,
             params,
         }
+    }
+
+    /// The nearest data point to `x`, searched first among the neighbours of data point
+    /// `hint`. Those are every point closer to it than its farthest listed neighbour
+    /// (`reach`), so if the best of them lies within `reach - |x - hint|` of `x`, no
+    /// point elsewhere can be closer; otherwise the kd-tree answers.
+    fn nearest_from(&self, x: Point, hint: u32) -> Nearest {
+        let h = hint as usize;
+        if self.k > 0 && h < self.frames.len() {
+            let pts = self.field.points();
+            let list = &self.neighbours[h * self.k..(h + 1) * self.k];
+            let centre = pts[h];
+            let reach = dist(centre, pts[list[self.k - 1] as usize]);
+            let dc = dist(x, centre);
+            // The hint is usually the nearest point itself, and then the test passes only
+            // if `2 |x - hint| < reach`: farther out, the scan would be wasted.
+            if dc >= 0.6 * reach {
+                return self.field.nearest(x);
+            }
+            let (mut best2, mut best) = (f64::INFINITY, hint);
+            for &j in list {
+                let e = sub(x, pts[j as usize]);
+                let d2 = dot(e, e);
+                if d2 < best2 {
+                    (best2, best) = (d2, j);
+                }
+            }
+            let d = best2.sqrt();
+            if d + dc < reach {
+                return Nearest {
+                    dist: d,
+                    index: best,
+                };
+            }
+        }
+        self.field.nearest(x)
+    }
+
+    /// The metric at `x` given its nearest data point.
+    #[inline]
+    fn metric_from(&self, near: Nearest) -> Sym2 {
+        let hn = self.normal_size(near.dist);
+        let normal_eig = 1.0 / (hn * hn);
+        let f = &self.frames[near.index as usize];
+        if self.params.isotropic || !f.defined {
+            return Sym2::iso(normal_eig);
+        }
+        let lo = 1.0 / (self.params.hmax * self.params.hmax);
+        // The Hessian term |kappa| / eps, never finer than across the data.
+        let tangent_eig = (f.curvature.abs() / self.params.eps).clamp(lo, normal_eig);
+        Sym2::from_eigen(normal_eig, tangent_eig, f.normal)
     }
 
     /// The fitted frames and the neighbour lists (`k` per sample, flat, nearest first),
@@ -267,17 +339,12 @@ pub fn median_residual(frames: &[LocalFrame]) -> f64 {
 
 impl MetricSource for CurveMetric<'_> {
     fn metric(&self, x: Point) -> Sym2 {
-        let near = self.field.nearest(x);
-        let hn = self.normal_size(near.dist);
-        let normal_eig = 1.0 / (hn * hn);
-        let f = &self.frames[near.index as usize];
-        if self.params.isotropic || !f.defined {
-            return Sym2::iso(normal_eig);
-        }
-        let lo = 1.0 / (self.params.hmax * self.params.hmax);
-        // The Hessian term |kappa| / eps, never finer than across the data.
-        let tangent_eig = (f.curvature.abs() / self.params.eps).clamp(lo, normal_eig);
-        Sym2::from_eigen(normal_eig, tangent_eig, f.normal)
+        self.metric_from(self.field.nearest(x))
+    }
+
+    fn metric_near(&self, x: Point, hint: u32) -> (Sym2, u32) {
+        let near = self.nearest_from(x, hint);
+        (self.metric_from(near), near.index)
     }
 }
 
@@ -344,5 +411,55 @@ mod tests {
         // Graded: size at d = 0.05 is hmin + 0.3 * 0.04.
         let g = cm.metric([r + 0.05, 0.0]).eigen();
         assert!((1.0 / g.0.sqrt() - 0.013).abs() < 1e-9);
+    }
+
+    #[test]
+    fn hinted_search_finds_the_same_nearest_point_as_the_tree() {
+        // Noisy samples of two nearby arcs, so that a hint on one arc can be beaten by a
+        // point of the other that its neighbour list does not hold.
+        let mut state = 12345u64;
+        let mut rand = move || {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (state >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+        };
+        let mut pts = Vec::new();
+        for i in 0..1500 {
+            let a = i as f64 / 1500.0 * std::f64::consts::PI;
+            let r = if i % 2 == 0 { 0.4 } else { 0.43 };
+            pts.push([r * a.cos() + 0.004 * rand(), r * a.sin() + 0.004 * rand()]);
+        }
+        let field = DistanceField::new(&pts).unwrap();
+        let params = MetricParams {
+            hmin: 1e-3,
+            hmax: 0.1,
+            eps: 1e-3,
+            band: 0.01,
+            gradation: 0.3,
+            isotropic: false,
+            neighbours: 32,
+        };
+        let cm = CurveMetric::new(&field, params);
+        let (frames, neighbours, k) = cm.into_parts();
+        let cm = CurveMetric::from_frames(&field, frames, neighbours, k, params);
+        let mut certified = 0;
+        for _ in 0..20_000 {
+            // A point near the data and a hint from a point up to 0.03 away from it.
+            let p = pts[((rand() + 0.5) * pts.len() as f64) as usize % pts.len()];
+            let x = [p[0] + 0.04 * rand(), p[1] + 0.04 * rand()];
+            let y = [x[0] + 0.03 * rand(), x[1] + 0.03 * rand()];
+            let hint = field.nearest(y).index;
+            let (m, index) = cm.metric_near(x, hint);
+            let exact = field.nearest(x);
+            assert_eq!(
+                dist(x, field.points()[index as usize]),
+                exact.dist,
+                "{x:?} from hint {hint}"
+            );
+            assert_eq!(m, cm.metric(x));
+            certified += usize::from(dist(x, field.points()[hint as usize]) < 0.005);
+        }
+        assert!(certified > 100, "the test exercises the list search");
     }
 }
