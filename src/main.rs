@@ -91,7 +91,7 @@ enum Command {
         /// Override the configured scheme: explicit or semi-implicit.
         #[arg(long)]
         scheme: Option<isoline::levelset::Scheme>,
-        /// Override the configured starting curve: box or circle.
+        /// Override the configured starting curve: medial, tube, box or circle.
         #[arg(long)]
         init: Option<isoline::levelset::Init>,
         /// Draw the mesh in SVG output.
