@@ -8,8 +8,8 @@ cargo build --release --quiet
 bin=target/release/isoline
 out=${1:-target/accuracy}
 mkdir -p "$out"
-echo "| shape | points | sigma | Hausdorff | mean distance | components (recon/truth) | iterations | vertices | ms |"
-echo "|---|---:|---:|---:|---:|---:|---:|---:|---:|"
+echo "| shape | points | sigma | hmin | Hausdorff | mean distance | components (recon/truth) | iterations | vertices | ms |"
+echo "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|"
 for shape in circle ellipse square star c two-circles annulus; do
   n=2000
   for sigma in 0 0.002 0.005; do
@@ -22,7 +22,7 @@ import json, sys
 f, shape, n, sigma = sys.argv[1:]
 e = json.load(open(f + ".eval.json"))
 s = json.load(open(f + ".stats.json"))
-print(f"| {shape} | {n} | {sigma} | {e['hausdorff']:.2e} | {e['mean_distance']:.2e} | "
+print(f"| {shape} | {n} | {sigma} | {s['hmin']:.2e} | {e['hausdorff']:.2e} | {e['mean_distance']:.2e} | "
       f"{e['components_recon']}/{e['components_truth']} | {s['iterations']} | {s['vertices']} | {s['ms']['total']:.0f} |")
 PY
   done

@@ -772,24 +772,38 @@ fn center_on_data(
         .unwrap_or(32)
         .clamp(32, 512)
         .min(pts.len());
+    // Only the samples that are the nearest of a vertex near the curve need a median:
+    // on dense data (200k samples, 512 neighbours each) the others would dominate.
+    const NONE: u32 = u32::MAX;
+    let mut slot = vec![NONE; pts.len()];
+    let mut needed = Vec::new();
+    for (&j, &uv) in nearest.iter().zip(u.iter()) {
+        if uv.abs() <= 2.0 * width && slot[j as usize] == NONE {
+            slot[j as usize] = needed.len() as u32;
+            needed.push(j);
+        }
+    }
     // The metric's fits found each sample's nearest neighbours already; the first `k` of
     // them will do when there are that many. Allocation is fine here: once per frame.
-    let found;
     let (neighbours, stride) = if k <= metric.k {
-        (&metric.neighbours[..], metric.k)
+        let mut nb = vec![0u32; needed.len() * k];
+        for (out, &j) in nb.chunks_mut(k).zip(&needed) {
+            let at = j as usize * metric.k;
+            out.copy_from_slice(&metric.neighbours[at..at + k]);
+        }
+        (nb, k)
     } else {
-        let mut nb = vec![0u32; pts.len() * k];
+        let mut nb = vec![0u32; needed.len() * k];
         nb.par_chunks_mut(k)
-            .zip(pts.par_iter())
-            .for_each_init(Vec::new, |buf, (out, &p)| {
-                field.nearest_k(p, k, buf);
+            .zip(needed.par_iter())
+            .for_each_init(Vec::new, |buf, (out, &j)| {
+                field.nearest_k(pts[j as usize], k, buf);
                 out.copy_from_slice(&buf[..k]);
             });
-        found = nb;
-        (&found[..], k)
+        (nb, k)
     };
     let mut at = vec![0.0; pts.len()];
-    let mut medians = vec![0.0; pts.len()];
+    let mut medians = vec![0.0; needed.len()];
     let mut trial = u.to_vec();
     let mut fm = crate::redistance::Redistancer::new();
     let (mut best_res, mut best) = crate::levelset::solver::residual(mesh, data, u);
@@ -803,7 +817,7 @@ fn center_on_data(
             .zip(neighbours.par_chunks(stride))
             .for_each_init(Vec::new, |vals, (m, nb)| {
                 vals.clear();
-                vals.extend(nb[..k].iter().map(|&j| at[j as usize]));
+                vals.extend(nb.iter().map(|&j| at[j as usize]));
                 let mid = vals.len() / 2;
                 *m = *vals.select_nth_unstable_by(mid, f64::total_cmp).1;
             });
@@ -812,10 +826,11 @@ fn center_on_data(
             .zip(u.par_iter())
             .zip(nearest.par_iter())
             .for_each(|((t, &ui), &j)| {
-                *t = if ui.abs() > width {
+                let s = slot[j as usize];
+                *t = if ui.abs() > width || s == NONE {
                     ui
                 } else {
-                    ui - medians[j as usize]
+                    ui - medians[s as usize]
                 };
             });
         // Within `width` of the curve the shifted `u` is still a distance to its own zero
