@@ -352,6 +352,19 @@ impl MetricSource for CurveMetric<'_> {
 mod tests {
     use super::*;
 
+    /// Sizes for unit-scale test data: hmin 1e-3 in a band of 0.01, hmax 0.1.
+    fn unit_params(neighbours: usize) -> MetricParams {
+        MetricParams {
+            hmin: 1e-3,
+            hmax: 0.1,
+            eps: 1e-3,
+            band: 0.01,
+            gradation: 0.3,
+            isotropic: false,
+            neighbours,
+        }
+    }
+
     #[test]
     fn frame_of_a_circle_arc_recovers_normal_and_curvature() {
         let r = 0.4;
@@ -390,15 +403,7 @@ mod tests {
             })
             .collect();
         let field = DistanceField::new(&pts).unwrap();
-        let params = MetricParams {
-            hmin: 1e-3,
-            hmax: 0.1,
-            eps: 1e-3,
-            band: 0.01,
-            gradation: 0.3,
-            isotropic: false,
-            neighbours: 16,
-        };
+        let params = unit_params(16);
         let cm = CurveMetric::new(&field, params);
         let m = cm.metric([r + 0.002, 0.0]);
         let (l1, l2, e) = m.eigen();
@@ -431,15 +436,7 @@ mod tests {
             pts.push([r * a.cos() + 0.004 * rand(), r * a.sin() + 0.004 * rand()]);
         }
         let field = DistanceField::new(&pts).unwrap();
-        let params = MetricParams {
-            hmin: 1e-3,
-            hmax: 0.1,
-            eps: 1e-3,
-            band: 0.01,
-            gradation: 0.3,
-            isotropic: false,
-            neighbours: 32,
-        };
+        let params = unit_params(32);
         let cm = CurveMetric::new(&field, params);
         let (frames, neighbours, k) = cm.into_parts();
         let cm = CurveMetric::from_frames(&field, frames, neighbours, k, params);
