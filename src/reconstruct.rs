@@ -743,8 +743,10 @@ pub fn reconstruct_frame(
 /// improves by 1%. Returns the eq. 11 residual and the mean `|u|` at the data afterwards,
 /// and whether any round was kept (`u` is then a signed distance over the whole mesh).
 ///
-/// The samples' neighbourhoods are found once: the data do not move between rounds, so
-/// a round costs one median per sample and one fast marching.
+/// The samples' neighbourhoods are found once, and only for the samples that are the
+/// nearest of a vertex within `2 width` of the curve at the start (a vertex that comes
+/// within `width` later without one keeps its value): the data do not move between
+/// rounds, so a round costs one median per such sample and one fast marching.
 fn center_on_data(
     mesh: &Mesh,
     space: &P1Space,
@@ -785,13 +787,13 @@ fn center_on_data(
     }
     // The metric's fits found each sample's nearest neighbours already; the first `k` of
     // them will do when there are that many. Allocation is fine here: once per frame.
-    let (neighbours, stride) = if k <= metric.k {
+    let neighbours = if k <= metric.k {
         let mut nb = vec![0u32; needed.len() * k];
         for (out, &j) in nb.chunks_mut(k).zip(&needed) {
             let at = j as usize * metric.k;
             out.copy_from_slice(&metric.neighbours[at..at + k]);
         }
-        (nb, k)
+        nb
     } else {
         let mut nb = vec![0u32; needed.len() * k];
         nb.par_chunks_mut(k)
@@ -800,7 +802,7 @@ fn center_on_data(
                 field.nearest_k(pts[j as usize], k, buf);
                 out.copy_from_slice(&buf[..k]);
             });
-        (nb, k)
+        nb
     };
     let mut at = vec![0.0; pts.len()];
     let mut medians = vec![0.0; needed.len()];
@@ -814,7 +816,7 @@ fn center_on_data(
             .for_each(|(a, l)| *a = l.interpolate(mesh, u));
         medians
             .par_iter_mut()
-            .zip(neighbours.par_chunks(stride))
+            .zip(neighbours.par_chunks(k))
             .for_each_init(Vec::new, |vals, (m, nb)| {
                 vals.clear();
                 vals.extend(nb.iter().map(|&j| at[j as usize]));
