@@ -340,8 +340,8 @@ impl MetricField {
         let hmin = self.params.hmin;
         let metric = CurveMetric::from_frames(
             &self.field,
-            self.frames.clone(),
-            self.neighbours.clone(),
+            &self.frames,
+            &self.neighbours,
             self.k,
             self.params,
         );

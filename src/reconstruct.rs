@@ -787,13 +787,8 @@ fn center_on_data(
     }
     // The metric's fits found each sample's nearest neighbours already; the first `k` of
     // them will do when there are that many. Allocation is fine here: once per frame.
-    let neighbours = if k <= metric.k {
-        let mut nb = vec![0u32; needed.len() * k];
-        for (out, &j) in nb.chunks_mut(k).zip(&needed) {
-            let at = j as usize * metric.k;
-            out.copy_from_slice(&metric.neighbours[at..at + k]);
-        }
-        nb
+    let found = if k <= metric.k {
+        Vec::new()
     } else {
         let mut nb = vec![0u32; needed.len() * k];
         nb.par_chunks_mut(k)
@@ -803,6 +798,14 @@ fn center_on_data(
                 out.copy_from_slice(&buf[..k]);
             });
         nb
+    };
+    let list = |s: usize| -> &[u32] {
+        if found.is_empty() {
+            let at = needed[s] as usize * metric.k;
+            &metric.neighbours[at..at + k]
+        } else {
+            &found[s * k..(s + 1) * k]
+        }
     };
     let mut at = vec![0.0; pts.len()];
     let mut medians = vec![0.0; needed.len()];
@@ -816,10 +819,10 @@ fn center_on_data(
             .for_each(|(a, l)| *a = l.interpolate(mesh, u));
         medians
             .par_iter_mut()
-            .zip(neighbours.par_chunks(k))
-            .for_each_init(Vec::new, |vals, (m, nb)| {
+            .enumerate()
+            .for_each_init(Vec::new, |vals, (s, m)| {
                 vals.clear();
-                vals.extend(nb.iter().map(|&j| at[j as usize]));
+                vals.extend(list(s).iter().map(|&j| at[j as usize]));
                 let mid = vals.len() / 2;
                 *m = *vals.select_nth_unstable_by(mid, f64::total_cmp).1;
             });

@@ -151,6 +151,15 @@ pub struct SolverSettings {
     pub cg_max: usize,
 }
 
+/// What the stopping tests decided after a step.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Verdict {
+    Go,
+    Stop,
+    /// Go on in the settle phase.
+    Settle,
+}
+
 /// Where a solve stands between stopping tests.
 struct Progress {
     /// Smallest mean `|u|` at the data so far.
@@ -471,15 +480,16 @@ impl Solver {
             window_start: 0,
             settling: false,
         };
-        // Whether the settle phase's settings are in force (`progress.settling` says
-        // whether it has begun).
-        let mut settling = false;
         let mut settle_settings = s.clone();
         self.pin(s.tube);
         self.best.copy_from_slice(u);
         report.stop = StopReason::MaxIterations;
         for it in 1..=s.max_iterations {
-            let step = if settling { &settle_settings } else { s };
+            let step = if progress.settling {
+                &settle_settings
+            } else {
+                s
+            };
             match s.scheme {
                 Scheme::Explicit => {
                     let dt = self.explicit_step(mesh, space, u, step);
@@ -491,7 +501,8 @@ impl Solver {
                 }
             }
             report.iterations = it;
-            if self.stop_test(it, mesh, data, u, s, &mut progress, &mut report) {
+            let verdict = self.stop_test(it, mesh, data, u, s, &mut progress, &mut report);
+            if verdict == Verdict::Stop {
                 break;
             }
             // After the test: a renormalization on the step that ends the solve would be
@@ -502,8 +513,7 @@ impl Solver {
                 renorm_time += t.elapsed().as_secs_f64();
                 report.renormalizations += 1;
             }
-            if progress.settling && !settling {
-                settling = true;
+            if verdict == Verdict::Settle {
                 self.pin(0.0);
                 // No attraction while settling: the d-weighted curvature flow alone
                 // smooths the curve off the outermost samples into the noise band,
@@ -522,9 +532,10 @@ impl Solver {
         report
     }
 
-    /// The stopping tests after step `it`: true when the solve is over. Tracks the best
-    /// level set (into `self.best`) and the patience window, and switches `progress` to
-    /// the settle phase when the capture phase stagnates and `s.settle_flow` asks for it.
+    /// The stopping tests after step `it`: whether the solve goes on, is over, or enters
+    /// the settle phase (the capture phase stagnated and `s.settle_flow` asks for it;
+    /// `progress.settling` is then set). Tracks the best level set (into `self.best`) and
+    /// the patience window.
     #[allow(clippy::too_many_arguments)]
     fn stop_test(
         &mut self,
@@ -535,9 +546,9 @@ impl Solver {
         s: &SolverSettings,
         progress: &mut Progress,
         report: &mut SolveReport,
-    ) -> bool {
+    ) -> Verdict {
         if it % s.check_every.max(1) != 0 && it != s.max_iterations {
-            return false;
+            return Verdict::Go;
         }
         let (res, mean) = residual(mesh, data, u);
         tracing::trace!(
@@ -553,7 +564,7 @@ impl Solver {
             report.best_iteration = it;
             report.stop = StopReason::Converged;
             report.converged = true;
-            return true;
+            return Verdict::Stop;
         }
         if mean < progress.best {
             progress.best = mean;
@@ -567,15 +578,18 @@ impl Solver {
             if progress.best > 0.99 * progress.window_mean {
                 if progress.settling || !s.settle_flow {
                     report.stop = StopReason::Settled;
-                    return true;
+                    return Verdict::Stop;
                 }
                 progress.settling = true;
                 report.capture_iterations = it;
+                progress.window_mean = progress.best;
+                progress.window_start = it;
+                return Verdict::Settle;
             }
             progress.window_mean = progress.best;
             progress.window_start = it;
         }
-        false
+        Verdict::Go
     }
 
     /// One forward Euler step; returns the (smallest) step used.

@@ -15,6 +15,8 @@
 //! grows linearly with `d - band` (slope `gradation`), the tangential one never falling
 //! below it, up to `hmax`: a gradation in closed form since it depends on `d` only.
 
+use std::borrow::Cow;
+
 use nalgebra::{Matrix3, Vector3};
 use rayon::prelude::*;
 
@@ -146,9 +148,9 @@ pub fn fit_frame(center: Point, pts: &[Point]) -> LocalFrame {
 /// distance field's nearest-sample query.
 pub struct CurveMetric<'a> {
     field: &'a DistanceField,
-    frames: Vec<LocalFrame>,
+    frames: Cow<'a, [LocalFrame]>,
     /// The `k` nearest samples of each sample (itself included), nearest first, flat.
-    neighbours: Vec<u32>,
+    neighbours: Cow<'a, [u32]>,
     k: usize,
     params: MetricParams,
 }
@@ -206,8 +208,8 @@ impl<'a> CurveMetric<'a> {
             .collect();
         CurveMetric {
             field,
-            frames,
-            neighbours,
+            frames: Cow::Owned(frames),
+            neighbours: Cow::Owned(neighbours),
             k,
             params,
         }
@@ -219,8 +221,8 @@ impl<'a> CurveMetric<'a> {
     /// sample; empty if not kept), which [`MetricSource::metric_near`] searches first.
     pub fn from_frames(
         field: &'a DistanceField,
-        frames: Vec<LocalFrame>,
-        neighbours: Vec<u32>,
+        frames: &'a [LocalFrame],
+        neighbours: &'a [u32],
         k: usize,
         params: MetricParams,
     ) -> Self {
@@ -232,8 +234,8 @@ impl<'a> CurveMetric<'a> {
         };
         CurveMetric {
             field,
-            frames,
-            neighbours,
+            frames: Cow::Borrowed(frames),
+            neighbours: Cow::Borrowed(neighbours),
             k,
             params,
         }
@@ -293,7 +295,11 @@ impl<'a> CurveMetric<'a> {
     /// The fitted frames and the neighbour lists (`k` per sample, flat, nearest first),
     /// giving up the borrow of the field.
     pub fn into_parts(self) -> (Vec<LocalFrame>, Vec<u32>, usize) {
-        (self.frames, self.neighbours, self.k)
+        (
+            self.frames.into_owned(),
+            self.neighbours.into_owned(),
+            self.k,
+        )
     }
 
     /// The per-sample frames, in the distance field's point order.
@@ -439,7 +445,7 @@ mod tests {
         let params = unit_params(32);
         let cm = CurveMetric::new(&field, params);
         let (frames, neighbours, k) = cm.into_parts();
-        let cm = CurveMetric::from_frames(&field, frames, neighbours, k, params);
+        let cm = CurveMetric::from_frames(&field, &frames, &neighbours, k, params);
         let mut certified = 0;
         for _ in 0..20_000 {
             // A point near the data and a hint from a point up to 0.03 away from it.
