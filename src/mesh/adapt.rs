@@ -199,6 +199,14 @@ impl Adapter {
         report
     }
 
+    /// Marks `v` as changed: its ring, position or metric is new, for smoothing and for
+    /// flips.
+    #[inline]
+    fn touch(&mut self, v: u32) {
+        self.dirty[v as usize] = true;
+        self.changed[v as usize] = true;
+    }
+
     fn len_of(&self, mesh: &Mesh, a: u32, b: u32) -> f64 {
         let e = sub(mesh.coords[b as usize], mesh.coords[a as usize]);
         edge_length(&self.metrics[a as usize], &self.metrics[b as usize], e)
@@ -303,8 +311,7 @@ impl Adapter {
         self.dirty.push(true);
         self.changed.push(true);
         for x in [a, p, q] {
-            self.dirty[x as usize] = true;
-            self.changed[x as usize] = true;
+            self.touch(x);
         }
         let n_qa = mesh.adj[t as usize][(i + 1) % 3];
         let n_ap = mesh.adj[t as usize][(i + 2) % 3];
@@ -334,8 +341,7 @@ impl Adapter {
             mesh.adj[o1 as usize] = [t, n_pd, o];
             replace_adj(mesh, n_pd, o, o1);
             mesh.vert_tri[d as usize] = o;
-            self.dirty[d as usize] = true;
-            self.changed[d as usize] = true;
+            self.touch(d);
         }
         true
     }
@@ -459,9 +465,8 @@ impl Adapter {
         mesh.vert_tri[w as usize] = w_tri;
         mesh.vert_tri[v as usize] = INVALID;
         self.ball = ball;
-        for &x in &self.ring {
-            self.dirty[x as usize] = true;
-            self.changed[x as usize] = true;
+        for i in 0..self.ring.len() {
+            self.touch(self.ring[i]);
         }
         true
     }
@@ -554,8 +559,7 @@ impl Adapter {
         mesh.vert_tri[p as usize] = t;
         mesh.vert_tri[q as usize] = o;
         for x in [a, p, q, d] {
-            self.dirty[x as usize] = true;
-            self.changed[x as usize] = true;
+            self.touch(x);
         }
         true
     }
@@ -609,8 +613,7 @@ impl Adapter {
                 if new_min > old_min * SMOOTH_GAIN {
                     self.near[v as usize] = near;
                     moves += 1;
-                    self.changed[v as usize] = true;
-                    self.dirty[v as usize] = true;
+                    self.touch(v);
                     for &j in &self.ring {
                         self.dirty[j as usize] = true;
                     }
