@@ -4,7 +4,7 @@
 
 use criterion::{criterion_group, criterion_main, Criterion};
 use isoline::distance::DistanceField;
-use isoline::meshing::{adapt_to_points, MeshParams};
+use isoline::mesh::{adapt_to_points, MeshParams};
 use isoline::synth::{generate, Shape, SynthParams};
 use rand::{Rng, SeedableRng};
 

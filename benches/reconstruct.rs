@@ -6,9 +6,11 @@
 //! warm-started from the frame before it and cold.
 
 use criterion::{criterion_group, criterion_main, Criterion};
+use isoline::export::ExportParams;
 use isoline::fem::P1Space;
-use isoline::meshing::MeshParams;
-use isoline::reconstruct::{reconstruct, reconstruct_warm, ExportParams, Params, SolverParams};
+use isoline::levelset::SolverParams;
+use isoline::mesh::MeshParams;
+use isoline::reconstruct::{reconstruct, reconstruct_warm, Params};
 use isoline::redistance::Redistancer;
 use isoline::synth::{generate, Shape, SynthParams};
 

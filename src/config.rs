@@ -5,9 +5,11 @@ use serde::Deserialize;
 use std::path::Path;
 
 use crate::error::{Error, Result};
+use crate::export::ExportParams;
+use crate::levelset::SolverParams;
 use crate::levelset::{Init, Scheme};
-use crate::meshing::MeshParams;
-use crate::reconstruct::{ExportParams, Params, SolverParams};
+use crate::mesh::field::MeshParams;
+use crate::reconstruct::Params;
 
 /// The whole configuration file.
 #[derive(Clone, Debug, Default, Deserialize)]
@@ -107,7 +109,7 @@ impl SolverConfig {
             }
         }
         if let Some(s) = &self.settle {
-            match s.parse::<crate::reconstruct::Settle>() {
+            match s.parse::<crate::levelset::Settle>() {
                 Ok(v) => p.settle = v,
                 Err(e) => problems.push(format!("solver.settle: {e}")),
             }

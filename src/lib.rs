@@ -1,8 +1,8 @@
 //! isoline reconstructs smooth curves from noisy, unorganized 2D points with the
 //! level-set method of Claisse & Frey (2009).
 //!
-//! The pipeline's stages are modules: [`distance`] (kd-tree distance field), [`meshing`]
-//! and [`mesh`] (anisotropic adaptation), [`levelset`] (starting level sets and the
+//! The pipeline's stages are modules: [`distance`] (kd-tree distance field), [`mesh`] (the
+//! anisotropic mesh and its adaptation), [`levelset`] (starting level sets and the
 //! solver), [`redistance`] (fast-marching renormalization) and [`export`] (the zero
 //! isoline and writers); [`reconstruct()`] runs them in turn, [`batch`] runs it over
 //! many files, and [`pipeline`] runs the stages as threads on channels for streams of
@@ -25,7 +25,6 @@ pub mod geom;
 pub mod ingest;
 pub mod levelset;
 pub mod mesh;
-pub mod meshing;
 pub mod pipeline;
 pub mod reconstruct;
 pub mod redistance;

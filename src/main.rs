@@ -12,7 +12,7 @@ use isoline::eval;
 use isoline::export::svg;
 use isoline::format::{FrameRecord, PolylineJson, TruthFile, TruthFrame};
 use isoline::geom::Polyline;
-use isoline::meshing::adapt_to_points;
+use isoline::mesh::adapt_to_points;
 use isoline::synth::{self, Shape, SynthParams};
 
 #[derive(Parser)]

@@ -1,7 +1,7 @@
 //! Property tests: adaptation keeps the mesh valid for any point set, degenerate ones
 //! included.
 
-use isoline::meshing::{adapt_to_points, MeshParams};
+use isoline::mesh::{adapt_to_points, MeshParams};
 use proptest::prelude::*;
 
 fn check(points: &[[f64; 2]]) -> Result<(), TestCaseError> {

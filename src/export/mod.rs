@@ -4,3 +4,50 @@
 pub mod contour;
 pub mod svg;
 pub mod writers;
+
+use crate::geom::{add, Point, Polyline};
+use crate::mesh::Mesh;
+use contour::{simplify, zero_isoline};
+
+/// Export parameters.
+#[derive(Clone, Debug, PartialEq, Default)]
+#[non_exhaustive]
+pub struct ExportParams {
+    /// Douglas-Peucker tolerance in data units; 0 keeps every isoline vertex. Default 0.
+    pub simplify: f64,
+    /// Closed loops enclosing less area are dropped. Default `pi (3 hmin)^2`; 0 keeps all.
+    pub min_area: Option<f64>,
+}
+
+/// The export stage's kernel: the zero isoline of `u` on `mesh` (centred coordinates)
+/// as polylines moved back by `center` into data coordinates, loops smaller than
+/// `params.min_area` dropped and optionally simplified. `diag` (the data's diagonal)
+/// scales the merging of repeated crossings; `hmin` the default smallest loop.
+pub fn curves(
+    mesh: &Mesh,
+    u: &[f64],
+    center: Point,
+    diag: f64,
+    hmin: f64,
+    params: &ExportParams,
+) -> Vec<Polyline> {
+    let mut polylines = zero_isoline(mesh, u, 1e-9 * diag);
+    // Loops smaller than a disc of radius 3 hmin are below what the mesh resolves: specks
+    // left where the level set grazes zero between samples.
+    let min_area = params
+        .min_area
+        .unwrap_or(std::f64::consts::PI * 9.0 * hmin * hmin);
+    polylines.retain(|p| !p.closed || p.signed_area().abs() >= min_area);
+    if params.simplify > 0.0 {
+        polylines = polylines
+            .iter()
+            .map(|p| simplify(p, params.simplify))
+            .collect();
+    }
+    for pl in &mut polylines {
+        for p in &mut pl.points {
+            *p = add(*p, center);
+        }
+    }
+    polylines
+}

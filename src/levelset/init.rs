@@ -71,6 +71,56 @@ pub fn enclosing(init: Init, points: &[Point], margin: f64, coords: &[Point]) ->
     }
 }
 
+/// A cold start: the level set and the start it came from.
+#[derive(Clone, Debug)]
+pub struct ColdStart {
+    /// The signed distance to the starting curve at each vertex (negative inside).
+    pub u: Vec<f64>,
+    /// The start used: the one asked for, or [`Init::Box`] when a tube start found
+    /// nothing enclosed.
+    pub init: Init,
+}
+
+/// The level set `init` asks for on `mesh` (`dist`: the distance to the data `points`
+/// at each vertex), renormalized: the tube starts with the tube of radius
+/// `tube_radius`, falling back to the box when the tube encloses nothing; the
+/// enclosing starts `margin` from the data.
+#[allow(clippy::too_many_arguments)]
+pub fn cold_start(
+    init: Init,
+    mesh: &Mesh,
+    space: &P1Space,
+    dist: &[f64],
+    points: &[Point],
+    tube_radius: f64,
+    margin: f64,
+    fm: &mut Redistancer,
+) -> ColdStart {
+    let start = match init {
+        Init::Medial => medial(mesh, space, dist, tube_radius, fm),
+        Init::Tube => tube(mesh, |v| space.ring(v), dist, tube_radius),
+        Init::Box | Init::Circle => {
+            return ColdStart {
+                u: enclosing(init, points, margin, &mesh.coords),
+                init,
+            }
+        }
+    };
+    match start {
+        Some(mut u) => {
+            fm.run(mesh, space, &mut u, f64::INFINITY);
+            ColdStart { u, init }
+        }
+        None => {
+            tracing::debug!(tube_radius, "the tube encloses nothing: box start");
+            ColdStart {
+                u: enclosing(Init::Box, points, margin, &mesh.coords),
+                init: Init::Box,
+            }
+        }
+    }
+}
+
 /// A default tube radius: twice the 95th percentile of the data's nearest-neighbour
 /// spacing, and at least `floor`. Gaps between consecutive samples up to twice that
 /// close; where the tube still leaks, [`tube`] says so.

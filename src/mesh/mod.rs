@@ -5,10 +5,16 @@
 //! the domain boundary), `vert_tri[v]` (one triangle of the vertex's ball) and `tag[v]`
 //! (interior, boundary or corner). Vertex balls are walked through the adjacency, so no
 //! per-vertex lists are kept up to date during adaptation.
+//!
+//! [`field`] is the adapt stage as plain functions: a frame's distance field and metric
+//! frames ([`MetricField`]), and the mesh adapted to them ([`AdaptedMesh`]).
 
 pub mod adapt;
+pub mod field;
 pub mod metric;
 pub mod quality;
+
+pub use field::{adapt_to_points, AdaptedMesh, MeshParams, MetricField};
 
 use std::collections::HashMap;
 

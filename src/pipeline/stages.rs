@@ -19,9 +19,11 @@ use super::{RunSummary, Sink};
 use crate::error::{Error, Result};
 use crate::format::{PolylineJson, ResultRecord};
 use crate::geom::{add, Point};
+use crate::levelset::evolve::Solved;
+use crate::levelset::warm::Previous;
+use crate::mesh::field::AdaptedMesh;
 use crate::mesh::Mesh;
-use crate::meshing::AdaptedMesh;
-use crate::reconstruct::{self, Params, Prepared, Previous, Solved};
+use crate::reconstruct::{self, Params, Prepared};
 
 /// A frame on its way through the stages.
 pub(crate) struct Msg {

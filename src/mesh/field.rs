@@ -191,7 +191,7 @@ pub struct AdaptedMesh {
 /// no precision in element shapes); the returned mesh is in data coordinates.
 ///
 /// ```
-/// use isoline::meshing::{adapt_to_points, MeshParams};
+/// use isoline::mesh::{adapt_to_points, MeshParams};
 /// let pts: Vec<[f64; 2]> = (0..200)
 ///     .map(|i| {
 ///         let a = i as f64 * std::f64::consts::TAU / 200.0;

@@ -1,0 +1,175 @@
+//! The solve stage as one plain function: a frame's starting level set (warm or cold),
+//! its evolution by the solver, and the median settle.
+
+use std::time::Instant;
+
+use crate::fem::locate::locate_all;
+use crate::fem::P1Space;
+use crate::geom::Point;
+use crate::levelset::init::{self, Init};
+use crate::levelset::params::{Settle, SolverParams};
+use crate::levelset::settle::center_on_data;
+use crate::levelset::solver::{SolveReport, Solver, SolverSettings, StopReason};
+use crate::levelset::warm::{warm_start, Previous, WarmCriteria};
+use crate::mesh::field::{AdaptedMesh, MetricField};
+use crate::redistance::Redistancer;
+
+/// The solve stage's product: the level set on the adapted mesh and how it was found.
+#[derive(Debug)]
+pub struct Solved {
+    /// The level set at the mesh vertices (centred coordinates, negative inside).
+    pub u: Vec<f64>,
+    /// The P1 space of the mesh (reused by renormalization).
+    pub space: P1Space,
+    /// The solver's report (its `ms_solve` includes the median settle).
+    pub report: SolveReport,
+    /// The settings used.
+    pub settings: SolverSettings,
+    /// Whether the level set started from the previous frame's.
+    pub warm_start: bool,
+    /// Whether `u` is already the signed distance to its zero isoline over the whole mesh
+    /// (the median settle's last accepted round leaves it so).
+    pub renormalized: bool,
+    /// Milliseconds: distances at the vertices and locating the data.
+    pub ms_distance: f64,
+    /// Milliseconds: the whole solve stage.
+    pub ms: f64,
+    /// Milliseconds of fast marching outside the solver's loop (warm start, final pass).
+    pub ms_renormalize: f64,
+}
+
+/// The level set of one frame on its adapted mesh (`field` is the frame's distance
+/// field and metric frames, in the mesh's coordinates; `diag` its data's diagonal):
+/// from the previous frame's when that is a good start (see [`mod@crate::levelset::warm`];
+/// `shift` takes the previous frame's coordinates to these), else from `params.init`,
+/// evolved by the solver and, on noisy data, settled on the data's median.
+pub fn solve(
+    field: &MetricField,
+    adapted: &AdaptedMesh,
+    diag: f64,
+    shift: Point,
+    previous: Option<Previous<'_>>,
+    params: &SolverParams,
+) -> Solved {
+    let t0 = Instant::now();
+    let mesh = &adapted.mesh;
+    let kd = &field.field;
+    let hmin = adapted.params.hmin;
+    let space = P1Space::new(mesh);
+    let pts = kd.points();
+    let (dist, nearest): (Vec<f64>, Vec<u32>) = if adapted.nearest.len() == mesh.coords.len()
+        && adapted.nearest.iter().all(|&j| (j as usize) < pts.len())
+    {
+        mesh.coords
+            .iter()
+            .zip(&adapted.nearest)
+            .map(|(&x, &j)| (crate::geom::dist(x, pts[j as usize]), j))
+            .unzip()
+    } else {
+        kd.nearest_all(&mesh.coords)
+            .iter()
+            .map(|n| (n.dist, n.index))
+            .unzip()
+    };
+    // The field's points: the data with exact duplicates merged, so that the stopping
+    // test and the median settle weigh each sample once.
+    let data = locate_all(mesh, pts);
+    let ms_distance = t0.elapsed().as_secs_f64() * 1e3;
+
+    let mut settings = params.resolve(diag, hmin);
+    let warm_patience = params
+        .warm_patience
+        .unwrap_or((settings.patience / 2).max(1));
+    let tube_radius = params
+        .tube
+        .unwrap_or_else(|| init::tube_radius(kd, 2.0 * hmin));
+    let settle_width = 4.0 * adapted.noise_estimate + 4.0 * hmin;
+    let mut fm = Redistancer::new();
+    let mut ms_renormalize = 0.0;
+    let criteria = WarmCriteria {
+        settle_width,
+        tube_radius,
+        eps: settings.eps,
+        median_settle: params.settle == Settle::Median,
+    };
+    let warm = previous.and_then(|prev| warm_start(prev, shift, mesh, &data, &criteria));
+    let warm_start = warm.is_some();
+    let mut u = match warm {
+        Some((u, near)) => {
+            if near {
+                settings.patience = warm_patience;
+            }
+            u
+        }
+        None => {
+            let t = Instant::now();
+            let start = init::cold_start(
+                params.init,
+                mesh,
+                &space,
+                &dist,
+                pts,
+                tube_radius,
+                params.margin * diag,
+                &mut fm,
+            );
+            ms_renormalize += t.elapsed().as_secs_f64() * 1e3;
+            if start.init == Init::Medial && params.settle == Settle::Median {
+                // Like a warm start at the data: nothing to capture, the settle places
+                // the curve.
+                settings.patience = warm_patience;
+            }
+            if params.init == Init::Tube {
+                // The pinned vertices must lie inside the starting curve, or nothing
+                // moves.
+                settings.tube = settings.tube.min(0.5 * tube_radius);
+            }
+            start.u
+        }
+    };
+    let mut report = Solver::new().solve(mesh, &space, &dist, &data, &mut u, &settings);
+    let mut renormalized = false;
+    if params.settle == Settle::Median {
+        let t = Instant::now();
+        let settled = center_on_data(mesh, &space, field, &data, &nearest, &mut u, settle_width);
+        renormalized = settled.moved;
+        report.residual = settled.residual;
+        report.mean_residual = settled.mean;
+        // Rounds are kept by the mean distance, so the maximum can move either way.
+        let converged = settled.residual < settings.eps;
+        if converged != report.converged {
+            report.converged = converged;
+            report.stop = if converged {
+                StopReason::Converged
+            } else {
+                StopReason::Settled
+            };
+        }
+        report.ms_solve += t.elapsed().as_secs_f64() * 1e3;
+    }
+    Solved {
+        u,
+        space,
+        report,
+        settings,
+        warm_start,
+        renormalized,
+        ms_distance,
+        ms: t0.elapsed().as_secs_f64() * 1e3,
+        ms_renormalize,
+    }
+}
+
+/// The renormalize stage: `u` becomes the signed distance to its zero isoline over the
+/// whole mesh (the solver's own passes stop at twice its narrow band), which is what the
+/// next frame's warm start interpolates. Nothing to do when the median settle already
+/// left it so.
+pub fn renormalize(mesh: &crate::mesh::Mesh, solved: &mut Solved) {
+    if solved.renormalized {
+        return;
+    }
+    let t = Instant::now();
+    Redistancer::new().run(mesh, &solved.space, &mut solved.u, f64::INFINITY);
+    solved.renormalized = true;
+    solved.ms_renormalize += t.elapsed().as_secs_f64() * 1e3;
+}

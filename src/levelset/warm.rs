@@ -1,0 +1,212 @@
+//! Warm starts: the previous frame's level set carried onto the new frame's mesh, and the
+//! decision whether it is a better start than a cold one.
+//!
+//! The previous level set was renormalized, so interpolated onto the new mesh it is a
+//! signed distance to within the interpolation error. Where its curve already lies within
+//! the median settle's reach of every new sample it is used as it is: the capture phase
+//! then stagnates within its (warm) patience window and the settle moves the curve the
+//! rest of the way, in either direction. Otherwise, while it is no farther from the data
+//! than a cold tube start would be (twice the larger of the tube radius and the previous
+//! residual), it is offset outward past every sample, because the evolution only moves
+//! the curve inward. Farther (a jump, a restarted stream, a mesh that no longer covers
+//! the data): cold start.
+
+use crate::fem::locate::{locate_all, Location};
+use crate::geom::{sub, BBox, Point};
+use crate::levelset::solver::residual;
+use crate::mesh::Mesh;
+
+/// The level set a frame may start from: the previous frame's mesh, its renormalized
+/// level set and its eq. 11 residual.
+#[derive(Clone, Copy, Debug)]
+pub struct Previous<'a> {
+    /// The previous frame's mesh, in data coordinates.
+    pub mesh: &'a Mesh,
+    /// Its level set.
+    pub u: &'a [f64],
+    /// Its eq. 11 residual.
+    pub residual: f64,
+}
+
+/// What decides between a warm and a cold start.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct WarmCriteria {
+    /// How far the median settle reaches (`4 sigma + 4 hmin`): a curve this close to
+    /// every sample is used as it is.
+    pub settle_width: f64,
+    /// The tube start's radius: a cold start begins about this far from the data.
+    pub tube_radius: f64,
+    /// The stopping tolerance of eq. 11.
+    pub eps: f64,
+    /// Whether the median settle follows the solve (without it, a curve near the data
+    /// is offset like any other).
+    pub median_settle: bool,
+}
+
+/// How the carried level set is used.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Decision {
+    /// As it is: the curve is at the data.
+    Near,
+    /// Offset outward by this distance (`u` minus it), past every sample.
+    Offset(f64),
+    /// Not at all: start cold.
+    Cold,
+}
+
+/// The decision for a carried level set whose eq. 11 residual on the new data is
+/// `residual`, when the previous frame ended at `previous_residual` from its own data.
+pub fn decide(residual: f64, previous_residual: f64, c: &WarmCriteria) -> Decision {
+    let near = residual <= c.settle_width && c.median_settle;
+    if near {
+        return Decision::Near;
+    }
+    // A cold tube start begins about one tube radius from the data, and the previous
+    // frame ended at `previous_residual` from its own.
+    if residual <= 2.0 * c.tube_radius.max(previous_residual) + c.eps {
+        Decision::Offset(residual + c.eps)
+    } else {
+        Decision::Cold
+    }
+}
+
+/// The level set `u` of `old` (whose coordinates less `shift` are those of `coords`) at
+/// each of `coords`, by walking to each point; `None` when `old` does not cover every
+/// point.
+pub fn carry(old: &Mesh, u: &[f64], shift: Point, coords: &[Point]) -> Option<Vec<f64>> {
+    let mut old = old.clone();
+    for c in &mut old.coords {
+        *c = sub(*c, shift);
+    }
+    let bbox = BBox::of(&old.coords)?;
+    if !coords.iter().all(|&c| bbox.contains(c)) {
+        return None;
+    }
+    let at = locate_all(&old, coords);
+    Some(at.iter().map(|l| l.interpolate(&old, u)).collect())
+}
+
+/// A warm start for the frame meshed by `mesh` (coordinates shifted by `shift` from the
+/// previous frame's) with samples located at `data`: the carried level set and whether
+/// it was near (taken as it is), or `None` for a cold start.
+pub fn warm_start(
+    prev: Previous<'_>,
+    shift: Point,
+    mesh: &Mesh,
+    data: &[Location],
+    c: &WarmCriteria,
+) -> Option<(Vec<f64>, bool)> {
+    let mut u = carry(prev.mesh, prev.u, shift, &mesh.coords)?;
+    let (res, _) = residual(mesh, data, &u);
+    let decision = decide(res, prev.residual, c);
+    tracing::debug!(residual = res, ?decision, "warm start");
+    match decision {
+        Decision::Near => Some((u, true)),
+        Decision::Offset(offset) => {
+            // u is a distance, so subtracting a constant offsets the curve outward.
+            u.iter_mut().for_each(|x| *x -= offset);
+            Some((u, false))
+        }
+        Decision::Cold => None,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geom::dist;
+
+    const C: WarmCriteria = WarmCriteria {
+        settle_width: 0.02,
+        tube_radius: 0.01,
+        eps: 0.001,
+        median_settle: true,
+    };
+
+    #[test]
+    fn decisions_follow_the_distance_to_the_data() {
+        let offset = |d: Decision| match d {
+            Decision::Offset(x) => x,
+            other => panic!("{other:?}"),
+        };
+        assert_eq!(decide(0.015, 0.005, &C), Decision::Near);
+        assert!((offset(decide(0.021, 0.005, &C)) - 0.022).abs() < 1e-15);
+        assert_eq!(decide(0.05, 0.005, &C), Decision::Cold);
+        // A previous frame that ended far from its data widens the offset range.
+        assert!((offset(decide(0.05, 0.03, &C)) - 0.051).abs() < 1e-15);
+        let flow = WarmCriteria {
+            median_settle: false,
+            ..C
+        };
+        assert!((offset(decide(0.015, 0.005, &flow)) - 0.016).abs() < 1e-15);
+    }
+
+    #[test]
+    fn carrying_interpolates_and_refuses_uncovered_meshes() {
+        let bbox = BBox {
+            min: [-1.0, -1.0],
+            max: [1.0, 1.0],
+        };
+        let old = Mesh::structured(&bbox, 40);
+        // A linear field is carried exactly by P1 interpolation.
+        let u: Vec<f64> = old.coords.iter().map(|p| 2.0 * p[0] - p[1]).collect();
+        let shift = [0.1, -0.2];
+        let probes = [[0.0, 0.0], [0.5, -0.3], [-0.85, 0.75]];
+        let got = carry(&old, &u, shift, &probes).unwrap();
+        for (p, g) in probes.iter().zip(&got) {
+            let q = [p[0] + shift[0], p[1] + shift[1]];
+            assert!((g - (2.0 * q[0] - q[1])).abs() < 1e-12, "{p:?}: {g}");
+        }
+        assert!(carry(&old, &u, shift, &[[0.95, 0.0]]).is_none());
+    }
+
+    #[test]
+    fn a_curve_at_the_data_is_kept_and_one_farther_is_offset() {
+        let bbox = BBox {
+            min: [-1.0, -1.0],
+            max: [1.0, 1.0],
+        };
+        let mesh = Mesh::structured(&bbox, 80);
+        let circle = |r: f64| -> Vec<f64> {
+            mesh.coords
+                .iter()
+                .map(|&p| dist(p, [0.0, 0.0]) - r)
+                .collect()
+        };
+        let samples: Vec<Point> = (0..100)
+            .map(|i| {
+                let a = i as f64 * 0.0628;
+                [0.5 * a.cos(), 0.5 * a.sin()]
+            })
+            .collect();
+        let data = locate_all(&mesh, &samples);
+        let prev_u = circle(0.51);
+        let prev = Previous {
+            mesh: &mesh,
+            u: &prev_u,
+            residual: 0.0,
+        };
+        let (u, near) = warm_start(prev, [0.0, 0.0], &mesh, &data, &C).unwrap();
+        assert!(near && u == prev_u);
+        // 0.03 inside the samples: too far for the settle, within twice the previous
+        // residual, so offset outward past every sample by eps (P1 interpolation of the
+        // circle's distance errs by h^2 / (8 r) = 1.6e-4 on this mesh).
+        let prev_u = circle(0.47);
+        let prev = Previous {
+            u: &prev_u,
+            residual: 0.02,
+            ..prev
+        };
+        let (u, near) = warm_start(prev, [0.0, 0.0], &mesh, &data, &C).unwrap();
+        assert!(!near);
+        let (res, _) = residual(&mesh, &data, &u);
+        assert!((res - C.eps).abs() < 5e-4, "{res}");
+        let prev_u = circle(0.3);
+        let prev = Previous {
+            u: &prev_u,
+            residual: 0.0,
+            ..prev
+        };
+        assert!(warm_start(prev, [0.0, 0.0], &mesh, &data, &C).is_none());
+    }
+}
