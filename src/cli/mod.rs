@@ -1,0 +1,70 @@
+//! The subcommands, one module each, and what they share: logging and file helpers.
+
+pub mod batch;
+pub mod eval;
+pub mod mesh;
+pub mod reconstruct;
+pub mod run;
+pub mod synth;
+
+use std::path::Path;
+
+use anyhow::{Context, Result};
+
+/// Logs to stderr, filtered by `RUST_LOG` or else `default`; with `chrome`, also writes
+/// every span of isoline's stages (whatever the log filter) as a Chrome/Perfetto trace,
+/// complete once the returned guard is dropped.
+pub fn init_tracing(
+    default: &str,
+    chrome: Option<&Path>,
+) -> Result<Option<tracing_chrome::FlushGuard>> {
+    use tracing_subscriber::prelude::*;
+    use tracing_subscriber::EnvFilter;
+    let filter = EnvFilter::try_from_default_env().unwrap_or_else(|_| EnvFilter::new(default));
+    let (chrome_layer, guard) = match chrome {
+        Some(path) => {
+            let file = create(path)?;
+            let (layer, guard) = tracing_chrome::ChromeLayerBuilder::new()
+                .writer(file)
+                .include_args(true)
+                .build();
+            let spans = tracing_subscriber::filter::Targets::new()
+                .with_target("isoline", tracing::Level::INFO);
+            (Some(layer.with_filter(spans)), Some(guard))
+        }
+        None => (None, None),
+    };
+    tracing_subscriber::registry()
+        .with(
+            tracing_subscriber::fmt::layer()
+                .with_writer(std::io::stderr)
+                .with_filter(filter),
+        )
+        .with(chrome_layer)
+        .try_init()
+        .context("setting up tracing")?;
+    Ok(guard)
+}
+
+/// Creates (or truncates) `path`, naming it in the error.
+pub fn create(path: &Path) -> Result<std::fs::File> {
+    std::fs::File::create(path).with_context(|| format!("creating {}", path.display()))
+}
+
+/// Reads `path` as text, naming it in the error.
+pub fn read(path: &Path) -> Result<String> {
+    std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))
+}
+
+/// Writes `text` to `path`, naming it in the error.
+pub fn write(path: &Path, text: impl AsRef<[u8]>) -> Result<()> {
+    std::fs::write(path, text).with_context(|| format!("writing {}", path.display()))
+}
+
+/// The configuration file, or the defaults.
+pub fn load_config(path: Option<&Path>) -> Result<isoline::config::Config> {
+    Ok(match path {
+        Some(p) => isoline::config::Config::load(p)?,
+        None => isoline::config::Config::default(),
+    })
+}

@@ -1,0 +1,38 @@
+//! `isoline run`: the streaming daemon until end of input or a signal.
+
+use std::path::PathBuf;
+use std::sync::atomic::AtomicBool;
+use std::sync::Arc;
+
+use anyhow::{Context, Result};
+
+/// `isoline run` options.
+#[derive(clap::Args)]
+pub struct Args {
+    /// Daemon configuration: [input] [output] [pipeline] [tracing], and [mesh]
+    /// [solver] [export].
+    #[arg(short, long)]
+    config: PathBuf,
+}
+
+/// Runs the daemon. The first SIGINT or SIGTERM stops ingest and lets the frames in
+/// flight finish; a second one exits at once.
+pub fn run(a: Args) -> Result<()> {
+    let cfg = isoline::pipeline::DaemonConfig::load(&a.config)?;
+    let guard = super::init_tracing(&cfg.log, cfg.chrome_trace.as_deref())?;
+    let stop = Arc::new(AtomicBool::new(false));
+    for sig in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
+        // Registered first, so it sees the flag as the previous signal left it.
+        signal_hook::flag::register_conditional_shutdown(sig, 130, stop.clone())
+            .context("installing signal handlers")?;
+        signal_hook::flag::register(sig, stop.clone()).context("installing signal handlers")?;
+    }
+    let daemon = isoline::pipeline::Daemon::start(&cfg, stop)?;
+    if let Some(addr) = daemon.tcp_addr {
+        eprintln!("isoline run: listening on {addr}");
+    }
+    let summary = daemon.wait()?;
+    drop(guard);
+    eprintln!("isoline run: {summary}");
+    Ok(())
+}
