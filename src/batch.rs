@@ -446,14 +446,9 @@ impl Job {
             let (rec, r) = reconstruct_frame(f, &task.params);
             if let Some(r) = r {
                 if self.formats.contains(&Format::Svg) {
+                    let features: Vec<_> = r.features.iter().map(|f| f.center).collect();
                     let doc = svg::render(
-                        &svg::Drawing {
-                            points: &f.points,
-                            polylines: &r.polylines,
-                            view: crate::geom::BBox::of(&f.points)
-                                .map(|b| b.padded(0.05 * b.diag())),
-                            ..Default::default()
-                        },
+                        &svg::of_reconstruction(&f.points, &r, &features, &[], false),
                         1200.0,
                     );
                     drawings.push((f.frame, doc));

@@ -56,6 +56,9 @@ pub enum Error {
         /// The allowed range.
         reason: String,
     },
+    /// A scan frame's beams are malformed (no beams, a zero step, a bad range limit).
+    #[error("invalid scan: {0}")]
+    Scan(String),
     /// Reading or writing a file failed.
     #[error("{path}: {source}")]
     Io {

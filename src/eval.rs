@@ -1,5 +1,6 @@
 //! Accuracy of a reconstruction against ground truth: symmetric Hausdorff and mean
-//! distances between polyline sets, and component counts.
+//! distances between polyline sets, and component counts; for scan frames, the scores a
+//! robotics user judges a wall extractor by ([`scan_scores`]).
 //!
 //! Distances are exact point-to-segment distances, found through a kd-tree over the
 //! midpoints of the segments cut into pieces of bounded length: the nearest piece by
@@ -159,8 +160,22 @@ pub struct Accuracy {
 /// then sampled at its vertices, the coarser one as finely, and the Hausdorff distance is
 /// exact to within one median segment length of the finer set.
 pub fn compare(recon: &[Polyline], truth: &[Polyline], step: Option<f64>) -> Accuracy {
+    compare_surfaces(recon, truth, truth, step)
+}
+
+/// [`compare`] with a truth in two parts: what the reconstruction must cover (`truth`,
+/// for a scan the visible, resolvable stretches of surface), and where it may lie
+/// (`surfaces`, every surface there is): the distance from the reconstruction is taken
+/// to `surfaces`, the distance to it from `truth`.
+pub fn compare_surfaces(
+    recon: &[Polyline],
+    truth: &[Polyline],
+    surfaces: &[Polyline],
+    step: Option<f64>,
+) -> Accuracy {
     let ir = SegmentIndex::new(recon);
     let it = SegmentIndex::new(truth);
+    let is = SegmentIndex::new(surfaces);
     let base = Accuracy {
         hausdorff: None,
         mean_distance: None,
@@ -175,7 +190,7 @@ pub fn compare(recon: &[Polyline], truth: &[Polyline], step: Option<f64>) -> Acc
     let step = step
         .unwrap_or_else(|| 4.0 * ir.half_piece.min(it.half_piece))
         .max(1e-12);
-    let (rt, mrt) = directed(recon, &it, step);
+    let (rt, mrt) = directed(recon, if is.is_empty() { &it } else { &is }, step);
     let (tr, mtr) = directed(truth, &ir, step);
     Accuracy {
         hausdorff: Some(rt.max(tr)),
@@ -183,6 +198,163 @@ pub fn compare(recon: &[Polyline], truth: &[Polyline], step: Option<f64>) -> Acc
         recon_to_truth: Some(rt),
         truth_to_recon: Some(tr),
         ..base
+    }
+}
+
+/// Scan-aware scores of the curves of one scan frame (DESIGN.md section 7), with one
+/// tolerance `tol` (by default three times the range noise).
+#[derive(Clone, Debug, PartialEq)]
+pub struct ScanScores {
+    /// The tolerance used.
+    pub tolerance: f64,
+    /// Returns in the frame.
+    pub returns: usize,
+    /// Share of the returns within `tol` of a curve.
+    pub returns_explained: f64,
+    /// Share of the curves' length lying in space the rays saw as free by more than
+    /// `tol`: inside the polygon through the returns in beam order (a beam without a
+    /// return is spanned by the chord of returns within two beams on both sides, a
+    /// dropout; otherwise it is free up to the maximum range).
+    pub free_space_share: f64,
+    /// Openings (doorways) of which more than a fifth of the width, away from the jambs
+    /// by `max(0.1, 2 tol)`, has a curve within `tol`.
+    pub openings_bridged: usize,
+    /// Openings scored.
+    pub openings: usize,
+    /// Stretches of curve longer than `5 tol` farther than `tol` from every surface:
+    /// curves where the truth has none.
+    pub gaps_bridged: usize,
+    /// Visible stretches of surface of which less than half has a curve within `tol`.
+    pub walls_missed: usize,
+}
+
+/// The scan-aware scores of `curves` on `scan` (the frame's beams, in the curves'
+/// coordinates) against the visible `truth`, every `surfaces` there is (the visible
+/// truth when empty) and the `openings` in the walls.
+pub fn scan_scores(
+    curves: &[Polyline],
+    truth: &[Polyline],
+    surfaces: &[Polyline],
+    openings: &[(Point, Point)],
+    scan: &crate::scan::Scan,
+    tol: f64,
+) -> ScanScores {
+    let ic = SegmentIndex::new(curves);
+    let it = SegmentIndex::new(if surfaces.is_empty() { truth } else { surfaces });
+    let returns = scan.returns();
+    let explained = returns.iter().filter(|&&p| ic.distance(p) <= tol).count();
+    let step = 0.25 * tol;
+    // Curve in free space, by arc length: inside the polygon the rays swept (a beam
+    // without a return within two beams of returns on both sides is spanned by their
+    // chord, as a dropout; one farther from any is free to the maximum range) by more
+    // than the tolerance.
+    let n = scan.angles.len();
+    let reach: Vec<f64> = (0..n)
+        .map(|i| {
+            if scan.valid(i) {
+                return scan.ranges[i];
+            }
+            let before = (1..=2).find_map(|o| i.checked_sub(o).filter(|&j| scan.valid(j)));
+            let after = (1..=2).find_map(|o| Some(i + o).filter(|&j| j < n && scan.valid(j)));
+            match (before, after) {
+                (Some(a), Some(b)) => {
+                    let f = (i - a) as f64 / (b - a) as f64;
+                    scan.ranges[a] * (1.0 - f) + scan.ranges[b] * f
+                }
+                _ => scan.range_max,
+            }
+        })
+        .collect();
+    let free = crate::scan::FreeSpace {
+        origin: scan.origin,
+        angles: scan.angles.clone(),
+        reach,
+        full_turn: scan.full_turn(),
+        max_gap: if scan.free_rays {
+            f64::INFINITY
+        } else {
+            3.0 * scan.step
+        },
+    };
+    let boundary = SegmentIndex::new(&[free.polygon()]);
+    let (mut free_len, mut total_len) = (0.0, 0.0);
+    for (p, w) in samples(curves, step) {
+        total_len += w;
+        if free.contains(p) && boundary.distance(p) > tol {
+            free_len += w;
+        }
+    }
+    let openings_bridged = openings
+        .iter()
+        .filter(|&&(a, b)| {
+            let len = dist(a, b);
+            let keep = (0.1f64).max(2.0 * tol);
+            if len <= 2.0 * keep {
+                return false;
+            }
+            let m = ((len - 2.0 * keep) / step).ceil().max(1.0) as usize;
+            let covered = (0..m)
+                .filter(|&k| {
+                    let t = (keep + (k as f64 + 0.5) / m as f64 * (len - 2.0 * keep)) / len;
+                    ic.distance(add(a, scale(sub(b, a), t))) <= tol
+                })
+                .count();
+            covered as f64 > 0.2 * m as f64
+        })
+        .count();
+    // Stretches of curve away from the truth.
+    let mut gaps_bridged = 0;
+    for c in curves {
+        let mut run = 0.0;
+        let mut counted = false;
+        for (a, b) in c.segments() {
+            let m = ((dist(a, b) / step).ceil() as usize).max(1);
+            let w = dist(a, b) / m as f64;
+            for k in 0..m {
+                let p = add(a, scale(sub(b, a), (k as f64 + 0.5) / m as f64));
+                if it.distance(p) > tol {
+                    run += w;
+                    if run > 5.0 * tol && !counted {
+                        gaps_bridged += 1;
+                        counted = true;
+                    }
+                } else {
+                    run = 0.0;
+                    counted = false;
+                }
+            }
+        }
+    }
+    let walls_missed = truth
+        .iter()
+        .filter(|t| {
+            let s = samples(std::slice::from_ref(*t), step);
+            let total: f64 = s.iter().map(|x| x.1).sum();
+            let near: f64 = s
+                .iter()
+                .filter(|x| ic.distance(x.0) <= tol)
+                .map(|x| x.1)
+                .sum();
+            total > 0.0 && near < 0.5 * total
+        })
+        .count();
+    ScanScores {
+        tolerance: tol,
+        returns: returns.len(),
+        returns_explained: if returns.is_empty() {
+            1.0
+        } else {
+            explained as f64 / returns.len() as f64
+        },
+        free_space_share: if total_len > 0.0 {
+            free_len / total_len
+        } else {
+            0.0
+        },
+        openings_bridged,
+        openings: openings.len(),
+        gaps_bridged,
+        walls_missed,
     }
 }
 

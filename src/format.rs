@@ -3,10 +3,15 @@
 
 use serde::{Deserialize, Serialize};
 
+use crate::export::support::Feature;
 use crate::geom::{Point, Polyline};
 
-/// One frame of an NDJSON stream: `{"stream":..,"frame":..,"t":..,"points":[[x,y],..],"origin":[x,y]}`.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+/// One frame of an NDJSON stream, as on the wire (see docs/formats.md): points,
+/// `{"stream":..,"frame":..,"t":..,"points":[[x,y],..],"origin":[x,y]}`, or a scanner's
+/// beams, `{"frame":..,"ranges":[r,..],"angle_min":a,"angle_increment":da,
+/// "range_min":r0,"range_max":r1,"pose":[x,y,theta]}`. [`crate::ingest::Frame`] is the
+/// validated form.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct FrameRecord {
     /// Stream id (optional).
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -16,11 +21,34 @@ pub struct FrameRecord {
     /// Time stamp in seconds (optional).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub t: Option<f64>,
-    /// The points.
+    /// The points (absent in a frame of beams).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub points: Vec<Point>,
-    /// Sensor origin (optional).
+    /// The sensor's position in the frame's coordinates (optional; `[0, 0]` for beams).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub origin: Option<Point>,
+    /// The pose `[x, y, theta]` of the frame's coordinates in a world frame (optional).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub pose: Option<[f64; 3]>,
+    /// Beams: each one's range, `null` where it returned nothing.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub ranges: Option<Vec<Option<f64>>>,
+    /// Beams: bearing of the first, radians counter-clockwise from the x axis.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub angle_min: Option<f64>,
+    /// Beams: angle from one to the next, radians.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub angle_increment: Option<f64>,
+    /// Beams: nearer returns are no returns (default 0).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub range_min: Option<f64>,
+    /// Beams: returns at or beyond this are no returns; a beam without one is free up to
+    /// it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub range_max: Option<f64>,
+    /// Beams: intensities (optional, one per beam; read and not used).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub intensities: Option<Vec<Option<f64>>>,
 }
 
 /// A polyline on the wire: `{"closed":..,"points":[[x,y],..]}`.
@@ -50,38 +78,107 @@ impl From<PolylineJson> for Polyline {
     }
 }
 
-/// The truth of one frame of a multi-frame stream.
+/// An opening in a wall (a doorway) on the wire: the segment across it, `[[x,y],[x,y]]`.
+pub type OpeningJson = [Point; 2];
+
+/// The sensor a simulated scan stream was made with (truth files of scenes).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct SensorJson {
+    /// The preset's name.
+    pub name: String,
+    /// Range noise (standard deviation).
+    pub range_noise: f64,
+    /// Probability that a beam returned nothing.
+    pub dropout: f64,
+    /// Probability that a beam returned a spurious short range.
+    pub outliers: f64,
+}
+
+/// The truth of one frame of a multi-frame stream.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct TruthFrame {
     /// Frame number.
     pub frame: u64,
-    /// Exact curves of that frame.
+    /// Exact curves of that frame (for a scan, what the sensor could see of each
+    /// surface, in the sensor's frame).
     pub polylines: Vec<PolylineJson>,
+    /// Scans: the openings in the walls (doorways), in the sensor's frame.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub openings: Option<Vec<OpeningJson>>,
+    /// Scans: the sensor's pose in the scene.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub pose: Option<[f64; 3]>,
 }
 
 /// A truth file: `{"polylines":[..]}` (frame 0, or the only frame), plus `"frames"` with
-/// each frame's curves when the shape moves.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+/// each frame's curves when there are several; scans add the openings and the sensor.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct TruthFile {
     /// Curves of the first frame.
     pub polylines: Vec<PolylineJson>,
+    /// Scans: openings of the first frame.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub openings: Option<Vec<OpeningJson>>,
     /// Curves of every frame, when there is more than one.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub frames: Option<Vec<TruthFrame>>,
+    /// Scans: the sensor.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sensor: Option<SensorJson>,
+    /// Scans: every surface of the scene, in the scene's (world) coordinates.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub scene: Option<Vec<PolylineJson>>,
+    /// Scans: the sensor's pose in the scene in the first frame.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub pose: Option<[f64; 3]>,
 }
 
 impl TruthFile {
     /// The truth of frame `frame`: its own entry if listed, else the top-level curves.
     pub fn for_frame(&self, frame: Option<u64>) -> Vec<Polyline> {
+        self.frame(frame)
+            .0
+            .iter()
+            .cloned()
+            .map(Into::into)
+            .collect()
+    }
+
+    /// The curves, openings and sensor pose of frame `frame`: its own entry if listed,
+    /// else the top-level ones.
+    pub fn frame(&self, frame: Option<u64>) -> (&[PolylineJson], &[OpeningJson], Option<[f64; 3]>) {
         let listed = frame.and_then(|f| {
             self.frames
                 .as_ref()
                 .and_then(|fs| fs.iter().find(|x| x.frame == f))
         });
         match listed {
-            Some(f) => f.polylines.iter().cloned().map(Into::into).collect(),
-            None => self.polylines.iter().cloned().map(Into::into).collect(),
+            Some(f) => (&f.polylines, f.openings.as_deref().unwrap_or(&[]), f.pose),
+            None => (
+                &self.polylines,
+                self.openings.as_deref().unwrap_or(&[]),
+                self.pose,
+            ),
         }
+    }
+
+    /// Every surface of the scene in the frame of a sensor at `pose`; empty without a
+    /// scene or a pose.
+    pub fn surfaces(&self, pose: Option<[f64; 3]>) -> Vec<Polyline> {
+        let (Some(scene), Some(pose)) = (&self.scene, pose) else {
+            return Vec::new();
+        };
+        scene
+            .iter()
+            .map(|pl| Polyline {
+                closed: pl.closed,
+                points: pl
+                    .points
+                    .iter()
+                    .map(|&p| crate::synth::lidar::to_sensor(pose, p))
+                    .collect(),
+            })
+            .collect()
     }
 }
 
@@ -143,6 +240,31 @@ pub struct FrameStats {
     /// Stopping tolerance used.
     #[serde(default)]
     pub eps: f64,
+    /// Scan frames: returns that no curve explains (the `features`' returns).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub unexplained: Option<usize>,
+    /// Scan frames: the range noise used (configured, or estimated from the returns).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub range_noise: Option<f64>,
+}
+
+/// A cluster of returns that no curve explains, on the wire:
+/// `{"center":[x,y],"returns":n}`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct FeatureJson {
+    /// The returns' centroid.
+    pub center: Point,
+    /// How many returns.
+    pub returns: usize,
+}
+
+impl From<&Feature> for FeatureJson {
+    fn from(f: &Feature) -> Self {
+        FeatureJson {
+            center: f.center,
+            returns: f.returns,
+        }
+    }
 }
 
 /// One line of a result stream: curves and stats, or an error, for one input frame.
@@ -156,6 +278,10 @@ pub struct ResultRecord {
     /// The curves.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub polylines: Option<Vec<PolylineJson>>,
+    /// Scan frames: clusters of returns that no curve explains (legs, clutter, spurious
+    /// returns).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub features: Option<Vec<FeatureJson>>,
     /// How they were made.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub stats: Option<FrameStats>,
@@ -165,4 +291,25 @@ pub struct ResultRecord {
     /// Daemon only: `true` when the frame was skipped for a newer one of its stream.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub skipped: Option<bool>,
+}
+
+impl ResultRecord {
+    /// The record of a reconstructed frame: its curves, features (scan frames) and stats.
+    pub fn of(
+        stream: Option<String>,
+        frame: u64,
+        r: &crate::reconstruct::Reconstruction,
+    ) -> ResultRecord {
+        ResultRecord {
+            stream,
+            frame,
+            polylines: Some(r.polylines.iter().map(PolylineJson::from).collect()),
+            features: r
+                .stats
+                .unexplained
+                .map(|_| r.features.iter().map(FeatureJson::from).collect()),
+            stats: Some(r.stats.clone()),
+            ..Default::default()
+        }
+    }
 }

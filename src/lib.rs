@@ -28,6 +28,7 @@ pub mod mesh;
 pub mod pipeline;
 pub mod reconstruct;
 pub mod redistance;
+pub mod scan;
 pub mod synth;
 
 pub use error::{Error, Result};

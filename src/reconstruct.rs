@@ -13,6 +13,7 @@ use std::time::Instant;
 
 use crate::distance::validate_points;
 use crate::error::{Error, Result};
+use crate::export::support::Feature;
 use crate::export::ExportParams;
 use crate::format::{FrameStats, StageMs};
 use crate::geom::{add, sub, BBox, Point, Polyline};
@@ -23,6 +24,7 @@ use crate::levelset::warm::Previous;
 use crate::levelset::SolverParams;
 use crate::mesh::field::{AdaptedMesh, MeshParams, MetricField};
 use crate::mesh::Mesh;
+use crate::scan::{Analysis, Scan, ScanParams};
 
 pub use crate::levelset::evolve::renormalize;
 
@@ -36,15 +38,18 @@ pub struct Params {
     pub solver: SolverParams,
     /// The export.
     pub export: ExportParams,
+    /// How scan frames are read.
+    pub scan: ScanParams,
 }
 
 impl Params {
-    /// Parameters from their three parts.
+    /// Parameters from their three parts (and the default scan reading).
     pub fn new(mesh: MeshParams, solver: SolverParams, export: ExportParams) -> Params {
         Params {
             mesh,
             solver,
             export,
+            scan: ScanParams::default(),
         }
     }
 }
@@ -65,8 +70,14 @@ pub struct Reconstruction {
     pub solve: SolveReport,
     /// The solver settings used.
     pub settings: SolverSettings,
-    /// The estimated noise of the data (median local-fit residual).
+    /// The estimated noise of the data (median local-fit residual; for a scan, the range
+    /// noise).
     pub noise_estimate: f64,
+    /// Scan frames: the clusters of returns that no curve explains, in data coordinates.
+    pub features: Vec<Feature>,
+    /// Scan frames: the sensor's position and the boundary of the free space its rays
+    /// swept, in data coordinates.
+    pub free_space: Option<(Point, Polyline)>,
 }
 
 /// Reconstructs curves from `points`.
@@ -84,7 +95,43 @@ pub struct Reconstruction {
 /// assert!(r.polylines[0].closed && r.polylines[0].signed_area() > 0.0);
 /// ```
 pub fn reconstruct(points: &[Point], params: &Params) -> Result<Reconstruction> {
-    reconstruct_warm(points, params, None)
+    reconstruct_with(points, None, params, None)
+}
+
+/// Reconstructs the walls a scanner saw: open curves along the returns, with the free
+/// space (the sensor's side) on their left; returns no curve explains are
+/// [`Reconstruction::features`].
+///
+/// ```
+/// use isoline::reconstruct::{reconstruct_scan, Params};
+/// use isoline::scan::{LaserScan, Scan};
+/// // A wall 2 m in front of a sensor at the origin, seen over 90 degrees.
+/// let n = 181;
+/// let ranges: Vec<Option<f64>> = (0..n)
+///     .map(|i| {
+///         let a = -std::f64::consts::FRAC_PI_4 + i as f64 * (std::f64::consts::FRAC_PI_2 / 180.0);
+///         Some(2.0 / a.cos())
+///     })
+///     .collect();
+/// let scan = Scan::from_laser(&LaserScan {
+///     origin: [0.0, 0.0],
+///     angle_min: -std::f64::consts::FRAC_PI_4,
+///     angle_increment: std::f64::consts::FRAC_PI_2 / 180.0,
+///     ranges: &ranges,
+///     range_min: 0.1,
+///     range_max: 10.0,
+/// })
+/// .unwrap();
+/// let r = reconstruct_scan(&scan, &Params::default()).unwrap();
+/// assert_eq!(r.polylines.len(), 1);
+/// let wall = &r.polylines[0];
+/// assert!(!wall.closed);
+/// // Free side on the left: the wall runs from y < 0 to y > 0 at x = 2.
+/// assert!(wall.points[0][1] < wall.points.last().unwrap()[1]);
+/// assert!(wall.points.iter().all(|p| (p[0] - 2.0).abs() < 0.01));
+/// ```
+pub fn reconstruct_scan(scan: &Scan, params: &Params) -> Result<Reconstruction> {
+    reconstruct_with(&scan.returns(), Some(scan), params, None)
 }
 
 /// [`reconstruct`] warm-started from `previous`, the reconstruction of an earlier frame of
@@ -96,8 +143,19 @@ pub fn reconstruct_warm(
     params: &Params,
     previous: Option<&Reconstruction>,
 ) -> Result<Reconstruction> {
+    reconstruct_with(points, None, params, previous)
+}
+
+/// The stages in turn on `points`, seen by `scan` when the frame has a sensor (its
+/// returns are then `points`), warm-started from `previous`.
+pub fn reconstruct_with(
+    points: &[Point],
+    scan: Option<&Scan>,
+    params: &Params,
+    previous: Option<&Reconstruction>,
+) -> Result<Reconstruction> {
     let _span = tracing::debug_span!("reconstruct", points = points.len()).entered();
-    let prepared = prepare(points, params)?;
+    let prepared = prepare(points, scan, params)?;
     let adapted = adapt(&prepared, previous.map(|p| &p.mesh));
     let warm = previous.map(|p| Previous {
         mesh: &p.mesh,
@@ -124,19 +182,29 @@ pub struct Prepared {
     pub local: Vec<Point>,
     /// Their distance field and metric frames.
     pub metric: MetricField,
+    /// A scan frame's runs, scales, free space and support, centred.
+    pub scan: Option<Analysis>,
     /// Milliseconds spent.
     pub ms: f64,
 }
 
 /// The distance stage: validates the points, centres them and builds their distance
-/// field and metric frames.
-pub fn prepare(points: &[Point], params: &Params) -> Result<Prepared> {
+/// field and metric frames; for a scan frame (`scan`, whose returns are `points`), also
+/// its runs, scales and free space, and the sizes follow the sensor: `hmin` is the range
+/// noise, at least a quarter of the median beam spacing, instead of a share of the
+/// bounding box.
+pub fn prepare(points: &[Point], scan: Option<&Scan>, params: &Params) -> Result<Prepared> {
     let t0 = Instant::now();
     validate_points(points)?;
-    params.solver.validate().map_err(|problems| Error::Config {
-        path: "solver parameters".into(),
-        problems,
-    })?;
+    let config = |path: &str| {
+        let path = path.to_string();
+        move |problems| Error::Config { path, problems }
+    };
+    params
+        .solver
+        .validate()
+        .map_err(config("solver parameters"))?;
+    params.scan.validate().map_err(config("scan parameters"))?;
     let bbox = BBox::of(points).ok_or(Error::EmptyPointSet)?;
     let center = bbox.center();
     let local: Vec<Point> = points.iter().map(|&p| sub(p, center)).collect();
@@ -159,13 +227,39 @@ pub fn prepare(points: &[Point], params: &Params) -> Result<Prepared> {
         let half = bbox.size()[0].min(bbox.size()[1]) / 2.0;
         mesh_params.padding = mesh_params.padding.max((r - half) / diag + 0.05);
     }
-    let metric = MetricField::new(&local, &mesh_params)?;
+    let analysis = scan.map(|s| Analysis::new(s.clone(), &params.scan).shifted(center));
+    if let Some(a) = &analysis {
+        // Far from the sensor the beams are sparse, but the noise is the range noise
+        // everywhere: the mesh resolves the noise band, and where the beams are denser
+        // than that, a quarter of their spacing. The floor keeps a noiseless, dense scan
+        // from meshing without bound.
+        let hmin = mesh_params
+            .hmin
+            .unwrap_or_else(|| a.scales.noise.max(0.25 * a.scales.spacing).max(1e-4 * diag));
+        mesh_params.hmin = Some(hmin);
+        mesh_params.band = Some(mesh_params.band.unwrap_or(8.0 * hmin));
+    }
+    let mut metric = MetricField::new(&local, &mesh_params)?;
+    if let Some(a) = &analysis {
+        metric.noise_estimate = a.scales.noise;
+        let hmin = metric.params.hmin;
+        // Frames along the runs (8 neighbours a side span the local shape without
+        // reaching across a corner), and a fine mesh where a run ends: its end is placed
+        // to within the mesh size there.
+        metric.refit_along_chains(
+            &a.run_points(),
+            8,
+            2.0 * hmin,
+            (4.0 * hmin).max(2.0 * a.scales.spacing),
+        );
+    }
     Ok(Prepared {
         points: points.len(),
         center,
         diag,
         local,
         metric,
+        scan: analysis,
         ms: t0.elapsed().as_secs_f64() * 1e3,
     })
 }
@@ -191,14 +285,34 @@ pub fn solve(
     previous: Option<Previous<'_>>,
     params: &Params,
 ) -> Solved {
-    evolve::solve(
-        &prepared.metric,
-        adapted,
-        prepared.diag,
-        prepared.center,
-        previous,
-        &params.solver,
-    )
+    match &prepared.scan {
+        // A scan's free space is a better start than any earlier frame's level set
+        // (which, in a moving sensor's frame, is in the wrong place): the warm start is
+        // the mesh, adapted from the previous frame's.
+        Some(scan) => {
+            let mut solved = evolve::solve(
+                &prepared.metric,
+                adapted,
+                prepared.diag,
+                prepared.center,
+                evolve::Start::FreeSpace(&scan.free),
+                &params.solver,
+            );
+            solved.warm_start = adapted.warm;
+            solved
+        }
+        None => evolve::solve(
+            &prepared.metric,
+            adapted,
+            prepared.diag,
+            prepared.center,
+            match previous {
+                Some(p) => evolve::Start::Warm(p),
+                None => evolve::Start::Cold,
+            },
+            &params.solver,
+        ),
+    }
 }
 
 /// The export stage: the curves ([`crate::export::curves`]) in data coordinates, with the
@@ -214,7 +328,12 @@ pub fn export(
     let hmin = adapted.params.hmin;
     let mut mesh = adapted.mesh;
     let u = solved.u;
-    let polylines = crate::export::curves(&mesh, &u, center, prepared.diag, hmin, params);
+    let scan = prepared.scan.as_ref().map(|a| {
+        let sigma = a.scales.noise;
+        (a, 3.0 * sigma + hmin)
+    });
+    let (polylines, features) =
+        crate::export::curves(&mesh, &u, center, prepared.diag, hmin, scan, params);
     for p in &mut mesh.coords {
         *p = add(*p, center);
     }
@@ -249,6 +368,11 @@ pub fn export(
         renormalizations: report.renormalizations,
         hmin,
         eps: solved.settings.eps,
+        unexplained: prepared
+            .scan
+            .as_ref()
+            .map(|_| features.iter().map(|f| f.returns).sum()),
+        range_noise: prepared.scan.as_ref().map(|a| a.scales.noise),
     };
     Reconstruction {
         polylines,
@@ -258,6 +382,12 @@ pub fn export(
         solve: report,
         settings: solved.settings,
         noise_estimate: adapted.noise_estimate,
+        features,
+        free_space: prepared.scan.as_ref().map(|a| {
+            let mut poly = a.free.polygon();
+            poly.points.iter_mut().for_each(|p| *p = add(*p, center));
+            (add(a.free.origin, center), poly)
+        }),
     }
 }
 
@@ -265,25 +395,19 @@ pub fn export(
 /// with a tracing span carrying the stream and frame ids. The reconstruction itself is
 /// returned too, for drawing.
 pub fn reconstruct_frame(
-    frame: &crate::format::FrameRecord,
+    frame: &crate::ingest::Frame,
     params: &Params,
 ) -> (crate::format::ResultRecord, Option<Reconstruction>) {
-    use crate::format::{PolylineJson, ResultRecord};
+    use crate::format::ResultRecord;
     let span = tracing::info_span!(
         "frame",
         stream = frame.stream.as_deref().unwrap_or(""),
         frame = frame.frame
     );
     let _e = span.enter();
-    match reconstruct(&frame.points, params) {
+    match reconstruct_with(&frame.points, frame.scan.as_ref(), params, None) {
         Ok(r) => (
-            ResultRecord {
-                stream: frame.stream.clone(),
-                frame: frame.frame,
-                polylines: Some(r.polylines.iter().map(PolylineJson::from).collect()),
-                stats: Some(r.stats.clone()),
-                ..Default::default()
-            },
+            ResultRecord::of(frame.stream.clone(), frame.frame, &r),
             Some(r),
         ),
         Err(e) => (

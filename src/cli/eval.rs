@@ -18,6 +18,13 @@ pub struct Args {
     /// Truth file written by `isoline synth`.
     #[arg(long)]
     truth: PathBuf,
+    /// The input frames (NDJSON): for scan frames, adds the scan-aware scores.
+    #[arg(long)]
+    frames: Option<PathBuf>,
+    /// Tolerance of the scan-aware scores; default three times the truth's range noise
+    /// (5 cm without one).
+    #[arg(long)]
+    tolerance: Option<f64>,
 }
 
 /// Prints the accuracy as JSON: one object, or the worst Hausdorff distance and one
@@ -26,17 +33,55 @@ pub fn run(a: Args) -> Result<()> {
     let truth_file: TruthFile = serde_json::from_str(&super::read(&a.truth)?)
         .with_context(|| format!("{}: not a truth file", a.truth.display()))?;
     let records = read_polyline_records(&a.recon)?;
+    let frames: Vec<isoline::ingest::Frame> = match &a.frames {
+        Some(p) => isoline::ingest::read_frames(p)?,
+        None => Vec::new(),
+    };
+    let tol = a.tolerance.unwrap_or_else(|| {
+        truth_file
+            .sensor
+            .as_ref()
+            .map_or(0.05, |s| 3.0 * s.range_noise)
+    });
+    if !(tol.is_finite() && tol > 0.0) {
+        bail!("--tolerance {tol}: must be a positive number");
+    }
     let results: Vec<serde_json::Value> = records
         .iter()
-        .map(|(frame, pls)| {
-            let acc = eval::compare(pls, &truth_file.for_frame(*frame), None);
+        .map(|(frame, pls)| -> Result<serde_json::Value> {
+            let (truth, openings, pose) = truth_file.frame(*frame);
+            let truth: Vec<Polyline> = truth.iter().cloned().map(Into::into).collect();
+            let surfaces = truth_file.surfaces(pose);
+            let acc = eval::compare_surfaces(pls, &truth, &surfaces, None);
             let mut v = accuracy_json(&acc);
             if let Some(f) = frame {
                 v["frame"] = json!(f);
             }
-            v
+            if a.frames.is_some() {
+                let input = frames
+                    .iter()
+                    .find(|f| Some(f.frame) == *frame || (frame.is_none() && frames.len() == 1))
+                    .with_context(|| format!("no input frame {frame:?}"))?;
+                if let Some(scan) = &input.scan {
+                    let openings: Vec<_> = openings.iter().map(|o| (o[0], o[1])).collect();
+                    let s = eval::scan_scores(pls, &truth, &surfaces, &openings, scan, tol);
+                    for (k, x) in [
+                        ("tolerance", json!(s.tolerance)),
+                        ("returns", json!(s.returns)),
+                        ("returns_explained", json!(s.returns_explained)),
+                        ("free_space_share", json!(s.free_space_share)),
+                        ("openings", json!(s.openings)),
+                        ("openings_bridged", json!(s.openings_bridged)),
+                        ("gaps_bridged", json!(s.gaps_bridged)),
+                        ("walls_missed", json!(s.walls_missed)),
+                    ] {
+                        v[k] = x;
+                    }
+                }
+            }
+            Ok(v)
         })
-        .collect();
+        .collect::<Result<_>>()?;
     let out = if results.len() == 1 {
         results.into_iter().next().expect("one result")
     } else {
@@ -44,7 +89,24 @@ pub fn run(a: Args) -> Result<()> {
             .iter()
             .map(|r| r["hausdorff"].as_f64().unwrap_or(f64::INFINITY))
             .fold(0.0, f64::max);
-        json!({ "hausdorff": finite(worst), "frames": results })
+        let mut v = json!({ "hausdorff": finite(worst) });
+        let values =
+            |k: &str| -> Vec<f64> { results.iter().filter_map(|r| r[k].as_f64()).collect() };
+        let explained = values("returns_explained");
+        if !explained.is_empty() {
+            let free = values("free_space_share");
+            let sum = |k: &str| values(k).iter().sum::<f64>();
+            v["returns_explained_min"] = json!(explained.iter().copied().fold(1.0, f64::min));
+            v["returns_explained_mean"] =
+                json!(explained.iter().sum::<f64>() / explained.len() as f64);
+            v["free_space_share_max"] = json!(free.iter().copied().fold(0.0, f64::max));
+            v["free_space_share_mean"] = json!(free.iter().sum::<f64>() / free.len() as f64);
+            v["openings_bridged"] = json!(sum("openings_bridged"));
+            v["gaps_bridged"] = json!(sum("gaps_bridged"));
+            v["walls_missed"] = json!(sum("walls_missed"));
+        }
+        v["frames"] = json!(results);
+        v
     };
     println!("{out}");
     Ok(())

@@ -6,7 +6,7 @@ use std::path::PathBuf;
 use anyhow::{bail, Context, Result};
 
 use isoline::export::svg;
-use isoline::format::FrameRecord;
+use isoline::ingest::Frame;
 
 /// `isoline reconstruct` options.
 #[derive(clap::Args)]
@@ -69,7 +69,7 @@ pub fn run(a: Args) -> Result<()> {
         })?,
     };
     let all = isoline::ingest::read_input(input)?;
-    let frames: Vec<FrameRecord> = match frame {
+    let frames: Vec<Frame> = match frame {
         Some(f) => all.into_iter().filter(|r| r.frame == f).collect(),
         None => all,
     };
@@ -112,14 +112,9 @@ pub fn run(a: Args) -> Result<()> {
     let text = match format {
         Format::Svg => {
             let r = last.as_ref().expect("one frame, reconstructed");
-            let pts = &frames[0].points;
+            let features: Vec<_> = r.features.iter().map(|f| f.center).collect();
             svg::render(
-                &svg::Drawing {
-                    mesh: draw_mesh.then_some(&r.mesh),
-                    points: pts,
-                    polylines: &r.polylines,
-                    view: isoline::geom::BBox::of(pts).map(|b| b.padded(0.05 * b.diag())),
-                },
+                &svg::of_reconstruction(&frames[0].points, r, &features, &[], draw_mesh),
                 1200.0,
             )
         }

@@ -2,12 +2,15 @@
 //! for results (NDJSON, JSON, GeoJSON, CSV, SVG).
 
 pub mod contour;
+pub mod support;
 pub mod svg;
 pub mod writers;
 
 use crate::geom::{add, Point, Polyline};
 use crate::mesh::Mesh;
+use crate::scan::Analysis;
 use contour::{simplify, zero_isoline};
+use support::Feature;
 
 /// Export parameters.
 #[derive(Clone, Debug, PartialEq, Default)]
@@ -23,21 +26,44 @@ pub struct ExportParams {
 /// as polylines moved back by `center` into data coordinates, loops smaller than
 /// `params.min_area` dropped and optionally simplified. `diag` (the data's diagonal)
 /// scales the merging of repeated crossings; `hmin` the default smallest loop.
+///
+/// For a scan frame (`scan`, with the tolerance of its support), only the pieces within
+/// the tolerance of a run of returns are kept ([`support::cut_to_support`]), and the
+/// returns farther than it from every kept piece come back as features.
 pub fn curves(
     mesh: &Mesh,
     u: &[f64],
     center: Point,
     diag: f64,
     hmin: f64,
+    scan: Option<(&Analysis, f64)>,
     params: &ExportParams,
-) -> Vec<Polyline> {
+) -> (Vec<Polyline>, Vec<Feature>) {
     let mut polylines = zero_isoline(mesh, u, 1e-9 * diag);
     // Loops smaller than a disc of radius 3 hmin are below what the mesh resolves: specks
-    // left where the level set grazes zero between samples.
+    // left where the level set grazes zero between samples. On a scan, the support
+    // decides instead: a leg a few centimetres across is such a loop.
     let min_area = params
         .min_area
         .unwrap_or(std::f64::consts::PI * 9.0 * hmin * hmin);
-    polylines.retain(|p| !p.closed || p.signed_area().abs() >= min_area);
+    if scan.is_none() {
+        polylines.retain(|p| !p.closed || p.signed_area().abs() >= min_area);
+    }
+    let mut features = Vec::new();
+    if let Some((a, tol)) = scan {
+        let support = crate::eval::SegmentIndex::new(&a.support);
+        let ends: Vec<Point> = a
+            .support
+            .iter()
+            .filter(|pl| !pl.closed)
+            .flat_map(|pl| [pl.points[0], pl.points[pl.points.len() - 1]])
+            .collect();
+        polylines = support::cut_to_support(&polylines, &support, &ends, tol, 0.5 * tol, tol);
+        features = support::unexplained(&a.run_points(), &polylines, tol);
+        for f in &mut features {
+            f.center = add(f.center, center);
+        }
+    }
     if params.simplify > 0.0 {
         polylines = polylines
             .iter()
@@ -49,5 +75,5 @@ pub fn curves(
             *p = add(*p, center);
         }
     }
-    polylines
+    (polylines, features)
 }

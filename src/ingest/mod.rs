@@ -1,5 +1,6 @@
-//! Readers for the input formats: point files and NDJSON frame streams. Every error
-//! names the source and the 1-based line.
+//! The ingest stage: readers for the input formats (point files and NDJSON frame
+//! streams) and the validated [`Frame`] every later stage takes. Every error names the
+//! source and the 1-based line.
 
 use std::io::BufRead;
 use std::path::Path;
@@ -7,6 +8,106 @@ use std::path::Path;
 use crate::error::{Error, Result};
 use crate::format::FrameRecord;
 use crate::geom::Point;
+use crate::scan::{LaserScan, Scan};
+
+/// One validated input frame: its points and, for a frame seen from a sensor, its beams.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Frame {
+    /// Stream id.
+    pub stream: Option<String>,
+    /// Frame number.
+    pub frame: u64,
+    /// Time stamp, seconds.
+    pub t: Option<f64>,
+    /// The points: the frame's own, or the returns of its beams.
+    pub points: Vec<Point>,
+    /// The sensor's view: the beams of a scanner frame, or the points seen from the
+    /// frame's `origin`; `None` for points without an origin.
+    pub scan: Option<Scan>,
+    /// The pose of the frame's coordinates in a world frame.
+    pub pose: Option<[f64; 3]>,
+}
+
+impl Frame {
+    /// A frame of points with no sensor.
+    pub fn of_points(frame: u64, points: Vec<Point>) -> Frame {
+        Frame {
+            frame,
+            points,
+            ..Default::default()
+        }
+    }
+
+    /// Validates a wire record: either points or beams (ranges with `angle_min`,
+    /// `angle_increment` and `range_max`), finite pose and origin.
+    pub fn from_record(r: FrameRecord) -> Result<Frame> {
+        if let Some(p) = r.pose {
+            if !p.iter().all(|v| v.is_finite()) {
+                return Err(Error::Scan(format!("pose {p:?} is not finite")));
+            }
+        }
+        if let Some(t) = r.t {
+            if !t.is_finite() {
+                return Err(Error::Scan(format!("t = {t} is not finite")));
+            }
+        }
+        let scan = match &r.ranges {
+            Some(ranges) => {
+                if !r.points.is_empty() {
+                    return Err(Error::Scan(
+                        "a frame has \"points\" or \"ranges\", not both".into(),
+                    ));
+                }
+                let need = |v: Option<f64>, key: &str| {
+                    v.ok_or_else(|| Error::Scan(format!("\"ranges\" without \"{key}\"")))
+                };
+                if let Some(i) = &r.intensities {
+                    if i.len() != ranges.len() {
+                        return Err(Error::Scan(format!(
+                            "{} intensities for {} ranges",
+                            i.len(),
+                            ranges.len()
+                        )));
+                    }
+                }
+                Some(Scan::from_laser(&LaserScan {
+                    origin: r.origin.unwrap_or([0.0, 0.0]),
+                    angle_min: need(r.angle_min, "angle_min")?,
+                    angle_increment: need(r.angle_increment, "angle_increment")?,
+                    ranges,
+                    range_min: r.range_min.unwrap_or(0.0),
+                    range_max: need(r.range_max, "range_max")?,
+                })?)
+            }
+            None => {
+                if r.angle_min.is_some() || r.angle_increment.is_some() || r.range_max.is_some() {
+                    return Err(Error::Scan("beam fields without \"ranges\"".into()));
+                }
+                match r.origin {
+                    // Bad points are refused with their index by the distance stage.
+                    Some(o) if o.iter().all(|v| v.is_finite()) => {
+                        (crate::distance::validate_points(&r.points).is_ok())
+                            .then(|| Scan::from_points(&r.points, o))
+                    }
+                    Some(o) => return Err(Error::Scan(format!("origin {o:?} is not finite"))),
+                    None => None,
+                }
+            }
+        };
+        let points = match (&r.ranges, &scan) {
+            (Some(_), Some(s)) => s.returns(),
+            _ => r.points,
+        };
+        Ok(Frame {
+            stream: r.stream,
+            frame: r.frame,
+            t: r.t,
+            points,
+            scan,
+            pose: r.pose,
+        })
+    }
+}
 
 /// Parses a point file: one point a line, `x y` or `x,y` (further columns ignored),
 /// `#` starts a comment, blank lines are skipped. `name` labels errors.
@@ -58,17 +159,21 @@ pub fn parse_points(text: &str, name: &str) -> Result<Vec<Point>> {
     Ok(pts)
 }
 
-/// Parses one NDJSON frame line (`line` is 1-based, for the message).
-pub fn parse_frame(text: &str, name: &str, line: usize) -> Result<FrameRecord> {
-    serde_json::from_str::<FrameRecord>(text).map_err(|e| Error::Parse {
+/// Parses and validates one NDJSON frame line (`line` is 1-based, for the message).
+pub fn parse_frame(text: &str, name: &str, line: usize) -> Result<Frame> {
+    let err = |message: String| Error::Parse {
         source_name: name.to_string(),
         line,
-        message: format!("invalid frame: {e}"),
-    })
+        message,
+    };
+    let rec = serde_json::from_str::<FrameRecord>(text)
+        .map_err(|e| err(format!("invalid frame: {e}")))?;
+    let frame = rec.frame;
+    Frame::from_record(rec).map_err(|e| err(format!("frame {frame}: {e}")))
 }
 
 /// Reads every frame of an NDJSON file; the first bad line is an error naming it.
-pub fn read_frames(path: &Path) -> Result<Vec<FrameRecord>> {
+pub fn read_frames(path: &Path) -> Result<Vec<Frame>> {
     let f = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
     let name = path.display().to_string();
     let mut out = Vec::new();
@@ -91,18 +196,15 @@ pub fn is_frame_stream(path: &Path) -> bool {
 }
 
 /// Reads an input as frames: every frame of an NDJSON stream, or a point file as frame 0.
-pub fn read_input(path: &Path) -> Result<Vec<FrameRecord>> {
+pub fn read_input(path: &Path) -> Result<Vec<Frame>> {
     if is_frame_stream(path) {
         read_frames(path)
     } else {
         let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
-        Ok(vec![FrameRecord {
-            stream: None,
-            frame: 0,
-            t: None,
-            points: parse_points(&text, &path.display().to_string())?,
-            origin: None,
-        }])
+        Ok(vec![Frame::of_points(
+            0,
+            parse_points(&text, &path.display().to_string())?,
+        )])
     }
 }
 
@@ -124,7 +226,6 @@ pub fn read_points(path: &Path, frame: Option<u64>) -> Result<Vec<Point>> {
                 None => "the stream has no frames".into(),
             },
         })?;
-        crate::distance::validate_points(&f.points)?;
         Ok(f.points)
     } else {
         let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
@@ -162,11 +263,62 @@ mod tests {
         let f = parse_frame(r#"{"frame":3,"points":[[0,1],[2,3]]}"#, "s", 1).unwrap();
         assert_eq!((f.frame, f.points.len(), f.stream), (3, 2, None));
         let f = parse_frame(
-            r#"{"stream":"l","frame":3,"t":0.1,"points":[],"origin":[0,0],"x":1}"#,
+            r#"{"stream":"l","frame":3,"t":0.1,"points":[[1,0],[0,1]],"origin":[0,0],"x":1}"#,
             "s",
             1,
         )
         .unwrap();
-        assert_eq!(f.origin, Some([0.0, 0.0]));
+        let scan = f.scan.expect("points seen from an origin");
+        assert_eq!(scan.origin, [0.0, 0.0]);
+        assert!(!scan.free_rays && scan.ranges == vec![1.0, 1.0]);
+    }
+
+    #[test]
+    fn beam_frames_become_scans_and_bad_ones_are_named() {
+        let f = parse_frame(
+            r#"{"frame":1,"ranges":[1.0,null,2.0,0.01,9.0],"angle_min":-0.1,"angle_increment":0.05,"range_min":0.1,"range_max":5.0,"pose":[1,2,0.5]}"#,
+            "scan.ndjson",
+            4,
+        )
+        .unwrap();
+        let scan = f.scan.unwrap();
+        // null, below range_min and beyond range_max are no returns.
+        assert_eq!(f.points.len(), 2);
+        assert_eq!(scan.ranges.iter().filter(|r| r.is_nan()).count(), 3);
+        assert_eq!(f.pose, Some([1.0, 2.0, 0.5]));
+        // A clockwise sweep is stored counter-clockwise.
+        let f = parse_frame(
+            r#"{"frame":1,"ranges":[1.0,2.0],"angle_min":0.1,"angle_increment":-0.1,"range_max":5}"#,
+            "s",
+            1,
+        )
+        .unwrap();
+        let s = f.scan.unwrap();
+        assert!(s.angles[0] < s.angles[1] && s.ranges == vec![2.0, 1.0]);
+        for (bad, what) in [
+            (
+                r#"{"frame":2,"ranges":[1.0],"angle_min":0,"angle_increment":0,"range_max":5}"#,
+                "angle_increment",
+            ),
+            (
+                r#"{"frame":2,"ranges":[1.0],"angle_min":0,"angle_increment":0.1}"#,
+                "range_max",
+            ),
+            (
+                r#"{"frame":2,"ranges":[1.0],"points":[[0,0]],"angle_min":0,"angle_increment":0.1,"range_max":5}"#,
+                "not both",
+            ),
+            (
+                r#"{"frame":2,"ranges":[1.0,1.0,1.0],"angle_min":0,"angle_increment":4,"range_max":5}"#,
+                "more than a turn",
+            ),
+            (
+                r#"{"frame":2,"ranges":[1.0],"angle_min":0,"angle_increment":0.1,"range_max":5,"pose":[0,0]}"#,
+                "invalid frame",
+            ),
+        ] {
+            let e = parse_frame(bad, "scan.ndjson", 9).unwrap_err().to_string();
+            assert!(e.contains("scan.ndjson, line 9") && e.contains(what), "{e}");
+        }
     }
 }

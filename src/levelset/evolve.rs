@@ -13,6 +13,7 @@ use crate::levelset::solver::{SolveReport, Solver, SolverSettings, StopReason};
 use crate::levelset::warm::{warm_start, Previous, WarmCriteria};
 use crate::mesh::field::{AdaptedMesh, MetricField};
 use crate::redistance::Redistancer;
+use crate::scan::FreeSpace;
 
 /// The solve stage's product: the level set on the adapted mesh and how it was found.
 #[derive(Debug)]
@@ -38,17 +39,31 @@ pub struct Solved {
     pub ms_renormalize: f64,
 }
 
+/// Where a frame's level set may start.
+#[derive(Clone, Copy, Debug)]
+pub enum Start<'a> {
+    /// From `params.init`.
+    Cold,
+    /// From the previous frame's level set when that is a good start (see
+    /// [`mod@crate::levelset::warm`]), else from `params.init`.
+    Warm(Previous<'a>),
+    /// From the free space a scan's rays swept ([`init::free_space`]): the curve starts
+    /// on the data, so the evolution has nothing to capture (and attraction would carry
+    /// the curve into space the sensor saw as free): no time steps, the settle places
+    /// it.
+    FreeSpace(&'a FreeSpace),
+}
+
 /// The level set of one frame on its adapted mesh (`field` is the frame's distance
-/// field and metric frames, in the mesh's coordinates; `diag` its data's diagonal):
-/// from the previous frame's when that is a good start (see [`mod@crate::levelset::warm`];
-/// `shift` takes the previous frame's coordinates to these), else from `params.init`,
-/// evolved by the solver and, on noisy data, settled on the data's median.
+/// field and metric frames, in the mesh's coordinates; `diag` its data's diagonal),
+/// from `start` (`shift` takes the previous frame's coordinates to these), evolved by the
+/// solver and, on noisy data, settled on the data's median.
 pub fn solve(
     field: &MetricField,
     adapted: &AdaptedMesh,
     diag: f64,
     shift: Point,
-    previous: Option<Previous<'_>>,
+    start: Start<'_>,
     params: &SolverParams,
 ) -> Solved {
     let t0 = Instant::now();
@@ -92,16 +107,25 @@ pub fn solve(
         eps: settings.eps,
         median_settle: params.settle == Settle::Median,
     };
-    let warm = previous.and_then(|prev| warm_start(prev, shift, mesh, &data, &criteria));
+    let warm = match start {
+        Start::Warm(prev) => warm_start(prev, shift, mesh, &data, &criteria),
+        _ => None,
+    };
     let warm_start = warm.is_some();
-    let mut u = match warm {
-        Some((u, near)) => {
+    let mut u = match (warm, start) {
+        (Some((u, near)), _) => {
             if near {
                 settings.patience = warm_patience;
             }
             u
         }
-        None => {
+        (None, Start::FreeSpace(free)) => {
+            let t = Instant::now();
+            let u = init::free_space(mesh, &space, free, &mut fm);
+            ms_renormalize += t.elapsed().as_secs_f64() * 1e3;
+            u
+        }
+        (None, _) => {
             let t = Instant::now();
             let start = init::cold_start(
                 params.init,
@@ -127,7 +151,28 @@ pub fn solve(
             start.u
         }
     };
-    let mut report = Solver::new().solve(mesh, &space, &dist, &data, &mut u, &settings);
+    let mut report = if let Start::FreeSpace(_) = start {
+        // The free-space start already lies on the returns, and the evolution could only
+        // move what lies away from them, which export cuts: it would pinch thin shadows
+        // (behind a leg, say) into loops and cost time for nothing. The settle alone
+        // places the curve in the noise band.
+        let (residual, mean) = crate::levelset::solver::residual(mesh, &data, &u);
+        SolveReport {
+            residual,
+            mean_residual: mean,
+            initial_residual: residual,
+            converged: residual < settings.eps,
+            stop: if residual < settings.eps {
+                StopReason::Converged
+            } else {
+                StopReason::Settled
+            },
+            dt: settings.dt,
+            ..Default::default()
+        }
+    } else {
+        Solver::new().solve(mesh, &space, &dist, &data, &mut u, &settings)
+    };
     let mut renormalized = false;
     if params.settle == Settle::Median {
         let t = Instant::now();

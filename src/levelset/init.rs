@@ -9,6 +9,7 @@ use crate::fem::P1Space;
 use crate::geom::{dist, BBox, Point, Polyline};
 use crate::mesh::{Mesh, VertexTag};
 use crate::redistance::Redistancer;
+use crate::scan::FreeSpace;
 
 /// Where the evolution starts.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
@@ -321,6 +322,46 @@ pub fn medial(
     let a = boundary(Side::Outside);
     let b = boundary(Side::Inside);
     Some(a.iter().zip(&b).map(|(a, b)| 0.5 * (a - b)).collect())
+}
+
+/// The free-space start of a scan frame: negative in the space the rays swept (see
+/// [`FreeSpace`]), positive behind the returns and outside the field of view; a signed
+/// distance to the free space's boundary. The vertices next to a change of sign get
+/// their exact distance to the boundary polygon, which places the P1 zero isoline; fast
+/// marching fills in the rest.
+pub fn free_space(
+    mesh: &Mesh,
+    space: &P1Space,
+    free: &FreeSpace,
+    fm: &mut Redistancer,
+) -> Vec<f64> {
+    let inside: Vec<bool> = mesh.coords.par_iter().map(|&p| free.contains(p)).collect();
+    let boundary = SegmentIndex::new(&[free.polygon()]);
+    let mut u: Vec<f64> = (0..mesh.coords.len())
+        .into_par_iter()
+        .map(|v| {
+            let sign = if inside[v] { -1.0 } else { 1.0 };
+            if space
+                .ring(v)
+                .iter()
+                .any(|&w| inside[w as usize] != inside[v])
+            {
+                sign * boundary.distance(mesh.coords[v])
+            } else {
+                sign * f64::INFINITY
+            }
+        })
+        .collect();
+    if u.iter().any(|x| x.is_finite()) {
+        fm.run(mesh, space, &mut u, f64::INFINITY);
+    }
+    // No change of sign (free space thinner than the mesh, or none in the domain): the
+    // distance itself, everywhere.
+    u.par_iter_mut()
+        .zip(mesh.coords.par_iter())
+        .filter(|(x, _)| !x.is_finite())
+        .for_each(|(x, &p)| *x = x.signum() * boundary.distance(p));
+    u
 }
 
 /// Signed distance to the circle of centre `c` and radius `r`.

@@ -88,7 +88,13 @@ pub fn center_on_data(
         nb
     };
     let list = |s: usize| -> &[u32] {
-        if found.is_empty() {
+        // A sample on a chain (a scan's run) takes its chain window: the same surface,
+        // where a spatial neighbourhood of sparse, distant returns can span a corner or
+        // reach across a depth jump.
+        let chain = metric.chain_window(needed[s] as usize);
+        if !chain.is_empty() {
+            chain
+        } else if found.is_empty() {
             let at = needed[s] as usize * metric.k;
             &metric.neighbours[at..at + k]
         } else {

@@ -151,6 +151,7 @@ impl Adapter {
         self.changed.clear();
         self.changed.resize(mesh.coords.len(), true);
         let mut report = AdaptReport::default();
+        let mut last_change = usize::MAX;
         for _ in 0..opts.max_passes {
             report.passes += 1;
             // Refining a coarse start takes a round of splits per halving of the edges;
@@ -186,10 +187,21 @@ impl Adapter {
             // metric changes fast (a limit cycle of ~0.2% of the vertices on noisy data):
             // by default, stop once a pass touches at most 0.5% of them.
             let live = mesh.num_vertices().max(1);
-            if (splits + collapses) as f64 <= opts.stop_change * live as f64 {
+            let change = splits + collapses;
+            if change as f64 <= opts.stop_change * live as f64 {
                 report.converged = true;
                 break;
             }
+            // A limit cycle wider than that (where the metric jumps, as at the end of a
+            // scan's run of returns) shows as a change that no longer shrinks: stop
+            // once a small change stalls.
+            if change as f64 <= 4.0 * opts.stop_change * live as f64
+                && change as f64 >= 0.8 * last_change as f64
+            {
+                report.converged = true;
+                break;
+            }
+            last_change = change;
         }
         let order = mesh.renumber_spatially();
         let metrics: Vec<Sym2> = order.iter().map(|&v| self.metrics[v as usize]).collect();

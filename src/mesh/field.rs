@@ -6,7 +6,9 @@ use std::time::Instant;
 
 use crate::distance::DistanceField;
 use crate::error::{Error, Result};
-use crate::geom::{sub, BBox, Point, Sym2};
+use rayon::prelude::*;
+
+use crate::geom::{dot, sub, BBox, Point, Sym2};
 use crate::mesh::adapt::{AdaptOptions, AdaptReport, Adapter};
 use crate::mesh::metric::{CurveMetric, MetricParams};
 use crate::mesh::quality::{mesh_stats, MeshStats};
@@ -175,6 +177,9 @@ pub struct AdaptedMesh {
     pub params: MetricParams,
     /// The meshed domain.
     pub domain: BBox,
+    /// Whether adaptation started from the given mesh (the previous frame's) rather
+    /// than from a lattice.
+    pub warm: bool,
     /// Median local-fit residual of the data: a noise estimate.
     pub noise_estimate: f64,
     /// What adaptation did.
@@ -252,6 +257,13 @@ pub struct MetricField {
     pub neighbours: Vec<u32>,
     /// Neighbours per point in `neighbours`.
     pub k: usize,
+    /// For samples on a chain ([`MetricField::refit_along_chains`]): their chain
+    /// neighbours (the sample and up to a window on either side), flat; sample `i`'s are
+    /// `chain_neighbours[chain_offsets[i]..chain_offsets[i + 1]]`. Empty when no chains
+    /// were given.
+    pub chain_neighbours: Vec<u32>,
+    /// Offsets into `chain_neighbours`, one more than there are samples (or empty).
+    pub chain_offsets: Vec<u32>,
     /// Resolved metric parameters (the band derived from the noise when unset).
     pub params: MetricParams,
     /// Median local-fit residual: a noise estimate.
@@ -313,6 +325,8 @@ impl MetricField {
             frames,
             neighbours,
             k,
+            chain_neighbours: Vec::new(),
+            chain_offsets: Vec::new(),
             params: metric_params,
             noise_estimate: noise,
             bbox,
@@ -327,6 +341,104 @@ impl MetricField {
                 total: ms(t0.elapsed()),
             },
         })
+    }
+
+    /// Refits the local frames of the samples that lie on `chains`: sequences of
+    /// samples known to follow one curve in order (a scan's runs of returns). Each
+    /// sample's frame is fitted to its chain neighbours, up to `window` on either side,
+    /// instead of its nearest samples in space, which near a depth jump or on a short,
+    /// isolated run mix unrelated surfaces. Within `end_reach` of a chain's end, and at
+    /// least over its last two gaps (which at grazing incidence are wide), the size
+    /// along the curve is at most `end_size`, so that the mesh resolves where the curve
+    /// ends. Samples on no chain keep their frames; a chain of one or two samples gets an
+    /// undefined frame (an isotropic size). The same windows become the samples' chain
+    /// neighbourhoods ([`MetricField::chain_neighbours`]).
+    pub fn refit_along_chains(
+        &mut self,
+        chains: &[Vec<Point>],
+        window: usize,
+        end_size: f64,
+        end_reach: f64,
+    ) {
+        let eps = self.params.eps;
+        let end_curvature = eps / (end_size * end_size);
+        type Fit = (u32, crate::mesh::metric::LocalFrame, Vec<u32>);
+        let fits: Vec<Vec<Fit>> = chains
+            .par_iter()
+            .map(|chain| {
+                let n = chain.len();
+                let ids: Vec<u32> = chain.iter().map(|&p| self.field.nearest(p).index).collect();
+                // Arc length from the chain's start, for the distance to its ends.
+                let mut arc = vec![0.0; n];
+                for i in 1..n {
+                    arc[i] = arc[i - 1] + crate::geom::dist(chain[i - 1], chain[i]);
+                }
+                let total = arc.last().copied().unwrap_or(0.0);
+                let reach_start = end_reach.max(arc[2.min(n - 1)]);
+                let reach_end = end_reach.max(total - arc[n.saturating_sub(3)]);
+                let raw: Vec<crate::mesh::metric::LocalFrame> = (0..n)
+                    .map(|i| {
+                        let lo = i.saturating_sub(window);
+                        let hi = (i + window + 1).min(n);
+                        if n < 3 {
+                            crate::mesh::metric::LocalFrame::default()
+                        } else {
+                            crate::mesh::metric::fit_frame(chain[i], &chain[lo..hi])
+                        }
+                    })
+                    .collect();
+                (0..n)
+                    .map(|i| {
+                        let lo = i.saturating_sub(window);
+                        let hi = (i + window + 1).min(n);
+                        let f = raw[i];
+                        let (sum, cnt) = raw[lo..hi]
+                            .iter()
+                            .filter(|g| g.defined)
+                            .fold((0.0, 0usize), |(s, c), g| {
+                                (s + dot(g.normal, f.normal).signum() * g.curvature, c + 1)
+                            });
+                        // Curvature the noise can explain is no curvature: a straight
+                        // wall's fits scatter by their standard error, and meshing that
+                        // would cost a fine mesh along every wall.
+                        let mut curvature = if cnt > 0 {
+                            ((sum / cnt as f64).abs() - 2.0 * f.curvature_se).max(0.0)
+                        } else {
+                            0.0
+                        };
+                        if arc[i] <= reach_start || total - arc[i] <= reach_end {
+                            curvature = curvature.max(end_curvature);
+                        }
+                        (
+                            ids[i],
+                            crate::mesh::metric::LocalFrame { curvature, ..f },
+                            ids[lo..hi].to_vec(),
+                        )
+                    })
+                    .collect()
+            })
+            .collect();
+        let n = self.frames.len();
+        let mut windows: Vec<Vec<u32>> = vec![Vec::new(); n];
+        for (index, frame, window) in fits.into_iter().flatten() {
+            self.frames[index as usize] = frame;
+            windows[index as usize] = window;
+        }
+        self.chain_offsets = Vec::with_capacity(n + 1);
+        self.chain_neighbours.clear();
+        self.chain_offsets.push(0);
+        for w in windows {
+            self.chain_neighbours.extend(w);
+            self.chain_offsets.push(self.chain_neighbours.len() as u32);
+        }
+    }
+
+    /// The chain neighbourhood of sample `i` (empty when it is on no chain).
+    pub fn chain_window(&self, i: usize) -> &[u32] {
+        match (self.chain_offsets.get(i), self.chain_offsets.get(i + 1)) {
+            (Some(&a), Some(&b)) => &self.chain_neighbours[a as usize..b as usize],
+            _ => &[],
+        }
     }
 
     /// Adapts a mesh to this field, starting from `start` (a mesh in the same
@@ -378,6 +490,7 @@ impl MetricField {
             nearest,
             params: self.params,
             domain: local_box,
+            warm,
             noise_estimate: self.noise_estimate,
             report,
             stats,

@@ -81,6 +81,9 @@ pub struct LocalFrame {
     pub curvature: f64,
     /// RMS residual of the fit: a local noise estimate.
     pub residual: f64,
+    /// Standard error of the fitted curvature from the fit's residuals (0 when the fit
+    /// has no degree of freedom left): curvature below about twice this is noise.
+    pub curvature_se: f64,
     /// False where the neighbours do not define a direction (a single point, a cluster).
     pub defined: bool,
 }
@@ -115,7 +118,7 @@ pub fn fit_frame(center: Point, pts: &[Point]) -> LocalFrame {
         ata += row * row.transpose();
         atb += row * h;
     }
-    let (curvature, residual) = if n >= 4 && l2 < l1 {
+    let (curvature, residual, curvature_se) = if n >= 4 && l2 < l1 {
         match ata.lu().solve(&atb) {
             Some(x) if x.iter().all(|v| v.is_finite()) => {
                 let res2 = pts
@@ -126,20 +129,24 @@ pub fn fit_frame(center: Point, pts: &[Point]) -> LocalFrame {
                         (h - x[0] - x[1] * s - x[2] * s * s).powi(2)
                     })
                     .sum::<f64>();
-                (
-                    2.0 * x[2] / (1.0 + x[1] * x[1]).powf(1.5),
-                    (res2 * inv).sqrt(),
-                )
+                let slope = (1.0 + x[1] * x[1]).powf(1.5);
+                // Least squares: var(c2) = s^2 (A^T A)^-1_22, s^2 = res2 / (n - 3).
+                let se = ata.try_inverse().map_or(0.0, |inv_ata| {
+                    let s2 = res2 / (n - 3) as f64;
+                    2.0 * (s2 * inv_ata[(2, 2)].max(0.0)).sqrt() / slope
+                });
+                (2.0 * x[2] / slope, (res2 * inv).sqrt(), se)
             }
-            _ => (0.0, (l2 * inv).sqrt()),
+            _ => (0.0, (l2 * inv).sqrt(), 0.0),
         }
     } else {
-        (0.0, (l2.max(0.0) * inv).sqrt())
+        (0.0, (l2.max(0.0) * inv).sqrt(), 0.0)
     };
     LocalFrame {
         normal,
         curvature,
         residual,
+        curvature_se,
         defined: true,
     }
 }

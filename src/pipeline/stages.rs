@@ -17,7 +17,7 @@ use super::config::Policy;
 use super::source::Line;
 use super::{RunSummary, Sink};
 use crate::error::{Error, Result};
-use crate::format::{PolylineJson, ResultRecord};
+use crate::format::ResultRecord;
 use crate::geom::{add, Point};
 use crate::levelset::evolve::Solved;
 use crate::levelset::warm::Previous;
@@ -46,7 +46,7 @@ impl Msg {
 
 /// What has been made of a frame so far.
 enum Work {
-    Points(Vec<Point>),
+    Input(Box<crate::ingest::Frame>),
     Prepared(Box<Prepared>),
     Adapted(Box<(Prepared, AdaptedMesh)>),
     Solved(Box<(Prepared, AdaptedMesh, Solved)>),
@@ -231,7 +231,11 @@ fn parse_line(line: Line, last: &mut HashMap<Arc<str>, (Option<String>, u64)>) -
             .map_err(|e| (e.to_string(), guess_ids(text))),
     };
     let (stream, frame, work) = match parsed {
-        Ok(f) => (f.stream.or(default_stream), f.frame, Work::Points(f.points)),
+        Ok(mut f) => (
+            f.stream.take().or(default_stream),
+            f.frame,
+            Work::Input(Box::new(f)),
+        ),
         Err((message, (stream, frame))) => {
             tracing::warn!(error = %message, "bad input line");
             let before = last.get(&line.origin);
@@ -277,10 +281,10 @@ pub(crate) fn spawn_distance(
             policy,
             |m, d| stage_span!("distance", m, d),
             |m| {
-                let Work::Points(points) = std::mem::replace(&mut m.work, Work::Skipped) else {
-                    unreachable!("distance takes points")
+                let Work::Input(f) = std::mem::replace(&mut m.work, Work::Skipped) else {
+                    unreachable!("distance takes input frames")
                 };
-                m.work = match reconstruct::prepare(&points, &params) {
+                m.work = match reconstruct::prepare(&f.points, f.scan.as_ref(), &params) {
                     Ok(p) => Work::Prepared(Box::new(p)),
                     Err(e) => Work::Failed(e.to_string()),
                 };
@@ -497,7 +501,8 @@ pub(crate) fn spawn_export(
             };
             match work {
                 Work::Exported(r, points) => {
-                    let mut stats = r.stats.clone();
+                    rec = ResultRecord::of(m.stream.clone(), m.frame, &r);
+                    let stats = rec.stats.as_mut().expect("a reconstruction has stats");
                     let latency = m.arrived.elapsed().as_secs_f64() * 1e3;
                     stats.ms.latency = Some(latency);
                     latencies.push(latency);
@@ -508,10 +513,8 @@ pub(crate) fn spawn_export(
                         cold_its.push(stats.iterations as f64);
                     }
                     summary.reconstructed += 1;
-                    rec.polylines = Some(r.polylines.iter().map(PolylineJson::from).collect());
-                    rec.stats = Some(stats);
                     if svg_dir.is_some() {
-                        drawing = Some((points, r.polylines));
+                        drawing = Some((points, r));
                     }
                 }
                 Work::Failed(e) => {
@@ -526,7 +529,7 @@ pub(crate) fn spawn_export(
                     );
                     rec.skipped = Some(true);
                 }
-                Work::Points(_) | Work::Prepared(_) | Work::Adapted(_) | Work::Solved(_) => {
+                Work::Input(_) | Work::Prepared(_) | Work::Adapted(_) | Work::Solved(_) => {
                     unreachable!("export takes frames that went through every stage")
                 }
             }
@@ -541,14 +544,10 @@ pub(crate) fn spawn_export(
                 break;
             }
             summary.records += 1;
-            if let (Some(dir), Some((points, polylines))) = (&svg_dir, drawing) {
+            if let (Some(dir), Some((points, r))) = (&svg_dir, drawing) {
+                let features: Vec<Point> = r.features.iter().map(|f| f.center).collect();
                 let doc = crate::export::svg::render(
-                    &crate::export::svg::Drawing {
-                        points: &points,
-                        polylines: &polylines,
-                        view: crate::geom::BBox::of(&points).map(|b| b.padded(0.05 * b.diag())),
-                        ..Default::default()
-                    },
+                    &crate::export::svg::of_reconstruction(&points, &r, &features, &[], false),
                     800.0,
                 );
                 let path = super::svg_path(dir, m.stream.as_deref(), m.frame);
@@ -591,7 +590,7 @@ mod tests {
             frame,
             arrived: Instant::now(),
             work: if live {
-                Work::Points(vec![])
+                Work::Input(Default::default())
             } else {
                 Work::Failed("bad".into())
             },
@@ -656,7 +655,7 @@ mod tests {
             line(r#"{"stream":"s","frame":7,"points":[[0,0]]}"#, 1),
             &mut last,
         );
-        assert!(matches!(ok.work, Work::Points(_)) && ok.frame == 7);
+        assert!(matches!(ok.work, Work::Input(_)) && ok.frame == 7);
         let bad = parse_line(
             line(r#"{"stream":"s","frame":8,"points":[[0]]}"#, 2),
             &mut last,
@@ -702,7 +701,7 @@ mod tests {
             out.iter().map(|m| m.frame).collect::<Vec<_>>(),
             vec![0, 1, 2]
         );
-        assert!(matches!(out[0].work, Work::Points(_)));
+        assert!(matches!(out[0].work, Work::Input(_)));
         let Work::Failed(e) = &out[1].work else {
             panic!("frame 1 not failed")
         };
@@ -710,7 +709,7 @@ mod tests {
             e.contains("internal error in the test stage") && e.contains("cursed"),
             "{e}"
         );
-        assert!(matches!(out[2].work, Work::Points(_)));
+        assert!(matches!(out[2].work, Work::Input(_)));
     }
 
     #[test]

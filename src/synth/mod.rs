@@ -1,5 +1,8 @@
-//! Scanner simulator with ground truth: shapes sampled with noise, outliers, uneven
-//! density and rigid motion between frames, all deterministic in the seed.
+//! Simulators with ground truth, deterministic in the seed: digitized shapes (here)
+//! sampled with noise, outliers, uneven density and rigid motion between frames, and a
+//! 2D laser scanner ray-casting scenes from a trajectory of poses ([`lidar`]).
+
+pub mod lidar;
 
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;

@@ -1,0 +1,311 @@
+//! Curves supported by data (scan frames): the pieces of the zero isoline that run along
+//! the returns, cut where the support ends, and the returns no curve explains.
+//!
+//! A scan's free-space start puts the curve on the whole boundary of what the rays swept,
+//! which also runs along depth jumps, occlusion shadows, doorways, the edges of the field
+//! of view and the max-range boundary: lines no return lies on. Only the stretches within
+//! a tolerance of a run of returns (the surface between neighbouring returns on one
+//! wall) are kept, each cut at the point where it leaves the tolerance, found by
+//! bisection along the curve.
+
+use crate::eval::SegmentIndex;
+use crate::geom::{add, dist, point_segment_dist2, scale, sub, Point, Polyline};
+
+/// Bisection steps that place a cut: the cut point is within `step / 2^8` of where the
+/// curve leaves the tolerance.
+const BISECTIONS: usize = 8;
+
+/// The pieces of `curves` within `tol` of `support`, tested at points at most `step`
+/// apart along each curve; pieces shorter than `min_len` are dropped. A closed curve
+/// supported everywhere stays closed; the others come out open, in their direction.
+///
+/// A piece that leaves the support near one of the support's `ends` (the first and last
+/// returns of a run) would end in a hook up to `tol` long past the data, along the
+/// free-space boundary; it is trimmed to end where the curve passes the end return
+/// instead (at the curve's point nearest to it).
+pub fn cut_to_support(
+    curves: &[Polyline],
+    support: &SegmentIndex,
+    ends: &[Point],
+    tol: f64,
+    step: f64,
+    min_len: f64,
+) -> Vec<Polyline> {
+    let supported = |p: Point| support.distance(p) <= tol;
+    let mut out = Vec::new();
+    for c in curves {
+        let n = c.points.len();
+        if n < 2 {
+            continue;
+        }
+        // Start a closed curve at an unsupported point, so that no piece wraps round.
+        let pts: Vec<Point> = if c.closed {
+            match first_unsupported(c, &supported, step) {
+                None => {
+                    out.push(c.clone());
+                    continue;
+                }
+                Some((k, p)) => {
+                    let mut v = vec![p];
+                    v.extend((1..=n).map(|j| c.points[(k + j) % n]));
+                    v.push(p);
+                    v
+                }
+            }
+        } else {
+            c.points.clone()
+        };
+        let mut piece: Vec<Point> = Vec::new();
+        let mut on = supported(pts[0]);
+        if on {
+            piece.push(pts[0]);
+        }
+        for w in pts.windows(2) {
+            let (a, b) = (w[0], w[1]);
+            let m = ((dist(a, b) / step).ceil() as usize).max(1);
+            let at = |t: f64| add(a, scale(sub(b, a), t));
+            let mut t_prev = 0.0;
+            for k in 1..=m {
+                let t = k as f64 / m as f64;
+                let now = supported(at(t));
+                if now != on {
+                    // Bisect between t_prev (state `on`) and t (state `now`).
+                    let (mut lo, mut hi) = (t_prev, t);
+                    for _ in 0..BISECTIONS {
+                        let mid = 0.5 * (lo + hi);
+                        if supported(at(mid)) == on {
+                            lo = mid;
+                        } else {
+                            hi = mid;
+                        }
+                    }
+                    if on {
+                        piece.push(at(lo));
+                        flush(&mut piece, ends, tol, min_len, &mut out);
+                    } else {
+                        piece.push(at(hi));
+                    }
+                    on = now;
+                }
+                t_prev = t;
+            }
+            if on {
+                piece.push(b);
+            }
+        }
+        flush(&mut piece, ends, tol, min_len, &mut out);
+    }
+    out
+}
+
+/// The first point of a closed curve, tested every `step`, that is not supported: the
+/// segment it lies on (from vertex `k`) and the point.
+fn first_unsupported(
+    c: &Polyline,
+    supported: &impl Fn(Point) -> bool,
+    step: f64,
+) -> Option<(usize, Point)> {
+    c.segments().enumerate().find_map(|(k, (a, b))| {
+        let m = ((dist(a, b) / step).ceil() as usize).max(1);
+        (0..m)
+            .map(|j| add(a, scale(sub(b, a), j as f64 / m as f64)))
+            .find(|&p| !supported(p))
+            .map(|p| (k, p))
+    })
+}
+
+fn flush(piece: &mut Vec<Point>, ends: &[Point], tol: f64, min_len: f64, out: &mut Vec<Polyline>) {
+    piece.dedup();
+    let mut p = Polyline {
+        closed: false,
+        points: std::mem::take(piece),
+    };
+    // Crumbs are judged before trimming: a short run (a leg) trims to less than the
+    // tolerance and is still a curve.
+    if p.points.len() < 2 || p.length() < min_len {
+        return;
+    }
+    // Each end is trimmed to its nearest run end; on a short run both may be nearest
+    // to the same one, which then belongs to the nearer end of the piece only.
+    let near = |q: Point| nearest_end(ends, q, tol);
+    let (first, last) = (p.points[0], p.points[p.points.len() - 1]);
+    let (mut a, mut b) = (near(first), near(last));
+    if let (Some(x), Some(y)) = (a, b) {
+        if x == y {
+            if dist(x, first) <= dist(y, last) {
+                b = None;
+            } else {
+                a = None;
+            }
+        }
+    }
+    if let Some(e) = a {
+        trim_start(&mut p.points, e, tol);
+    }
+    if let Some(e) = b {
+        p.points.reverse();
+        trim_start(&mut p.points, e, tol);
+        p.points.reverse();
+    }
+    p.points.dedup();
+    if p.points.len() >= 2 {
+        out.push(p);
+    }
+}
+
+/// The support end within `2.5 tol` of `q` nearest to it: a hook runs up to `tol` from
+/// the support, which itself zigzags through the noisy returns near its end.
+fn nearest_end(ends: &[Point], q: Point, tol: f64) -> Option<Point> {
+    ends.iter()
+        .copied()
+        .filter(|&e| dist(e, q) <= 2.5 * tol)
+        .min_by(|a, b| dist(*a, q).total_cmp(&dist(*b, q)))
+}
+
+/// Cuts the start of `points` back to its point nearest `end`, searched over the first
+/// `4 tol` of arc length.
+fn trim_start(points: &mut Vec<Point>, end: Point, tol: f64) {
+    let Some(&first) = points.first() else { return };
+    let mut best = (dist(end, first), 0usize, first);
+    let mut arc = 0.0;
+    for k in 0..points.len().saturating_sub(1) {
+        let (a, b) = (points[k], points[k + 1]);
+        let (d2, t) = point_segment_dist2(end, a, b);
+        if d2.sqrt() < best.0 {
+            best = (d2.sqrt(), k, add(a, scale(sub(b, a), t)));
+        }
+        arc += dist(a, b);
+        if arc > 4.0 * tol {
+            break;
+        }
+    }
+    let (_, k, q) = best;
+    if k > 0 || q != first {
+        points.drain(..=k);
+        points.insert(0, q);
+    }
+}
+
+/// A cluster of returns that no curve explains: consecutive unexplained returns of one
+/// run.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Feature {
+    /// The returns' centroid.
+    pub center: Point,
+    /// How many returns.
+    pub returns: usize,
+}
+
+/// The returns farther than `tol` from every curve, grouped into features by run:
+/// `runs` lists each run's returns in bearing order.
+pub fn unexplained(runs: &[Vec<Point>], curves: &[Polyline], tol: f64) -> Vec<Feature> {
+    let index = SegmentIndex::new(curves);
+    let mut out = Vec::new();
+    for run in runs {
+        let mut group: Vec<Point> = Vec::new();
+        let mut close = |group: &mut Vec<Point>| {
+            if !group.is_empty() {
+                let n = group.len() as f64;
+                let c = group.iter().fold([0.0, 0.0], |s, p| add(s, *p));
+                out.push(Feature {
+                    center: scale(c, 1.0 / n),
+                    returns: group.len(),
+                });
+                group.clear();
+            }
+        };
+        for &p in run {
+            if index.distance(p) > tol {
+                group.push(p);
+            } else {
+                close(&mut group);
+            }
+        }
+        close(&mut group);
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn line(points: &[Point], closed: bool) -> Polyline {
+        Polyline {
+            closed,
+            points: points.to_vec(),
+        }
+    }
+
+    /// A curve along a wall from x = 0 to 1 that then turns away along a depth jump is
+    /// cut where it leaves the tolerance: at x = 1 + tol on the wall line's extension,
+    /// to within the bisection's step / 256.
+    #[test]
+    fn pieces_end_where_the_support_ends() {
+        let wall = SegmentIndex::new(&[line(&[[0.0, 0.0], [1.0, 0.0]], false)]);
+        let curve = line(&[[-0.5, 0.0], [2.0, 0.0], [2.0, 1.0]], false);
+        let tol = 0.03;
+        let step = 0.01;
+        let cut = cut_to_support(std::slice::from_ref(&curve), &wall, &[], tol, step, tol);
+        assert_eq!(cut.len(), 1);
+        let p = &cut[0].points;
+        assert!((p[0][0] + tol).abs() < step / 100.0, "{p:?}");
+        assert!(
+            (p.last().unwrap()[0] - (1.0 + tol)).abs() < step / 100.0,
+            "{p:?}"
+        );
+        // Knowing where the run of returns ends, the hooks past it are trimmed.
+        let cut = cut_to_support(&[curve], &wall, &[[0.0, 0.0], [1.0, 0.0]], tol, step, tol);
+        let p = &cut[0].points;
+        assert!(dist(p[0], [0.0, 0.0]) < 1e-12, "{p:?}");
+        assert!(dist(*p.last().unwrap(), [1.0, 0.0]) < 1e-12, "{p:?}");
+    }
+
+    /// A closed loop supported all round stays closed; one with a doorway comes out as
+    /// one open piece that starts and ends at the doorway, in the loop's direction.
+    #[test]
+    fn a_loop_closes_only_where_the_data_close_it() {
+        let square = [[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]];
+        let full = SegmentIndex::new(&[line(&square, true)]);
+        let cut = cut_to_support(&[line(&square, true)], &full, &[], 0.01, 0.05, 0.01);
+        assert_eq!(cut.len(), 1);
+        assert!(cut[0].closed);
+        // A doorway from x = 0.4 to 0.6 in the bottom wall.
+        let walls = SegmentIndex::new(&[line(
+            &[
+                [0.6, 0.0],
+                [1.0, 0.0],
+                [1.0, 1.0],
+                [0.0, 1.0],
+                [0.0, 0.0],
+                [0.4, 0.0],
+            ],
+            false,
+        )]);
+        let cut = cut_to_support(&[line(&square, true)], &walls, &[], 0.01, 0.05, 0.01);
+        assert_eq!(cut.len(), 1, "{cut:?}");
+        let p = &cut[0];
+        assert!(!p.closed);
+        // The support reaches tol = 0.01 into the doorway from each jamb.
+        assert!(dist(p.points[0], [0.59, 0.0]) < 1e-3, "{:?}", p.points[0]);
+        assert!(dist(*p.points.last().unwrap(), [0.41, 0.0]) < 1e-3);
+        assert!((p.length() - (4.0 - 0.18)).abs() < 1e-3);
+    }
+
+    #[test]
+    fn crumbs_are_dropped_and_lone_returns_reported() {
+        let wall = SegmentIndex::new(&[line(&[[0.0, 0.0], [1.0, 0.0]], false)]);
+        // The curve only grazes the support for 0.02.
+        let curve = line(&[[0.99, 0.5], [0.99, -0.5]], false);
+        assert!(cut_to_support(&[curve], &wall, &[], 0.01, 0.005, 0.05).is_empty());
+        let runs = vec![
+            vec![[0.0, 0.0], [0.5, 0.0], [1.0, 0.0]],
+            vec![[0.5, 0.5], [0.52, 0.5]],
+        ];
+        let curves = [line(&[[0.0, 0.001], [1.0, 0.001]], false)];
+        let f = unexplained(&runs, &curves, 0.01);
+        assert_eq!(f.len(), 1);
+        assert_eq!(f[0].returns, 2);
+        assert!(dist(f[0].center, [0.51, 0.5]) < 1e-12);
+    }
+}

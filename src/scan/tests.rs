@@ -1,0 +1,149 @@
+use super::*;
+use rand::SeedableRng;
+use rand_distr::{Distribution, Normal};
+
+/// A sensor at the origin looking along +x over 180 degrees in `n` beams, with ranges
+/// from `range` (bearing -> range; `None`: no return).
+fn scan(n: usize, mut range: impl FnMut(f64) -> Option<f64>) -> Scan {
+    let inc = std::f64::consts::PI / (n - 1) as f64;
+    let a0 = -std::f64::consts::FRAC_PI_2;
+    let ranges: Vec<Option<f64>> = (0..n).map(|i| range(a0 + i as f64 * inc)).collect();
+    Scan::from_laser(&LaserScan {
+        origin: [0.0, 0.0],
+        angle_min: a0,
+        angle_increment: inc,
+        ranges: &ranges,
+        range_min: 0.05,
+        range_max: 20.0,
+    })
+    .unwrap()
+}
+
+/// A wall at x = 2 in front, and a box 1 m deep behind a doorway in it (|y| < 0.4).
+fn wall_with_doorway(bearing: f64) -> Option<f64> {
+    let (s, c) = bearing.sin_cos();
+    if c <= 1e-9 {
+        return None;
+    }
+    let at_wall = 2.0 / c;
+    if (at_wall * s).abs() < 0.4 {
+        Some(3.0 / c)
+    } else {
+        Some(at_wall).filter(|&r| r < 20.0)
+    }
+}
+
+#[test]
+fn runs_break_at_depth_jumps_and_bridge_dropouts() {
+    let s = scan(721, wall_with_doorway);
+    let p = ScanParams::default();
+    let runs = s.runs(0.01, &p);
+    // Wall left of the doorway, the far wall seen through it, the wall to its right.
+    let big: Vec<&Run> = runs.iter().filter(|r| r.beams.len() > 20).collect();
+    assert_eq!(
+        big.len(),
+        3,
+        "{:?}",
+        runs.iter().map(|r| r.beams.len()).collect::<Vec<_>>()
+    );
+    // Two missing beams inside the far wall are a dropout; three are a gap.
+    let drop = |k: usize| {
+        let mut t = s.clone();
+        let mid = 360;
+        for i in mid..mid + k {
+            t.ranges[i] = f64::NAN;
+        }
+        t.runs(0.01, &p)
+            .iter()
+            .filter(|r| r.beams.len() > 20)
+            .count()
+    };
+    assert_eq!(drop(2), 3);
+    assert_eq!(drop(3), 4);
+}
+
+#[test]
+fn the_noise_estimate_recovers_the_range_noise() {
+    let sigma = 0.01;
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(9);
+    let noise = Normal::new(0.0, sigma).unwrap();
+    let s = scan(1081, |a| {
+        wall_with_doorway(a).map(|r| r + noise.sample(&mut rng))
+    });
+    let p = ScanParams::default();
+    let runs = s.runs(sigma, &p);
+    let scales = s.scales(&runs, &p);
+    // About 900 offsets: the median's relative standard error is 1.25 / sqrt(900) = 4%;
+    // the chord's own curvature error is nil on straight walls. 15% is 3.5 errors.
+    let est = scales.noise_estimate.unwrap();
+    assert!((est - sigma).abs() < 0.15 * sigma, "{est}");
+    // A configured noise wins.
+    let q = ScanParams {
+        range_noise: Some(0.03),
+        ..p
+    };
+    assert_eq!(s.scales(&runs, &q).noise, 0.03);
+    // Spacing: the median range times the step.
+    assert!(scales.spacing > 2.0 * s.step && scales.spacing < 4.0 * s.step);
+}
+
+#[test]
+fn free_space_is_in_front_of_the_returns_and_along_free_rays() {
+    // A wall at x = 2 except for a gap of beams with no return around y = 0.
+    let s = scan(361, |a| {
+        let r = 2.0 / a.cos();
+        ((r * a.sin()).abs() > 0.3 && r < 20.0).then_some(r)
+    });
+    let p = ScanParams::default();
+    let runs = s.runs(0.01, &p);
+    let free = s.free_space(&runs);
+    assert!(free.contains([1.0, 1.0]), "in front of the wall");
+    assert!(!free.contains([2.5, 1.0]), "behind the wall");
+    assert!(
+        free.contains([10.0, 0.0]),
+        "along the rays without a return"
+    );
+    assert!(!free.contains([-1.0, 0.0]), "outside the field of view");
+    assert!(!free.contains([25.0, 0.0]), "beyond the maximum range");
+    // The same scan as points seen from the origin: no free rays, the gap is unseen.
+    let pts = s.returns();
+    let from_points = Scan::from_points(&pts, [0.0, 0.0]);
+    let runs = from_points.runs(0.01, &p);
+    let free = from_points.free_space(&runs);
+    assert!(free.contains([1.0, 1.0]));
+    assert!(!free.contains([10.0, 0.0]));
+    // The polygon bounds the same region: a point in it is near no boundary edge it
+    // crosses, and it is closed and counter-clockwise.
+    let poly = s.free_space(&s.runs(0.01, &p)).polygon();
+    assert!(poly.closed && poly.signed_area() > 0.0);
+}
+
+#[test]
+fn a_full_turn_wraps_round_and_a_closed_room_closes() {
+    // A square room 4 x 4 around a sensor at its centre, seen over 360 beams.
+    let n = 360;
+    let inc = std::f64::consts::TAU / n as f64;
+    let ranges: Vec<Option<f64>> = (0..n)
+        .map(|i| {
+            let a = -std::f64::consts::PI + i as f64 * inc;
+            let (s, c) = a.sin_cos();
+            Some(2.0 / c.abs().max(s.abs()))
+        })
+        .collect();
+    let s = Scan::from_laser(&LaserScan {
+        origin: [0.0, 0.0],
+        angle_min: -std::f64::consts::PI,
+        angle_increment: inc,
+        ranges: &ranges,
+        range_min: 0.1,
+        range_max: 12.0,
+    })
+    .unwrap();
+    assert!(s.full_turn());
+    let a = Analysis::new(s, &ScanParams::default());
+    assert_eq!(a.runs.len(), 1);
+    assert_eq!(a.support.len(), 1);
+    assert!(a.support[0].closed);
+    assert!(a.free.contains([1.9, 0.0]) && a.free.contains([-1.9, -1.9]));
+    assert!(!a.free.contains([2.1, 0.0]));
+}
