@@ -209,7 +209,7 @@ impl MeshConfig {
             hmax: self.hmax,
             eps: self.eps,
             band: self.band,
-            gradation: self.gradation.unwrap_or(d.gradation),
+            gradation: self.gradation.or(d.gradation),
             neighbours: self.neighbours.unwrap_or(d.neighbours),
             padding: self.padding.unwrap_or(d.padding),
             isotropic: self.isotropic.unwrap_or(d.isotropic),

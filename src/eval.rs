@@ -67,26 +67,43 @@ impl SegmentIndex {
 
     /// Distance from `q` to the nearest segment (infinite when empty).
     pub fn distance(&self, q: Point) -> f64 {
-        let Some(tree) = &self.tree else {
-            return f64::INFINITY;
-        };
+        self.nearest(q).map_or(f64::INFINITY, |n| n.0)
+    }
+
+    /// The segments, in the order of the polylines given (a closed polyline's closing
+    /// segment last among its own).
+    pub fn segments(&self) -> &[(Point, Point)] {
+        &self.segs
+    }
+
+    /// The nearest segment to `q`: the distance, the segment's index in
+    /// [`segments`](Self::segments) and the parameter in `[0, 1]` of the nearest point on
+    /// it; `None` when empty.
+    pub fn nearest(&self, q: Point) -> Option<(f64, usize, f64)> {
+        let tree = self.tree.as_ref()?;
         let near = tree
             .query(&q)
             .nearest_one::<SquaredEuclidean<f64>>()
             .execute();
-        let s = self.segs[self.piece_seg[near.item as usize] as usize];
-        let mut best = point_segment_dist2(q, s.0, s.1).0;
-        let r = best.sqrt() + self.half_piece * (1.0 + 1e-9);
+        let i = self.piece_seg[near.item as usize] as usize;
+        let s = self.segs[i];
+        let (d2, t) = point_segment_dist2(q, s.0, s.1);
+        let mut best = (d2, i, t);
+        let r = d2.sqrt() + self.half_piece * (1.0 + 1e-9);
         let found = tree
             .query(&q)
             .within::<SquaredEuclidean<f64>>(r * r)
             .unsorted()
             .execute();
         for c in found {
-            let s = self.segs[self.piece_seg[c.item as usize] as usize];
-            best = best.min(point_segment_dist2(q, s.0, s.1).0);
+            let i = self.piece_seg[c.item as usize] as usize;
+            let s = self.segs[i];
+            let (d2, t) = point_segment_dist2(q, s.0, s.1);
+            if d2 < best.0 || (d2 == best.0 && i < best.1) {
+                best = (d2, i, t);
+            }
         }
-        best.sqrt()
+        Some((best.0.sqrt(), best.1, best.2))
     }
 }
 

@@ -237,22 +237,35 @@ pub fn prepare(points: &[Point], scan: Option<&Scan>, params: &Params) -> Result
             .hmin
             .unwrap_or_else(|| a.scales.noise.max(0.25 * a.scales.spacing).max(1e-4 * diag));
         mesh_params.hmin = Some(hmin);
-        mesh_params.band = Some(mesh_params.band.unwrap_or(8.0 * hmin));
+        // The curve starts on the data, so the fine band only has to hold the noise band
+        // and the settle's moves, not a curve on its way in.
+        mesh_params.band = Some(mesh_params.band.unwrap_or(4.0 * hmin));
+        mesh_params.gradation = Some(mesh_params.gradation.unwrap_or(0.6));
     }
-    let mut metric = MetricField::new(&local, &mesh_params)?;
-    if let Some(a) = &analysis {
-        metric.noise_estimate = a.scales.noise;
-        let hmin = metric.params.hmin;
-        // Frames along the runs (8 neighbours a side span the local shape without
-        // reaching across a corner), and a fine mesh where a run ends: its end is placed
-        // to within the mesh size there.
-        metric.refit_along_chains(
-            &a.run_points(),
-            8,
-            2.0 * hmin,
-            (4.0 * hmin).max(2.0 * a.scales.spacing),
-        );
-    }
+    // A scan's mesh resolves what can become curves: the runs long enough to be
+    // supported. A lone return (a spurious echo, a far table leg) is a feature, and a
+    // fine mesh around it would cost as much as a metre of wall. Frames are fitted
+    // along the runs (8 neighbours a side span the local shape without reaching across
+    // a corner), and the mesh is fine where a run ends, so that its end is placed to
+    // within the mesh size there.
+    let chains: Vec<Vec<Point>> = analysis
+        .as_ref()
+        .map(|a| a.support.iter().map(|pl| pl.points.clone()).collect())
+        .unwrap_or_default();
+    let metric = match &analysis {
+        Some(a) if chains.iter().map(Vec::len).sum::<usize>() >= 2 => {
+            let mut m = MetricField::along_chains(
+                &chains,
+                &mesh_params,
+                8,
+                |hmin| 2.0 * hmin,
+                (4.0 * mesh_params.hmin.unwrap_or(0.0)).max(2.0 * a.scales.spacing),
+            )?;
+            m.noise_estimate = a.scales.noise;
+            m
+        }
+        _ => MetricField::new(&local, &mesh_params)?,
+    };
     Ok(Prepared {
         points: points.len(),
         center,
@@ -330,7 +343,7 @@ pub fn export(
     let u = solved.u;
     let scan = prepared.scan.as_ref().map(|a| {
         let sigma = a.scales.noise;
-        (a, 3.0 * sigma + hmin)
+        (a, 2.0 * sigma + hmin)
     });
     let (polylines, features) =
         crate::export::curves(&mesh, &u, center, prepared.diag, hmin, scan, params);

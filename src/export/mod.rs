@@ -51,14 +51,7 @@ pub fn curves(
     }
     let mut features = Vec::new();
     if let Some((a, tol)) = scan {
-        let support = crate::eval::SegmentIndex::new(&a.support);
-        let ends: Vec<Point> = a
-            .support
-            .iter()
-            .filter(|pl| !pl.closed)
-            .flat_map(|pl| [pl.points[0], pl.points[pl.points.len() - 1]])
-            .collect();
-        polylines = support::cut_to_support(&polylines, &support, &ends, tol, 0.5 * tol, tol);
+        polylines = support::cut_to_support(&polylines, &a.support, tol, hmin, 0.5 * tol, tol);
         features = support::unexplained(&a.run_points(), &polylines, tol);
         for f in &mut features {
             f.center = add(f.center, center);

@@ -25,13 +25,55 @@ const BISECTIONS: usize = 8;
 /// instead (at the curve's point nearest to it).
 pub fn cut_to_support(
     curves: &[Polyline],
-    support: &SegmentIndex,
-    ends: &[Point],
+    support: &[Polyline],
     tol: f64,
+    cap: f64,
     step: f64,
     min_len: f64,
 ) -> Vec<Polyline> {
-    let supported = |p: Point| support.distance(p) <= tol;
+    let index = SegmentIndex::new(support);
+    // Per segment: whether its start, its end is the end of a run.
+    let mut run_end: Vec<(bool, bool)> = Vec::new();
+    for pl in support {
+        let m = pl.segments().count();
+        if m == 0 {
+            run_end.extend(pl.points.iter().map(|_| (true, true)));
+        }
+        for k in 0..m {
+            run_end.push((!pl.closed && k == 0, !pl.closed && k + 1 == m));
+        }
+    }
+    let ends: Vec<Point> = support
+        .iter()
+        .filter(|pl| !pl.closed && !pl.points.is_empty())
+        .flat_map(|pl| [pl.points[0], pl.points[pl.points.len() - 1]])
+        .collect();
+    let ends = &ends[..];
+    let segs = index.segments();
+    let supported = |p: Point| match index.nearest(p) {
+        Some((d, i, t)) if d <= tol => {
+            let (a, b) = segs[i];
+            let (at_a, at_b) = run_end[i];
+            // How far past a run's end along its last segment.
+            let past = |end: Point, other: Point| {
+                let dir = sub(end, other);
+                let len = crate::geom::norm(dir);
+                if len > 0.0 {
+                    crate::geom::dot(sub(p, end), dir) / len
+                } else {
+                    dist(p, end)
+                }
+            };
+            if t <= 0.0 && at_a {
+                past(a, b) <= cap
+            } else if t >= 1.0 && at_b {
+                past(b, a) <= cap
+            } else {
+                true
+            }
+        }
+        _ => false,
+    };
     let mut out = Vec::new();
     for c in curves {
         let n = c.points.len();
@@ -237,41 +279,60 @@ mod tests {
         }
     }
 
-    /// A curve along a wall from x = 0 to 1 that then turns away along a depth jump is
-    /// cut where it leaves the tolerance: at x = 1 + tol on the wall line's extension,
-    /// to within the bisection's step / 256.
+    /// A curve along a wall that then runs on past its end leaves the support where the
+    /// cap past the run's end runs out (found by bisection to step / 256), and is then
+    /// trimmed to the run's ends.
     #[test]
     fn pieces_end_where_the_support_ends() {
-        let wall = SegmentIndex::new(&[line(&[[0.0, 0.0], [1.0, 0.0]], false)]);
+        let wall = [line(&[[0.0, 0.0], [0.5, 0.0], [1.0, 0.0]], false)];
         let curve = line(&[[-0.5, 0.0], [2.0, 0.0], [2.0, 1.0]], false);
-        let tol = 0.03;
-        let step = 0.01;
-        let cut = cut_to_support(std::slice::from_ref(&curve), &wall, &[], tol, step, tol);
+        let (tol, step) = (0.03, 0.01);
+        let cut = cut_to_support(std::slice::from_ref(&curve), &wall, tol, tol, step, tol);
         assert_eq!(cut.len(), 1);
-        let p = &cut[0].points;
-        assert!((p[0][0] + tol).abs() < step / 100.0, "{p:?}");
-        assert!(
-            (p.last().unwrap()[0] - (1.0 + tol)).abs() < step / 100.0,
-            "{p:?}"
-        );
-        // Knowing where the run of returns ends, the hooks past it are trimmed.
-        let cut = cut_to_support(&[curve], &wall, &[[0.0, 0.0], [1.0, 0.0]], tol, step, tol);
         let p = &cut[0].points;
         assert!(dist(p[0], [0.0, 0.0]) < 1e-12, "{p:?}");
         assert!(dist(*p.last().unwrap(), [1.0, 0.0]) < 1e-12, "{p:?}");
+        // Without trimming (a closed support has no ends), the cut lies where the
+        // tolerance runs out.
+        let ring = [line(
+            &[[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]],
+            true,
+        )];
+        let across = line(&[[0.5, -0.5], [0.5, 0.5]], false);
+        let cut = cut_to_support(&[across], &ring, tol, tol, step, 0.0);
+        let p = &cut[0].points;
+        assert!((p[0][1] + tol).abs() < step / 100.0, "{p:?}");
+        assert!((p.last().unwrap()[1] - tol).abs() < step / 100.0, "{p:?}");
+    }
+
+    /// The free-space boundary turning away just past a run's end (along a depth jump)
+    /// leaves no hook: the support stops `cap` past the end along the run.
+    #[test]
+    fn no_hook_where_the_boundary_turns_away() {
+        let wall = [line(&[[0.0, 0.0], [0.5, 0.0], [1.0, 0.0]], false)];
+        let turn = line(&[[0.5, 0.01], [1.005, 0.01], [1.005, -1.0]], false);
+        let cut = cut_to_support(&[turn], &wall, 0.03, 0.01, 0.01, 0.0);
+        assert_eq!(cut.len(), 1);
+        let p = &cut[0].points;
+        // It ends where the curve passes nearest the run's last return.
+        assert!(p.iter().all(|q| q[1] > -1e-9), "{p:?}");
+        assert!(dist(*p.last().unwrap(), [1.005, 0.0]) < 1e-9, "{p:?}");
+        // A curve crossing 0.02 past the run's end, within the tolerance of its last
+        // return, is not supported: it runs across the run, not along it.
+        let across = line(&[[1.02, 0.5], [1.02, -0.5]], false);
+        assert!(cut_to_support(&[across], &wall, 0.03, 0.01, 0.005, 0.01).is_empty());
     }
 
     /// A closed loop supported all round stays closed; one with a doorway comes out as
-    /// one open piece that starts and ends at the doorway, in the loop's direction.
+    /// one open piece from jamb to jamb, in the loop's direction.
     #[test]
     fn a_loop_closes_only_where_the_data_close_it() {
         let square = [[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]];
-        let full = SegmentIndex::new(&[line(&square, true)]);
-        let cut = cut_to_support(&[line(&square, true)], &full, &[], 0.01, 0.05, 0.01);
+        let full = [line(&square, true)];
+        let cut = cut_to_support(&[line(&square, true)], &full, 0.01, 0.01, 0.05, 0.01);
         assert_eq!(cut.len(), 1);
         assert!(cut[0].closed);
-        // A doorway from x = 0.4 to 0.6 in the bottom wall.
-        let walls = SegmentIndex::new(&[line(
+        let walls = [line(
             &[
                 [0.6, 0.0],
                 [1.0, 0.0],
@@ -281,23 +342,22 @@ mod tests {
                 [0.4, 0.0],
             ],
             false,
-        )]);
-        let cut = cut_to_support(&[line(&square, true)], &walls, &[], 0.01, 0.05, 0.01);
+        )];
+        let cut = cut_to_support(&[line(&square, true)], &walls, 0.01, 0.01, 0.05, 0.01);
         assert_eq!(cut.len(), 1, "{cut:?}");
         let p = &cut[0];
         assert!(!p.closed);
-        // The support reaches tol = 0.01 into the doorway from each jamb.
-        assert!(dist(p.points[0], [0.59, 0.0]) < 1e-3, "{:?}", p.points[0]);
-        assert!(dist(*p.points.last().unwrap(), [0.41, 0.0]) < 1e-3);
-        assert!((p.length() - (4.0 - 0.18)).abs() < 1e-3);
+        assert!(dist(p.points[0], [0.6, 0.0]) < 1e-9, "{:?}", p.points[0]);
+        assert!(dist(*p.points.last().unwrap(), [0.4, 0.0]) < 1e-9);
+        assert!((p.length() - 3.8).abs() < 1e-9);
     }
 
     #[test]
     fn crumbs_are_dropped_and_lone_returns_reported() {
-        let wall = SegmentIndex::new(&[line(&[[0.0, 0.0], [1.0, 0.0]], false)]);
-        // The curve only grazes the support for 0.02.
-        let curve = line(&[[0.99, 0.5], [0.99, -0.5]], false);
-        assert!(cut_to_support(&[curve], &wall, &[], 0.01, 0.005, 0.05).is_empty());
+        let wall = [line(&[[0.0, 0.0], [1.0, 0.0]], false)];
+        // The curve crosses the support: 0.02 of it is within the tolerance.
+        let curve = line(&[[0.9, 0.5], [0.9, -0.5]], false);
+        assert!(cut_to_support(&[curve], &wall, 0.01, 0.01, 0.005, 0.05).is_empty());
         let runs = vec![
             vec![[0.0, 0.0], [0.5, 0.0], [1.0, 0.0]],
             vec![[0.5, 0.5], [0.52, 0.5]],

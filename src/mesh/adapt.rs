@@ -17,6 +17,9 @@ use crate::geom::{add, mid, orient, scale, sub, Sym2};
 
 const SPLIT_ABOVE: f64 = std::f64::consts::SQRT_2;
 const COLLAPSE_BELOW: f64 = std::f64::consts::FRAC_1_SQRT_2;
+/// The thresholds of a warm adaptation (see [`AdaptOptions::warm`]).
+const WARM_SPLIT_ABOVE: f64 = 2.0;
+const WARM_COLLAPSE_BELOW: f64 = 0.5;
 /// A collapse may not create an edge longer than this (it would only be split again).
 const COLLAPSE_MAX_NEW: f64 = 1.3;
 /// A smoothing move must raise the worst quality around the vertex by this factor. Any
@@ -39,6 +42,14 @@ pub struct AdaptOptions {
     /// Adaptation stops after a pass whose splits and collapses number at most this
     /// fraction of the vertices.
     pub stop_change: f64,
+    /// The mesh was adapted to a nearby metric (the previous frame's): edges are split
+    /// above length 2 and collapsed below 1/2 instead of `sqrt 2` and `1/sqrt 2`, and only
+    /// the vertices with such an edge, and those that splits and collapses touch, are
+    /// smoothed and flipped around. The rest fit well enough: a frame's noise alone
+    /// moves the metric by more than the narrow thresholds allow (measured on a static
+    /// scanner: a fifth of the vertices split or collapsed every frame), and following it
+    /// would chase that noise.
+    pub warm: bool,
 }
 
 impl Default for AdaptOptions {
@@ -48,6 +59,7 @@ impl Default for AdaptOptions {
             smoothing_sweeps: 2,
             max_vertices: 2_000_000,
             stop_change: 0.005,
+            warm: false,
         }
     }
 }
@@ -110,6 +122,8 @@ pub struct Adapter {
     changed: Vec<bool>,
     /// Per triangle: in the current flip pass's first sweep.
     in_work: Vec<bool>,
+    /// Adapting warm ([`AdaptOptions::warm`]): the wider thresholds.
+    warm: bool,
 }
 
 impl Adapter {
@@ -147,9 +161,20 @@ impl Adapter {
             .unzip();
         (self.metrics, self.near) = (metrics, near);
         self.dirty.clear();
-        self.dirty.resize(mesh.coords.len(), true);
+        self.dirty.resize(mesh.coords.len(), !opts.warm);
         self.changed.clear();
-        self.changed.resize(mesh.coords.len(), true);
+        self.changed.resize(mesh.coords.len(), !opts.warm);
+        if opts.warm {
+            self.collect_edges(mesh, |l| {
+                !(WARM_COLLAPSE_BELOW..=WARM_SPLIT_ABOVE).contains(&l)
+            });
+            for i in 0..self.candidates.len() {
+                let (_, a, b) = self.candidates[i];
+                self.touch(a);
+                self.touch(b);
+            }
+        }
+        self.warm = opts.warm;
         let mut report = AdaptReport::default();
         let mut last_change = usize::MAX;
         for _ in 0..opts.max_passes {
@@ -261,7 +286,12 @@ impl Adapter {
         max_vertices: usize,
         report: &mut AdaptReport,
     ) -> usize {
-        self.collect_edges(mesh, |l| l > SPLIT_ABOVE);
+        let above = if self.warm {
+            WARM_SPLIT_ABOVE
+        } else {
+            SPLIT_ABOVE
+        };
+        self.collect_edges(mesh, |l| l > above);
         let mut cands = std::mem::take(&mut self.candidates);
         cands.sort_unstable_by(|x, y| y.0.total_cmp(&x.0));
         let mut count = 0;
@@ -359,7 +389,12 @@ impl Adapter {
     }
 
     fn collapse_pass(&mut self, mesh: &mut Mesh) -> usize {
-        self.collect_edges(mesh, |l| l < COLLAPSE_BELOW);
+        let below = if self.warm {
+            WARM_COLLAPSE_BELOW
+        } else {
+            COLLAPSE_BELOW
+        };
+        self.collect_edges(mesh, |l| l < below);
         let mut cands = std::mem::take(&mut self.candidates);
         cands.sort_unstable_by(|x, y| x.0.total_cmp(&y.0));
         let mut count = 0;
@@ -367,9 +402,7 @@ impl Adapter {
             if mesh.vert_tri[a as usize] == INVALID || mesh.vert_tri[b as usize] == INVALID {
                 continue;
             }
-            if mesh.find_edge(a, b, &mut self.ball).is_none()
-                || self.len_of(mesh, a, b) >= COLLAPSE_BELOW
-            {
+            if mesh.find_edge(a, b, &mut self.ball).is_none() || self.len_of(mesh, a, b) >= below {
                 continue;
             }
             if self.try_collapse(mesh, a, b) || self.try_collapse(mesh, b, a) {

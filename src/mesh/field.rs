@@ -31,8 +31,9 @@ pub struct MeshParams {
     /// Half-width of the band around the data meshed at `hmin` across it.
     /// Default: `max(8 hmin, 4 x estimated noise)`.
     pub band: Option<f64>,
-    /// Size growth per unit distance outside the band (dimensionless). Default 0.3.
-    pub gradation: f64,
+    /// Size growth per unit distance outside the band (dimensionless). Default 0.3; 0.6
+    /// for a scan, whose curve starts on the data and needs no fine mesh on its way in.
+    pub gradation: Option<f64>,
     /// Samples in each local curve fit of the metric. Default 32.
     pub neighbours: usize,
     /// Margin around the data's bounding box, as a fraction of its diagonal. Default 0.2.
@@ -59,7 +60,7 @@ impl Default for MeshParams {
             hmax: None,
             eps: None,
             band: None,
-            gradation: 0.3,
+            gradation: None,
             neighbours: 32,
             padding: 0.2,
             isotropic: false,
@@ -109,7 +110,7 @@ impl MeshParams {
         crate::error::check_positive(&mut problems, "mesh.hmax", self.hmax);
         crate::error::check_positive(&mut problems, "mesh.eps", self.eps);
         crate::error::check_positive(&mut problems, "mesh.band", self.band);
-        crate::error::check_positive(&mut problems, "mesh.gradation", Some(self.gradation));
+        crate::error::check_positive(&mut problems, "mesh.gradation", self.gradation);
         if let (Some(a), Some(b)) = (self.hmin, self.hmax) {
             if a > b {
                 problems.push(format!("mesh.hmax = {b}: must be at least mesh.hmin = {a}"));
@@ -301,7 +302,7 @@ impl MetricField {
             hmax: scale / 10.0,
             eps: 0.0,
             band: params.band.unwrap_or(0.0),
-            gradation: params.gradation,
+            gradation: params.gradation.unwrap_or(0.3),
             isotropic: params.isotropic,
             neighbours: params.neighbours,
         };
@@ -341,6 +342,84 @@ impl MetricField {
                 total: ms(t0.elapsed()),
             },
         })
+    }
+
+    /// A field whose samples are the points of `chains` (sequences of samples known to
+    /// follow one curve in order: a scan's runs of returns), with every frame fitted
+    /// along its chain ([`MetricField::refit_along_chains`] says how) and no fit to
+    /// spatial neighbours at all. `params.hmin` and `params.band` are taken as given
+    /// (an unset `hmin` is the median fit residual, at least `D / 1000`; an unset band
+    /// `8 hmin`).
+    pub fn along_chains(
+        chains: &[Vec<Point>],
+        params: &MeshParams,
+        window: usize,
+        end_size: impl Fn(f64) -> f64,
+        end_reach: f64,
+    ) -> Result<MetricField> {
+        let t0 = Instant::now();
+        let points: Vec<Point> = chains.iter().flatten().copied().collect();
+        crate::distance::validate_points(&points)?;
+        params.validate().map_err(|problems| Error::Config {
+            path: "mesh parameters".into(),
+            problems,
+        })?;
+        let bbox = BBox::of(&points).ok_or(Error::EmptyPointSet)?;
+        let diag = bbox.diag();
+        let scale = if diag > 0.0 { diag } else { 1.0 };
+        let field = DistanceField::new(&points)?;
+        let t_dist = t0.elapsed();
+        let k = params.neighbours.max(3).min(field.points().len());
+        // The nearest-sample search of adaptation starts from these lists.
+        let neighbours = crate::mesh::metric::neighbour_lists(&field, k);
+        let n = field.points().len();
+        let mut me = MetricField {
+            field,
+            frames: vec![crate::mesh::metric::LocalFrame::default(); n],
+            neighbours,
+            k,
+            chain_neighbours: Vec::new(),
+            chain_offsets: Vec::new(),
+            params: MetricParams {
+                hmin: scale / 1000.0,
+                hmax: scale / 10.0,
+                eps: scale / 1000.0,
+                band: 0.0,
+                gradation: params.gradation.unwrap_or(0.3),
+                isotropic: params.isotropic,
+                neighbours: params.neighbours,
+            },
+            noise_estimate: 0.0,
+            bbox,
+            padding: params.padding,
+            max_passes: params.max_passes,
+            warm_change: params.warm_change,
+            max_vertices: params.max_vertices,
+            ms: MeshTimings::default(),
+        };
+        // The fits do not depend on the sizes but the end sizes do: without a given hmin,
+        // fit once to measure the noise, then again with the end sizes it gives.
+        let noise = if params.hmin.is_none() {
+            me.refit_along_chains(chains, window, scale, 0.0);
+            crate::mesh::metric::median_residual(&me.frames)
+        } else {
+            0.0
+        };
+        let hmin = params.hmin.unwrap_or((scale / 1000.0).max(noise));
+        me.params.hmin = hmin;
+        me.params.hmax = params.hmax.unwrap_or(scale / 10.0).max(hmin);
+        me.params.eps = params.eps.unwrap_or(hmin);
+        me.params.band = params.band.unwrap_or(8.0 * hmin);
+        me.noise_estimate = noise;
+        me.refit_along_chains(chains, window, end_size(hmin), end_reach);
+        let ms = |d: std::time::Duration| d.as_secs_f64() * 1e3;
+        me.ms = MeshTimings {
+            distance: ms(t_dist),
+            metric: ms(t0.elapsed() - t_dist),
+            adapt: 0.0,
+            total: ms(t0.elapsed()),
+        };
+        Ok(me)
     }
 
     /// Refits the local frames of the samples that lie on `chains`: sequences of
@@ -472,6 +551,7 @@ impl MetricField {
             .with_max_passes(self.max_passes)
             .with_max_vertices(self.max_vertices);
         if warm {
+            opts.warm = true;
             opts.stop_change = self.warm_change;
             // One sweep follows a mesh already adapted to a nearby metric; a second
             // mostly chases the noise in it (measured: 12% more frames per second on the

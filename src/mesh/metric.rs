@@ -169,16 +169,7 @@ impl<'a> CurveMetric<'a> {
         let points = field.points();
         let k = params.neighbours.max(3).min(points.len());
         // Each sample's neighbours, found once for both passes (and kept for callers).
-        let mut neighbours = vec![0u32; points.len() * k];
-        if k > 0 {
-            neighbours
-                .par_chunks_mut(k)
-                .zip(points.par_iter())
-                .for_each_init(Vec::new, |idx, (out, &p)| {
-                    field.nearest_k(p, k, idx);
-                    out.copy_from_slice(&idx[..k]);
-                });
-        }
+        let neighbours = neighbour_lists(field, k);
         let lists = || neighbours.par_chunks(k.max(1));
         let raw: Vec<LocalFrame> = points
             .par_iter()
@@ -334,6 +325,23 @@ impl<'a> CurveMetric<'a> {
             (p.hmin + p.gradation * (d - p.band)).min(p.hmax)
         }
     }
+}
+
+/// The `k` nearest samples of each sample of `field` (itself included), nearest first,
+/// flat in the field's order.
+pub fn neighbour_lists(field: &DistanceField, k: usize) -> Vec<u32> {
+    let points = field.points();
+    let mut neighbours = vec![0u32; points.len() * k];
+    if k > 0 {
+        neighbours
+            .par_chunks_mut(k)
+            .zip(points.par_iter())
+            .for_each_init(Vec::new, |idx, (out, &p)| {
+                field.nearest_k(p, k, idx);
+                out.copy_from_slice(&idx[..k]);
+            });
+    }
+    neighbours
 }
 
 /// Median of the frames' residuals (0 when none is defined).
