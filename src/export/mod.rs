@@ -41,14 +41,12 @@ pub fn curves(
 ) -> (Vec<Polyline>, Vec<Feature>) {
     let mut polylines = zero_isoline(mesh, u, 1e-9 * diag);
     // Loops smaller than a disc of radius 3 hmin are below what the mesh resolves: specks
-    // left where the level set grazes zero between samples. On a scan, the support
-    // decides instead: a leg a few centimetres across is such a loop.
+    // left where the level set grazes zero between samples (on a scan, slivers where the
+    // settle nudged a few vertices across the noise band).
     let min_area = params
         .min_area
         .unwrap_or(std::f64::consts::PI * 9.0 * hmin * hmin);
-    if scan.is_none() {
-        polylines.retain(|p| !p.closed || p.signed_area().abs() >= min_area);
-    }
+    polylines.retain(|p| !p.closed || p.signed_area().abs() >= min_area);
     let mut features = Vec::new();
     if let Some((a, tol)) = scan {
         polylines = support::cut_to_support(&polylines, &a.support, tol, hmin, 0.5 * tol, tol);

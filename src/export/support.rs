@@ -19,10 +19,12 @@ const BISECTIONS: usize = 8;
 /// apart along each curve; pieces shorter than `min_len` are dropped. A closed curve
 /// supported everywhere stays closed; the others come out open, in their direction.
 ///
-/// A piece that leaves the support near one of the support's `ends` (the first and last
-/// returns of a run) would end in a hook up to `tol` long past the data, along the
-/// free-space boundary; it is trimmed to end where the curve passes the end return
-/// instead (at the curve's point nearest to it).
+/// At the end of a run a piece either overshoots, ending in a hook up to `tol` long past
+/// the data along the free-space boundary, and is trimmed to end where the curve passes
+/// the run's end return (at the curve's point nearest to it); or stops short, where the
+/// free space between the last returns is a sliver thinner than the mesh resolves (a
+/// wall seen at grazing incidence that ends at an opening), and is extended along the
+/// run's last returns to its end.
 pub fn cut_to_support(
     curves: &[Polyline],
     support: &[Polyline],
@@ -43,10 +45,20 @@ pub fn cut_to_support(
             run_end.push((!pl.closed && k == 0, !pl.closed && k + 1 == m));
         }
     }
-    let ends: Vec<Point> = support
+    // Each run end with the run's last two gaps, from the end inwards.
+    let ends: Vec<Vec<Point>> = support
         .iter()
         .filter(|pl| !pl.closed && !pl.points.is_empty())
-        .flat_map(|pl| [pl.points[0], pl.points[pl.points.len() - 1]])
+        .flat_map(|pl| {
+            let n = pl.points.len();
+            let head: Vec<Point> = pl.points[..n.min(3)].to_vec();
+            let tail: Vec<Point> = pl.points[n.saturating_sub(3)..]
+                .iter()
+                .rev()
+                .copied()
+                .collect();
+            [head, tail]
+        })
         .collect();
     let ends = &ends[..];
     let segs = index.segments();
@@ -156,7 +168,13 @@ fn first_unsupported(
     })
 }
 
-fn flush(piece: &mut Vec<Point>, ends: &[Point], tol: f64, min_len: f64, out: &mut Vec<Polyline>) {
+fn flush(
+    piece: &mut Vec<Point>,
+    ends: &[Vec<Point>],
+    tol: f64,
+    min_len: f64,
+    out: &mut Vec<Polyline>,
+) {
     piece.dedup();
     let mut p = Polyline {
         closed: false,
@@ -167,26 +185,25 @@ fn flush(piece: &mut Vec<Point>, ends: &[Point], tol: f64, min_len: f64, out: &m
     if p.points.len() < 2 || p.length() < min_len {
         return;
     }
-    // Each end is trimmed to its nearest run end; on a short run both may be nearest
-    // to the same one, which then belongs to the nearer end of the piece only.
-    let near = |q: Point| nearest_end(ends, q, tol);
+    // Each end goes to its nearest run end; on a short run both may be nearest to the
+    // same one, which then belongs to the nearer end of the piece only.
     let (first, last) = (p.points[0], p.points[p.points.len() - 1]);
-    let (mut a, mut b) = (near(first), near(last));
-    if let (Some(x), Some(y)) = (a, b) {
-        if x == y {
-            if dist(x, first) <= dist(y, last) {
+    let (mut a, mut b) = (nearest_end(ends, first, tol), nearest_end(ends, last, tol));
+    if let (Some((x, dx)), Some((y, dy))) = (a, b) {
+        if std::ptr::eq(x, y) {
+            if dx <= dy {
                 b = None;
             } else {
                 a = None;
             }
         }
     }
-    if let Some(e) = a {
-        trim_start(&mut p.points, e, tol);
+    if let Some((e, _)) = a {
+        to_run_end(&mut p.points, e, tol);
     }
-    if let Some(e) = b {
+    if let Some((e, _)) = b {
         p.points.reverse();
-        trim_start(&mut p.points, e, tol);
+        to_run_end(&mut p.points, e, tol);
         p.points.reverse();
     }
     p.points.dedup();
@@ -195,19 +212,34 @@ fn flush(piece: &mut Vec<Point>, ends: &[Point], tol: f64, min_len: f64, out: &m
     }
 }
 
-/// The support end within `2.5 tol` of `q` nearest to it: a hook runs up to `tol` from
-/// the support, which itself zigzags through the noisy returns near its end.
-fn nearest_end(ends: &[Point], q: Point, tol: f64) -> Option<Point> {
+/// The run end (its last returns, from the end inwards) nearest `q` among those whose
+/// last gaps pass within `2.5 tol` of it (a hook runs up to `tol` from the support,
+/// which itself zigzags through the noisy returns near its end), and its distance.
+fn nearest_end(ends: &[Vec<Point>], q: Point, tol: f64) -> Option<(&Vec<Point>, f64)> {
+    // Near a short run its two ends' gaps overlap: of the ends whose gaps pass near
+    // `q`, the nearest end return wins.
     ends.iter()
-        .copied()
-        .filter(|&e| dist(e, q) <= 2.5 * tol)
-        .min_by(|a, b| dist(*a, q).total_cmp(&dist(*b, q)))
+        .filter(|tail| {
+            let d = if tail.len() < 2 {
+                dist(tail[0], q)
+            } else {
+                tail.windows(2)
+                    .map(|w| point_segment_dist2(q, w[0], w[1]).0.sqrt())
+                    .fold(f64::INFINITY, f64::min)
+            };
+            d <= 2.5 * tol
+        })
+        .map(|tail| (tail, dist(tail[0], q)))
+        .min_by(|a, b| a.1.total_cmp(&b.1))
 }
 
-/// Cuts the start of `points` back to its point nearest `end`, searched over the first
-/// `4 tol` of arc length.
-fn trim_start(points: &mut Vec<Point>, end: Point, tol: f64) {
+/// Makes `points` start at the run end `tail[0]`: cut back to the point nearest it
+/// (searched over the first `4 tol` of arc length) when the curve passes it, and
+/// extended from there along the run's last gap (`tail[0]` to `tail[1]`) when that point
+/// is still more than `tol / 2` short of the end and lies along that gap.
+fn to_run_end(points: &mut Vec<Point>, tail: &[Point], tol: f64) {
     let Some(&first) = points.first() else { return };
+    let end = tail[0];
     let mut best = (dist(end, first), 0usize, first);
     let mut arc = 0.0;
     for k in 0..points.len().saturating_sub(1) {
@@ -221,11 +253,36 @@ fn trim_start(points: &mut Vec<Point>, end: Point, tol: f64) {
             break;
         }
     }
-    let (_, k, q) = best;
+    let (gap, k, q) = best;
     if k > 0 || q != first {
         points.drain(..=k);
         points.insert(0, q);
     }
+    if gap <= 0.5 * tol {
+        return;
+    }
+    // Short of the end within the run's last gap: prepend the end return and where the
+    // start projects onto that gap.
+    let first = q;
+    let Some((j, proj)) = tail
+        .windows(2)
+        .enumerate()
+        .map(|(j, w)| {
+            let (d2, t) = point_segment_dist2(first, w[0], w[1]);
+            (d2, j, add(w[0], scale(sub(w[1], w[0]), t)))
+        })
+        .min_by(|a, b| a.0.total_cmp(&b.0))
+        .map(|(_, j, p)| (j, p))
+    else {
+        return;
+    };
+    if j > 0 {
+        return;
+    }
+    let mut head: Vec<Point> = vec![tail[0]];
+    head.push(proj);
+    head.extend_from_slice(points);
+    *points = head;
 }
 
 /// A cluster of returns that no curve explains: consecutive unexplained returns of one

@@ -418,14 +418,40 @@ impl Scan {
     }
 
     /// How far each beam saw free space: its range where it returned; inside a run, a
-    /// dropout's range interpolated between its neighbours; `range_max` on a beam with
-    /// no return elsewhere (or 0, unseen, when the scan has no free rays).
-    pub fn reach(&self, runs: &[Run]) -> Vec<f64> {
+    /// dropout's range interpolated between its neighbours; between two runs, a stretch
+    /// of at most `dropout_beams` beams without a return reaches the nearer of the two
+    /// (a dropout next to a corner or a depth jump, whose beam may well have hit the
+    /// near surface, must not pierce it as a thin ray of free space: claiming too little
+    /// free space costs nothing, the curve there is cut anyway); `range_max` on the
+    /// other beams with no return (or 0, unseen, when the scan has no free rays).
+    ///
+    /// A return's range is taken from `ranges` (the scan's own, or
+    /// [`smoothed_ranges`](Self::smoothed_ranges)).
+    pub fn reach(&self, runs: &[Run], dropout_beams: usize, ranges: &[f64]) -> Vec<f64> {
         let n = self.angles.len();
         let free = if self.free_rays { self.range_max } else { 0.0 };
         let mut reach: Vec<f64> = (0..n)
-            .map(|i| if self.valid(i) { self.ranges[i] } else { free })
+            .map(|i| if self.valid(i) { ranges[i] } else { free })
             .collect();
+        // Short stretches without a return between two returns.
+        let beams = self.return_beams();
+        let pairs = beams.windows(2).map(|w| (w[0], w[1]));
+        let wrap = (self.full_turn() && beams.len() > 1)
+            .then(|| (*beams.last().expect("returns"), beams[0]));
+        for (a, b) in pairs.chain(wrap) {
+            let (a, b) = (a as usize, b as usize);
+            let missing: Vec<usize> = if b > a {
+                (a + 1..b).collect()
+            } else {
+                (a + 1..n).chain(0..b).collect()
+            };
+            if !missing.is_empty() && missing.len() <= dropout_beams {
+                let near = ranges[a].min(ranges[b]);
+                for i in missing {
+                    reach[i] = near;
+                }
+            }
+        }
         for run in runs {
             for w in run.beams.windows(2) {
                 let (a, b) = (w[0] as usize, w[1] as usize);
@@ -437,21 +463,71 @@ impl Scan {
                 let m = missing.len() as f64 + 1.0;
                 for (k, &i) in missing.iter().enumerate() {
                     let f = (k + 1) as f64 / m;
-                    reach[i] = self.ranges[a] * (1.0 - f) + self.ranges[b] * f;
+                    reach[i] = ranges[a] * (1.0 - f) + ranges[b] * f;
                 }
             }
         }
         reach
     }
 
-    /// The free space swept by the rays, for [`reach`](Self::reach): each pair of
-    /// neighbouring beams sweeps the triangle from the origin to their reaches. A bearing
-    /// gap wider than three steps in a scan made from points is unseen.
-    pub fn free_space(&self, runs: &[Run]) -> FreeSpace {
+    /// The ranges of the returns with their noise smoothed along each run: a return
+    /// moves along its beam onto the line fitted to its run neighbours (up to `window`
+    /// on either side), unless the beam meets that line at a grazing angle (beyond 75
+    /// degrees) or the move exceeds `3 sigma` (a corner inside the window). NaN where
+    /// the beam returned nothing.
+    ///
+    /// The free space through the raw returns zigzags across the noise band at every
+    /// beam; on a mesh whose elements are long along the walls that zigzag folds the
+    /// P1 zero isoline back on itself. Through the smoothed returns it runs straight.
+    pub fn smoothed_ranges(&self, runs: &[Run], window: usize, sigma: f64) -> Vec<f64> {
+        let mut out = self.ranges.clone();
+        for run in runs {
+            let pts: Vec<Point> = run
+                .beams
+                .iter()
+                .map(|&b| self.at(b as usize, self.ranges[b as usize]))
+                .collect();
+            let m = pts.len();
+            if m < 3 {
+                continue;
+            }
+            for (k, &b) in run.beams.iter().enumerate() {
+                let lo = k.saturating_sub(window);
+                let hi = (k + window + 1).min(m);
+                let w = &pts[lo..hi];
+                let inv = 1.0 / w.len() as f64;
+                let c = w
+                    .iter()
+                    .fold([0.0, 0.0], |s, p| add(s, [p[0] * inv, p[1] * inv]));
+                let mut cov = crate::geom::Sym2::default();
+                for p in w {
+                    cov = cov.plus(crate::geom::Sym2::outer(sub(*p, c)));
+                }
+                let (_, _, t) = cov.eigen();
+                let d = self.direction(b as usize);
+                let den = crate::geom::cross(d, t);
+                if den.abs() < 0.25 {
+                    continue;
+                }
+                let r = crate::geom::cross(sub(c, self.origin), t) / den;
+                let raw = self.ranges[b as usize];
+                if r > 0.0 && (r - raw).abs() <= 3.0 * sigma {
+                    out[b as usize] = r;
+                }
+            }
+        }
+        out
+    }
+
+    /// The free space swept by the rays, as far as [`reach`](Self::reach) says (with
+    /// `ranges` for the returns): each pair of neighbouring beams sweeps the triangle from
+    /// the origin to their reaches. A bearing gap wider than three steps in a scan made
+    /// from points is unseen.
+    pub fn free_space(&self, runs: &[Run], dropout_beams: usize, ranges: &[f64]) -> FreeSpace {
         FreeSpace {
             origin: self.origin,
             angles: self.angles.clone(),
-            reach: self.reach(runs),
+            reach: self.reach(runs, dropout_beams, ranges),
             full_turn: self.full_turn(),
             max_gap: if self.free_rays {
                 f64::INFINITY
@@ -473,8 +549,9 @@ pub struct Analysis {
     pub scales: Scales,
     /// The free space its rays swept.
     pub free: FreeSpace,
-    /// Runs with at least `min_run` returns, as open polylines through their returns (a
-    /// run that wraps all the way round a full turn closes): where curves may run.
+    /// Runs with at least `min_run` returns, as open polylines through their returns
+    /// smoothed along the run ([`Scan::smoothed_ranges`]; a run that wraps all the way
+    /// round a full turn closes): where curves may run.
     pub support: Vec<Polyline>,
 }
 
@@ -494,7 +571,8 @@ impl Analysis {
         } else {
             scan.runs(scales.noise, params)
         };
-        let free = scan.free_space(&runs);
+        let smooth = scan.smoothed_ranges(&runs, 4, scales.noise);
+        let free = scan.free_space(&runs, params.dropout_beams, &smooth);
         let n = scan.angles.len();
         let support = runs
             .iter()
@@ -503,7 +581,7 @@ impl Analysis {
                 let points: Vec<Point> = r
                     .beams
                     .iter()
-                    .map(|&b| scan.at(b as usize, scan.ranges[b as usize]))
+                    .map(|&b| scan.at(b as usize, smooth[b as usize]))
                     .collect();
                 // Closed only when the run goes round the whole turn back to its start.
                 let closed = runs.len() == 1

@@ -96,7 +96,7 @@ fn free_space_is_in_front_of_the_returns_and_along_free_rays() {
     });
     let p = ScanParams::default();
     let runs = s.runs(0.01, &p);
-    let free = s.free_space(&runs);
+    let free = s.free_space(&runs, 2, &s.ranges);
     assert!(free.contains([1.0, 1.0]), "in front of the wall");
     assert!(!free.contains([2.5, 1.0]), "behind the wall");
     assert!(
@@ -109,12 +109,12 @@ fn free_space_is_in_front_of_the_returns_and_along_free_rays() {
     let pts = s.returns();
     let from_points = Scan::from_points(&pts, [0.0, 0.0]);
     let runs = from_points.runs(0.01, &p);
-    let free = from_points.free_space(&runs);
+    let free = from_points.free_space(&runs, 2, &s.ranges);
     assert!(free.contains([1.0, 1.0]));
     assert!(!free.contains([10.0, 0.0]));
     // The polygon bounds the same region: a point in it is near no boundary edge it
     // crosses, and it is closed and counter-clockwise.
-    let poly = s.free_space(&s.runs(0.01, &p)).polygon();
+    let poly = s.free_space(&s.runs(0.01, &p), 2, &s.ranges).polygon();
     assert!(poly.closed && poly.signed_area() > 0.0);
 }
 
