@@ -41,15 +41,22 @@ pub fn curves(
 ) -> (Vec<Polyline>, Vec<Feature>) {
     let mut polylines = zero_isoline(mesh, u, 1e-9 * diag);
     // Loops smaller than a disc of radius 3 hmin are below what the mesh resolves: specks
-    // left where the level set grazes zero between samples (on a scan, slivers where the
-    // settle nudged a few vertices across the noise band).
+    // left where the level set grazes zero between samples. On a scan the support
+    // decides what stays, and a small loop can be real (the tip of the wedge of free
+    // space between a few beams at the edge of the field of view): only slivers thinner
+    // than half the mesh size (mean thickness twice the area over the perimeter), left
+    // where the start's zigzag through noisy returns folded, are dropped.
     let min_area = params
         .min_area
         .unwrap_or(std::f64::consts::PI * 9.0 * hmin * hmin);
-    polylines.retain(|p| !p.closed || p.signed_area().abs() >= min_area);
+    match scan {
+        None => polylines.retain(|p| !p.closed || p.signed_area().abs() >= min_area),
+        Some(_) => polylines
+            .retain(|p| !p.closed || 2.0 * p.signed_area().abs() >= 0.5 * hmin * p.length()),
+    }
     let mut features = Vec::new();
     if let Some((a, tol)) = scan {
-        polylines = support::cut_to_support(&polylines, &a.support, tol, hmin, 0.5 * tol, tol);
+        polylines = support::cut_to_support(&polylines, &a.support, tol, hmin, 0.5 * tol, hmin);
         features = support::unexplained(&a.run_points(), &polylines, tol);
         for f in &mut features {
             f.center = add(f.center, center);
