@@ -10,6 +10,7 @@ use crate::levelset::SolverParams;
 use crate::levelset::{Init, Scheme};
 use crate::mesh::field::MeshParams;
 use crate::reconstruct::Params;
+use crate::scan::ScanParams;
 
 /// The whole configuration file.
 #[derive(Clone, Debug, Default, Deserialize)]
@@ -24,6 +25,38 @@ pub struct Config {
     /// `[export]`: the curves written.
     #[serde(default)]
     pub export: ExportConfig,
+    /// `[scan]`: how frames seen from a sensor are read.
+    #[serde(default)]
+    pub scan: ScanConfig,
+}
+
+/// `[scan]`: frames with beams, or points with a sensor `origin`.
+#[derive(Clone, Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ScanConfig {
+    /// Range noise (standard deviation, data units). Default: estimated per frame.
+    pub range_noise: Option<f64>,
+    /// Breakpoint test: surfaces seen at incidence above `90 - incidence_limit` degrees
+    /// break into separate runs. Default 10.
+    pub incidence_limit: Option<f64>,
+    /// Runs of fewer returns are reported as features, not curves. Default 3.
+    pub min_run: Option<usize>,
+    /// At most this many consecutive beams without a return inside a run are dropouts.
+    /// Default 2.
+    pub dropout_beams: Option<usize>,
+}
+
+impl ScanConfig {
+    /// The scan parameters, validated; every problem is listed.
+    pub fn to_params(&self) -> std::result::Result<ScanParams, Vec<String>> {
+        let d = ScanParams::default();
+        let mut p = d.clone();
+        p.range_noise = self.range_noise;
+        p.incidence_limit = self.incidence_limit.unwrap_or(d.incidence_limit);
+        p.min_run = self.min_run.unwrap_or(d.min_run);
+        p.dropout_beams = self.dropout_beams.unwrap_or(d.dropout_beams);
+        p.validate().map(|()| p)
+    }
 }
 
 /// `[solver]`. Unset values are derived from the data's diagonal `D` and `hmin`.
@@ -255,6 +288,9 @@ impl Config {
         if let Err(p) = cfg.export.to_params() {
             problems.extend(p);
         }
+        if let Err(p) = cfg.scan.to_params() {
+            problems.extend(p);
+        }
         if !problems.is_empty() {
             return Err(Error::Config {
                 path: name.to_string(),
@@ -280,11 +316,13 @@ impl Config {
 
     /// All reconstruction parameters, validated when loaded.
     pub fn params(&self) -> Params {
-        Params::new(
+        let mut p = Params::new(
             self.mesh_params(),
             self.solver.to_params().expect("validated when loaded"),
             self.export.to_params().expect("validated when loaded"),
-        )
+        );
+        p.scan = self.scan.to_params().expect("validated when loaded");
+        p
     }
 }
 
@@ -321,6 +359,13 @@ mod tests {
             e.contains("solver.scheme")
                 && e.contains("solver.cfl = 2")
                 && e.contains("export.simplify"),
+            "{e}"
+        );
+        let e = Config::parse("[scan]\nmin_run = 0\nincidence_limit = 95\n", "g.toml")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("scan.min_run = 0") && e.contains("scan.incidence_limit = 95"),
             "{e}"
         );
         let e = Config::parse("[solver]\nalhpa = 1\n", "f.toml")
