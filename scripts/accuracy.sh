@@ -3,16 +3,15 @@
 # with the default parameters and compared with its truth by `isoline eval`.
 # Usage: scripts/accuracy.sh [OUT_DIR]   (prints a Markdown table)
 set -euo pipefail
-cd "$(dirname "$0")/.."
-cargo build --release --quiet
-bin=target/release/isoline
+. "$(dirname "$0")/lib.sh"
 out=${1:-target/accuracy}
 mkdir -p "$out"
 echo "| shape | points | sigma | hmin | Hausdorff | mean distance | components (recon/truth) | iterations | vertices | ms |"
 echo "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|"
-for shape in circle ellipse square star c two-circles annulus; do
-  n=2000
-  for sigma in 0 0.002 0.005; do
+shapes="circle ellipse square star c two-circles annulus"; sigmas="0 0.002 0.005"; n=2000
+[ "$quick" = 1 ] && shapes="circle annulus" && sigmas="0.005" && n=500
+for shape in $shapes; do
+  for sigma in $sigmas; do
     f="$out/$shape-$sigma"
     $bin synth "$shape" --points $n --noise "$sigma" --seed 7 -o "$f.ndjson" --truth "$f.truth.json"
     $bin reconstruct "$f.ndjson" -o "$f.recon.ndjson" --stats "$f.stats.json"

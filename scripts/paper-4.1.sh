@@ -2,19 +2,20 @@
 # Paper section 4.1 reproduced: the ellipse of the synth shapes, centred at
 # (0.5, 0.5) in the unit domain, 1,000 samples, clean and with noise sigma = 0.003,
 # reconstructed by both schemes from the paper's enclosing circle. Writes
-# docs/paper-4.1-{clean,noisy}.svg and prints a Markdown table.
+# docs/img/paper-4.1-{clean,noisy}.svg and prints a Markdown table.
 set -euo pipefail
-cd "$(dirname "$0")/.."
-cargo build --release --quiet
-bin=target/release/isoline
+. "$(dirname "$0")/lib.sh"
 out=target/paper-4.1
-mkdir -p "$out" docs
+# The drawings go to docs/img, except in a quick run.
+img=docs/img; points=1000; schemes="semi-implicit explicit"
+[ "$quick" = 1 ] && img=$out && points=300 && schemes="semi-implicit"
+mkdir -p "$out" "$img"
 echo "| data | scheme | iterations | vertices | solve ms | renormalize ms | total ms | Hausdorff | stop |"
 echo "|---|---|---:|---:|---:|---:|---:|---:|---|"
 for kind in clean noisy; do
   sigma=0; [ $kind = noisy ] && sigma=0.003
-  $bin synth ellipse --points 1000 --noise $sigma --seed 41 -o "$out/$kind.ndjson" --truth "$out/$kind.truth.json"
-  for scheme in semi-implicit explicit; do
+  $bin synth ellipse --points $points --noise $sigma --seed 41 -o "$out/$kind.ndjson" --truth "$out/$kind.truth.json"
+  for scheme in $schemes; do
     r="$out/$kind-$scheme"
     $bin reconstruct "$out/$kind.ndjson" -c config/paper-4.1.toml --scheme $scheme \
       -o "$r.ndjson" --stats "$r.stats.json"
@@ -28,5 +29,5 @@ print(f"| {kind} | {scheme} | {s['iterations']} | {s['vertices']} | {m['solve']:
       f"{m['renormalize']:.0f} | {m['total']:.0f} | {e['hausdorff']:.2e} | {s['stop']} |")
 PY
   done
-  $bin reconstruct "$out/$kind.ndjson" -c config/paper-4.1.toml -o "docs/paper-4.1-$kind.svg" --mesh
+  $bin reconstruct "$out/$kind.ndjson" -c config/paper-4.1.toml -o "$img/paper-4.1-$kind.svg" --mesh
 done

@@ -8,11 +8,10 @@
 # (scripts/split_and_merge.py) on the same frames.
 # Usage: scripts/scan-replay.sh [FRAMES]   (default 400)
 set -euo pipefail
-cd "$(dirname "$0")/.."
-cargo build --release --quiet
-bin=target/release/isoline
+. "$(dirname "$0")/lib.sh"
 dir=target/scan-replay
 n=${1:-400}
+[ "$quick" = 1 ] && n=20
 mkdir -p "$dir"
 score() { # records truth frames label
   $bin eval "$1" --truth "$2" --frames "$3" > "$1.eval.json"

@@ -9,13 +9,12 @@
 # latencies are those of a pipeline that keeps up rather than of a queue. HMIN=...
 # overrides the mesh size (default 0.002).
 set -euo pipefail
-cd "$(dirname "$0")/.."
-cargo build --release --quiet
-bin=target/release/isoline
+. "$(dirname "$0")/lib.sh"
 dir=target/stream-200
 hmin=${HMIN:-0.002}
 mkdir -p "$dir"
-$bin synth ellipse --points 1000 --noise 0.003 --frames 200 --motion 0.003 --seed 8 \
+frames=200; [ "$quick" = 1 ] && frames=10
+$bin synth ellipse --points 1000 --noise 0.003 --frames $frames --motion 0.003 --seed 8 \
   --stream lidar0 -o "$dir/frames.ndjson" --truth "$dir/truth.json"
 for run in warm cold cold-tube paced; do
   warm=true; replay=fast; init=medial

@@ -1,17 +1,37 @@
-//! isoline reconstructs smooth curves from noisy, unorganized 2D points with the
-//! level-set method of Claisse & Frey (2009).
+//! isoline reconstructs smooth curves from noisy 2D point data (2D laser scans above
+//! all, and digitized contours) with the level-set method of Claisse & Frey (2009).
 //!
-//! The pipeline's stages are modules: [`distance`] (kd-tree distance field), [`mesh`] (the
-//! anisotropic mesh and its adaptation), [`levelset`] (starting level sets and the
-//! solver), [`redistance`] (fast-marching renormalization) and [`export`] (the zero
-//! isoline and writers); [`reconstruct()`] runs them in turn, [`batch`] runs it over
-//! many files, and [`pipeline`] runs the stages as threads on channels for streams of
-//! frames (`isoline run`), each frame warm-started from its predecessor. Beside them: [`geom`] and [`fem`] (the numerical ground), the file formats
-//! ([`mod@format`], [`ingest`]), configuration ([`config`]), the scanner simulator
-//! ([`synth`]) and accuracy metrics ([`eval`]). The numerical modules know nothing of
-//! serde, files or threads beyond rayon.
+//! ```
+//! use isoline::reconstruct::{reconstruct, Params};
+//! // Points around a circle, in no particular order.
+//! let pts: Vec<[f64; 2]> = (0..300)
+//!     .map(|i| {
+//!         let a = i as f64 * 2.4;
+//!         [0.5 + 0.4 * a.cos(), 0.5 + 0.4 * a.sin()]
+//!     })
+//!     .collect();
+//! let r = reconstruct(&pts, &Params::default()).unwrap();
+//! assert_eq!(r.polylines.len(), 1);
+//! assert!(r.polylines[0].closed);
+//! ```
+//!
+//! A scan from a sensor goes through [`reconstruct::reconstruct_scan`] (open wall
+//! curves, the free side on their left, and the returns no curve explains).
+//!
+//! The pipeline's stages are modules, each a plain function over plain data: [`ingest`]
+//! (frames), [`distance`] and [`scan`] (the distance field; a scan's runs, scales and
+//! free space), [`mesh`] (the anisotropic mesh and its adaptation), [`levelset`]
+//! (starting level sets, the solver, the median settle, warm starts), [`redistance`]
+//! (fast-marching renormalization) and [`export`] (the zero isoline, the scan support,
+//! writers). [`reconstruct()`] runs them in turn, [`batch`] over many files, and
+//! [`pipeline`] as threads on channels for streams of frames (`isoline run`). Beside
+//! them: [`geom`] and [`fem`] (the numerical ground), the file formats
+//! ([`mod@format`]), configuration ([`config`]), the simulators ([`synth`]) and accuracy
+//! metrics ([`eval`]). The numerical modules know nothing of serde, files or threads
+//! beyond rayon. ARCHITECTURE.md in the repository is the map.
 
 #![warn(missing_docs)]
+#![deny(rustdoc::broken_intra_doc_links)]
 
 pub mod batch;
 pub mod config;

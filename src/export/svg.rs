@@ -140,6 +140,41 @@ pub fn render(d: &Drawing<'_>, width: f64) -> String {
             0.5 * (x0 + x1),
             y0 - 10.0
         );
+        // A legend in the top left corner.
+        let items: [(&str, &str); 5] = [
+            (
+                r##"<circle cx="8" cy="-4" r="6" fill="#f4a261" stroke="#222" stroke-width="1.2"/>"##,
+                "sensor",
+            ),
+            (
+                r##"<rect x="0" y="-10" width="16" height="12" fill="#cfe8f7" stroke="#9cc9e6"/>"##,
+                "free space the rays swept",
+            ),
+            (
+                r##"<circle cx="8" cy="-4" r="2" fill="#d1495b"/>"##,
+                "returns",
+            ),
+            (
+                r##"<path d="M0 -4H16" stroke="#1d3557" stroke-width="2.2"/>"##,
+                "curves (free side on the left)",
+            ),
+            (
+                r##"<circle cx="8" cy="-4" r="5" fill="none" stroke="#e76f51" stroke-width="1.5"/>"##,
+                "returns no curve explains",
+            ),
+        ];
+        let _ = writeln!(
+            out,
+            r##"<rect x="10" y="10" width="250" height="{:.0}" fill="white" fill-opacity="0.85"/>"##,
+            12.0 + 20.0 * items.len() as f64
+        );
+        for (k, (swatch, label)) in items.iter().enumerate() {
+            let y = 30.0 + 20.0 * k as f64;
+            let _ = writeln!(
+                out,
+                r##"<g transform="translate(18 {y:.0})">{swatch}<text x="24" y="0" font-family="sans-serif" font-size="14">{label}</text></g>"##
+            );
+        }
     }
     out.push_str("</svg>\n");
     out

@@ -103,7 +103,7 @@ impl std::str::FromStr for LinearSolver {
 }
 
 /// Concrete solver settings (every derived value filled in; see
-/// [`crate::reconstruct::SolverParams`] for the user-facing defaults).
+/// [`crate::levelset::SolverParams`] for the user-facing defaults).
 #[derive(Clone, Debug, PartialEq)]
 pub struct SolverSettings {
     /// Time-stepping scheme.
