@@ -216,55 +216,15 @@ pub fn prepare(points: &[Point], scan: Option<&Scan>, params: &Params) -> Result
     }
     let mut mesh_params = params.mesh.clone();
     if params.solver.init == Init::Circle {
-        // The paper's circle must fit in the meshed box.
-        let margin = params.solver.margin * diag;
-        let c = BBox::of(&local).expect("non-empty").center();
-        let r = local
-            .iter()
-            .map(|&p| crate::geom::dist(p, c))
-            .fold(0.0, f64::max)
-            + margin;
-        let half = bbox.size()[0].min(bbox.size()[1]) / 2.0;
-        mesh_params.padding = mesh_params.padding.max((r - half) / diag + 0.05);
+        mesh_params.padding = mesh_params.padding.max(crate::levelset::init::circle_padding(
+            &local,
+            params.solver.margin * diag,
+        ));
     }
     let analysis = scan.map(|s| Analysis::new(s.clone(), &params.scan).shifted(center));
-    if let Some(a) = &analysis {
-        // Far from the sensor the beams are sparse, but the noise is the range noise
-        // everywhere: the mesh resolves the noise band, and where the beams are denser
-        // than that, a quarter of their spacing. The floor keeps a noiseless, dense scan
-        // from meshing without bound.
-        let hmin = mesh_params
-            .hmin
-            .unwrap_or_else(|| a.scales.noise.max(0.25 * a.scales.spacing).max(1e-4 * diag));
-        mesh_params.hmin = Some(hmin);
-        // The curve starts on the data, so the fine band only has to hold the noise band
-        // and the settle's moves, not a curve on its way in.
-        mesh_params.band = Some(mesh_params.band.unwrap_or(4.0 * hmin));
-        mesh_params.gradation = Some(mesh_params.gradation.unwrap_or(0.6));
-    }
-    // A scan's mesh resolves what can become curves: the runs long enough to be
-    // supported. A lone return (a spurious echo, a far table leg) is a feature, and a
-    // fine mesh around it would cost as much as a metre of wall. Frames are fitted
-    // along the runs (8 neighbours a side span the local shape without reaching across
-    // a corner), and the mesh is fine where a run ends, so that its end is placed to
-    // within the mesh size there.
-    let chains: Vec<Vec<Point>> = analysis
-        .as_ref()
-        .map(|a| a.support.iter().map(|pl| pl.points.clone()).collect())
-        .unwrap_or_default();
     let metric = match &analysis {
-        Some(a) if chains.iter().map(Vec::len).sum::<usize>() >= 2 => {
-            let mut m = MetricField::along_chains(
-                &chains,
-                &mesh_params,
-                8,
-                |hmin| 2.0 * hmin,
-                (4.0 * mesh_params.hmin.unwrap_or(0.0)).max(2.0 * a.scales.spacing),
-            )?;
-            m.noise_estimate = a.scales.noise;
-            m
-        }
-        _ => MetricField::new(&local, &mesh_params)?,
+        Some(a) => a.metric_field(&a.mesh_params(&mesh_params, diag), &local)?,
+        None => MetricField::new(&local, &mesh_params)?,
     };
     Ok(Prepared {
         points: points.len(),

@@ -122,6 +122,22 @@ pub fn cold_start(
     }
 }
 
+/// The padding (a fraction of the bounding box's diagonal) the mesh needs for the
+/// paper's circle start, `margin` from every point of `points`, to fit in it.
+pub fn circle_padding(points: &[Point], margin: f64) -> f64 {
+    let Some(bbox) = BBox::of(points) else {
+        return 0.0;
+    };
+    let diag = bbox.diag();
+    if diag <= 0.0 {
+        return 0.0;
+    }
+    let c = bbox.center();
+    let r = points.iter().map(|&p| dist(p, c)).fold(0.0, f64::max) + margin;
+    let half = bbox.size()[0].min(bbox.size()[1]) / 2.0;
+    (r - half) / diag + 0.05
+}
+
 /// A default tube radius: twice the 95th percentile of the data's nearest-neighbour
 /// spacing, and at least `floor`. Gaps between consecutive samples up to twice that
 /// close; where the tube still leaks, [`tube`] says so.

@@ -23,6 +23,7 @@ use std::f64::consts::TAU;
 
 use crate::error::{Error, Result};
 use crate::geom::{add, dist, point_segment_dist2, sub, Point, Polyline};
+use crate::mesh::field::{MeshParams, MetricField};
 
 /// How scan frames are read: the breakpoint test, dropouts and small clusters.
 #[derive(Clone, Debug, PartialEq)]
@@ -609,6 +610,48 @@ impl Analysis {
             free,
             support,
         }
+    }
+
+    /// The mesh parameters for this scan from the configured ones: sizes from the sensor.
+    /// Far from the sensor the beams are sparse, but the noise is the range noise
+    /// everywhere: `hmin` resolves the noise band, or where the beams are denser than
+    /// that a quarter of their spacing (at least `1e-4 diag`, so that a noiseless, dense
+    /// scan does not mesh without bound). The curve starts on the data, so the fine band
+    /// only holds the noise band and the settle's moves (`4 hmin`), and the mesh may
+    /// coarsen faster away from it (gradation 0.6). Set values win.
+    pub fn mesh_params(&self, mesh: &MeshParams, diag: f64) -> MeshParams {
+        let mut p = mesh.clone();
+        let s = &self.scales;
+        let hmin = p
+            .hmin
+            .unwrap_or_else(|| s.noise.max(0.25 * s.spacing).max(1e-4 * diag));
+        p.hmin = Some(hmin);
+        p.band = Some(p.band.unwrap_or(4.0 * hmin));
+        p.gradation = Some(p.gradation.unwrap_or(0.6));
+        p
+    }
+
+    /// The distance field and metric frames of this scan's mesh: only the runs long
+    /// enough to become curves are meshed (a lone return, a spurious echo or a far table
+    /// leg, would cost as much mesh as a metre of wall), each sample's frame fitted along
+    /// its run (8 neighbours a side span the local shape without reaching across a
+    /// corner), and the mesh fine where a run ends, so that its end is resolved. A scan
+    /// with no such run falls back to the field of all its returns (`points`).
+    pub fn metric_field(&self, params: &MeshParams, points: &[Point]) -> Result<MetricField> {
+        let chains: Vec<Vec<Point>> = self.support.iter().map(|pl| pl.points.clone()).collect();
+        if chains.iter().map(Vec::len).sum::<usize>() < 2 {
+            return MetricField::new(points, params);
+        }
+        let hmin = params.hmin.unwrap_or(0.0);
+        let mut m = MetricField::along_chains(
+            &chains,
+            params,
+            8,
+            |h| 2.0 * h,
+            (4.0 * hmin).max(2.0 * self.scales.spacing),
+        )?;
+        m.noise_estimate = self.scales.noise;
+        Ok(m)
     }
 
     /// Each run's returns, in bearing order.
