@@ -14,6 +14,10 @@ use crate::geom::Point;
 /// Largest coordinate magnitude accepted: squared distances of twice this stay finite.
 pub const MAX_COORDINATE: f64 = 1e150;
 
+/// Smallest extent (bounding-box diagonal) of a point set: below it, coordinates
+/// relative to the data's centre lose their precision to subnormal numbers.
+pub const MIN_EXTENT: f64 = 1e-150;
+
 /// Checks that `points` is non-empty, finite and within [`MAX_COORDINATE`].
 pub fn validate_points(points: &[Point]) -> Result<()> {
     if points.is_empty() {

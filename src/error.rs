@@ -16,6 +16,12 @@ pub enum Error {
         /// How many points there are.
         count: usize,
     },
+    /// The points span less than the smallest supported extent.
+    #[error("the points span {extent:e}, below the supported 1e-150")]
+    TinyExtent {
+        /// Their bounding-box diagonal.
+        extent: f64,
+    },
     /// A coordinate is NaN or infinite; `index` is the point's position in the input.
     #[error("point {index} has a non-finite coordinate ({x}, {y})")]
     NonFinitePoint {

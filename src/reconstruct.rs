@@ -16,7 +16,7 @@ use crate::error::{Error, Result};
 use crate::export::support::Feature;
 use crate::export::ExportParams;
 use crate::format::{FrameStats, StageMs};
-use crate::geom::{add, sub, BBox, Point, Polyline};
+use crate::geom::{BBox, Placement, Point, Polyline};
 use crate::levelset::evolve::{self, Solved};
 use crate::levelset::init::Init;
 use crate::levelset::solver::{SolveReport, SolverSettings};
@@ -43,6 +43,16 @@ pub struct Params {
 }
 
 impl Params {
+    /// The same parameters with every length multiplied by `s` (into other units).
+    pub fn scaled(&self, s: f64) -> Params {
+        Params {
+            mesh: self.mesh.scaled(s),
+            solver: self.solver.scaled(s),
+            export: self.export.scaled(s),
+            scan: self.scan.scaled(s),
+        }
+    }
+
     /// Parameters from their three parts (and the default scan reading).
     pub fn new(mesh: MeshParams, solver: SolverParams, export: ExportParams) -> Params {
         Params {
@@ -162,9 +172,9 @@ pub fn reconstruct_with(
         u: &p.u,
         residual: p.stats.residual,
     });
-    let mut solved = solve(&prepared, &adapted, warm, params);
+    let mut solved = solve(&prepared, &adapted, warm);
     renormalize(&adapted.mesh, &mut solved);
-    Ok(export(&prepared, adapted, solved, &params.export))
+    Ok(export(&prepared, adapted, solved))
 }
 
 /// The distance stage's product: one frame's points centred on their bounding box, their
@@ -173,13 +183,15 @@ pub fn reconstruct_with(
 pub struct Prepared {
     /// Input points (before duplicates are merged).
     pub points: usize,
-    /// Centre of the data's bounding box: every later stage works in coordinates
-    /// relative to it, so that element shapes lose no precision to large offsets.
-    pub center: Point,
-    /// Diagonal `D` of the data's bounding box.
+    /// Where the data sit: every later stage works in coordinates centred on the data's
+    /// bounding box and scaled by its diagonal ([`Placement`]).
+    pub placement: Placement,
+    /// Diagonal `D` of the data's bounding box, in local units (1 but for rounding).
     pub diag: f64,
-    /// The points, centred.
+    /// The points, in local coordinates.
     pub local: Vec<Point>,
+    /// The parameters in local units.
+    pub params: Params,
     /// Their distance field and metric frames.
     pub metric: MetricField,
     /// A scan frame's runs, scales, free space and support, centred.
@@ -206,58 +218,68 @@ pub fn prepare(points: &[Point], scan: Option<&Scan>, params: &Params) -> Result
         .map_err(config("solver parameters"))?;
     params.scan.validate().map_err(config("scan parameters"))?;
     let bbox = BBox::of(points).ok_or(Error::EmptyPointSet)?;
-    let center = bbox.center();
-    let local: Vec<Point> = points.iter().map(|&p| sub(p, center)).collect();
-    let diag = bbox.diag();
-    if diag <= 0.0 {
+    let extent = bbox.diag();
+    if extent <= 0.0 {
         return Err(Error::CoincidentPoints {
             count: points.len(),
         });
     }
+    if extent < crate::distance::MIN_EXTENT {
+        return Err(Error::TinyExtent { extent });
+    }
+    params
+        .mesh
+        .check_against(extent)
+        .map_err(config("mesh parameters"))?;
+    let placement = Placement::of(&bbox);
+    let local: Vec<Point> = points.iter().map(|&p| placement.to_local(p)).collect();
+    let diag = BBox::of(&local).map_or(1.0, |b| b.diag());
+    let params = params.scaled(1.0 / placement.scale);
+    let params = &params;
     let mut mesh_params = params.mesh.clone();
     if params.solver.init == Init::Circle {
-        mesh_params.padding = mesh_params.padding.max(crate::levelset::init::circle_padding(
-            &local,
-            params.solver.margin * diag,
-        ));
+        mesh_params.padding = mesh_params
+            .padding
+            .max(crate::levelset::init::circle_padding(
+                &local,
+                params.solver.margin * diag,
+            ));
     }
-    let analysis = scan.map(|s| Analysis::new(s.clone(), &params.scan).shifted(center));
+    let analysis = scan.map(|s| Analysis::new(s.placed(&placement), &params.scan));
     let metric = match &analysis {
         Some(a) => a.metric_field(&a.mesh_params(&mesh_params, diag), &local)?,
         None => MetricField::new(&local, &mesh_params)?,
     };
     Ok(Prepared {
         points: points.len(),
-        center,
+        placement,
         diag,
         local,
+        params: params.clone(),
         metric,
         scan: analysis,
         ms: t0.elapsed().as_secs_f64() * 1e3,
     })
 }
 
-/// The adapt stage: an anisotropic mesh of the frame (centred coordinates), adapted from
+/// The adapt stage: an anisotropic mesh of the frame (local coordinates), adapted from
 /// `previous` (a mesh in data coordinates, the previous frame's) when it still covers the
 /// data, else from a lattice.
 pub fn adapt(prepared: &Prepared, previous: Option<&Mesh>) -> AdaptedMesh {
     let start = previous.map(|m| {
         let mut m = m.clone();
         for c in &mut m.coords {
-            *c = sub(*c, prepared.center);
+            *c = prepared.placement.to_local(*c);
         }
         m
     });
     prepared.metric.adapt(start)
 }
 
-/// The solve stage: see [`evolve::solve`].
-pub fn solve(
-    prepared: &Prepared,
-    adapted: &AdaptedMesh,
-    previous: Option<Previous<'_>>,
-    params: &Params,
-) -> Solved {
+/// The solve stage: see [`evolve::solve`] (with the parameters [`prepare`] put in local
+/// units).
+pub fn solve(prepared: &Prepared, adapted: &AdaptedMesh, previous: Option<Previous<'_>>) -> Solved {
+    let params = &prepared.params;
     match &prepared.scan {
         // A scan's free space is a better start than any earlier frame's level set
         // (which, in a moving sensor's frame, is in the wrong place): the warm start is
@@ -267,7 +289,7 @@ pub fn solve(
                 &prepared.metric,
                 adapted,
                 prepared.diag,
-                prepared.center,
+                &prepared.placement,
                 evolve::Start::FreeSpace(&scan.free),
                 &params.solver,
             );
@@ -278,7 +300,7 @@ pub fn solve(
             &prepared.metric,
             adapted,
             prepared.diag,
-            prepared.center,
+            &prepared.placement,
             match previous {
                 Some(p) => evolve::Start::Warm(p),
                 None => evolve::Start::Cold,
@@ -289,26 +311,22 @@ pub fn solve(
 }
 
 /// The export stage: the curves ([`crate::export::curves`]) in data coordinates, with the
-/// frame's statistics.
-pub fn export(
-    prepared: &Prepared,
-    adapted: AdaptedMesh,
-    solved: Solved,
-    params: &ExportParams,
-) -> Reconstruction {
+/// frame's statistics (lengths in data units).
+pub fn export(prepared: &Prepared, adapted: AdaptedMesh, solved: Solved) -> Reconstruction {
     let t0 = Instant::now();
-    let center = prepared.center;
+    let at = prepared.placement;
+    let params = &prepared.params.export;
     let hmin = adapted.params.hmin;
     let mut mesh = adapted.mesh;
-    let u = solved.u;
+    let u: Vec<f64> = solved.u.iter().map(|&x| at.len_to_data(x)).collect();
     let scan = prepared.scan.as_ref().map(|a| {
         let sigma = a.scales.noise;
         (a, 2.0 * sigma + hmin)
     });
     let (polylines, features) =
-        crate::export::curves(&mesh, &u, center, prepared.diag, hmin, scan, params);
+        crate::export::curves(&mesh, &solved.u, &at, prepared.diag, hmin, scan, params);
     for p in &mut mesh.coords {
-        *p = add(*p, center);
+        *p = at.to_data(*p);
     }
     let report = solved.report;
     let ms_export = t0.elapsed().as_secs_f64() * 1e3;
@@ -331,7 +349,7 @@ pub fn export(
         vertices: mesh.num_vertices(),
         triangles: mesh.num_triangles(),
         iterations: report.iterations,
-        residual: report.residual,
+        residual: at.len_to_data(report.residual),
         converged: report.converged,
         warm_start: solved.warm_start,
         ms,
@@ -339,13 +357,16 @@ pub fn export(
         scheme: solved.settings.scheme.to_string(),
         linear_iterations: report.linear_iterations,
         renormalizations: report.renormalizations,
-        hmin,
-        eps: solved.settings.eps,
+        hmin: at.len_to_data(hmin),
+        eps: at.len_to_data(solved.settings.eps),
         unexplained: prepared
             .scan
             .as_ref()
             .map(|_| features.iter().map(|f| f.returns).sum()),
-        range_noise: prepared.scan.as_ref().map(|a| a.scales.noise),
+        range_noise: prepared
+            .scan
+            .as_ref()
+            .map(|a| at.len_to_data(a.scales.noise)),
     };
     Reconstruction {
         polylines,
@@ -354,12 +375,12 @@ pub fn export(
         stats,
         solve: report,
         settings: solved.settings,
-        noise_estimate: adapted.noise_estimate,
+        noise_estimate: at.len_to_data(adapted.noise_estimate),
         features,
         free_space: prepared.scan.as_ref().map(|a| {
             let mut poly = a.free.polygon();
-            poly.points.iter_mut().for_each(|p| *p = add(*p, center));
-            (add(a.free.origin, center), poly)
+            poly.points.iter_mut().for_each(|p| *p = at.to_data(*p));
+            (at.to_data(a.free.origin), poly)
         }),
     }
 }
@@ -398,6 +419,8 @@ pub fn reconstruct_frame(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::geom::add;
+    use crate::levelset::SolverParams;
     use crate::synth::{generate, Shape, SynthParams};
 
     fn stream() -> Vec<crate::synth::SynthFrame> {
@@ -414,6 +437,47 @@ mod tests {
         crate::eval::compare(&r.polylines, truth, None)
             .hausdorff
             .unwrap()
+    }
+
+    /// Data of any size the contract accepts reconstruct alike, and settings that cannot
+    /// work on the data are refused by name, not by a panic (the hardening issue's radius
+    /// 1e61 and 1e-42, and hmin or padding of 1e300, all once panicked).
+    #[test]
+    fn any_size_reconstructs_and_impossible_settings_are_named() {
+        let unit: Vec<Point> = (0..400)
+            .map(|i| {
+                let a = i as f64 * 2.399_963;
+                [0.4 * a.cos(), 0.4 * a.sin()]
+            })
+            .collect();
+        for scale in [1e-140, 1e-42, 1e-12, 1.0, 1e12, 1e61, 1e140] {
+            let pts: Vec<Point> = unit.iter().map(|p| [p[0] * scale, p[1] * scale]).collect();
+            let r = reconstruct(&pts, &Params::default()).unwrap();
+            assert_eq!(r.polylines.len(), 1, "scale {scale}");
+            let area = r.polylines[0].signed_area() / (scale * scale);
+            assert!(
+                (area - std::f64::consts::PI * 0.16).abs() < 0.01,
+                "{scale}: {area}"
+            );
+        }
+        let with =
+            |mesh: MeshParams| Params::new(mesh, SolverParams::default(), ExportParams::default());
+        let e = reconstruct(&unit, &with(MeshParams::default().with_hmin(1e300)))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("mesh.hmin = 1e300"), "{e}");
+        let mut wide = MeshParams::default();
+        wide.padding = 1e300;
+        let e = reconstruct(&unit, &with(wide)).unwrap_err().to_string();
+        assert!(e.contains("mesh.padding"), "{e}");
+        let tiny: Vec<Point> = unit
+            .iter()
+            .map(|p| [p[0] * 1e-160, p[1] * 1e-160])
+            .collect();
+        let e = reconstruct(&tiny, &Params::default())
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("below the supported 1e-150"), "{e}");
     }
 
     /// Warm frames meet the one-shot bound 3 sigma + 2 hmin, and so does a frame after a

@@ -6,7 +6,7 @@ pub mod support;
 pub mod svg;
 pub mod writers;
 
-use crate::geom::{add, Point, Polyline};
+use crate::geom::{Placement, Polyline};
 use crate::mesh::Mesh;
 use crate::scan::Analysis;
 use contour::{simplify, zero_isoline};
@@ -22,8 +22,18 @@ pub struct ExportParams {
     pub min_area: Option<f64>,
 }
 
-/// The export stage's kernel: the zero isoline of `u` on `mesh` (centred coordinates)
-/// as polylines moved back by `center` into data coordinates, loops smaller than
+impl ExportParams {
+    /// The same parameters with every length multiplied by `s` (into other units).
+    pub fn scaled(&self, s: f64) -> ExportParams {
+        ExportParams {
+            simplify: self.simplify * s,
+            min_area: self.min_area.map(|a| a * s * s),
+        }
+    }
+}
+
+/// The export stage's kernel: the zero isoline of `u` on `mesh` (local coordinates)
+/// as polylines placed back by `at` into data coordinates, loops smaller than
 /// `params.min_area` dropped and optionally simplified. `diag` (the data's diagonal)
 /// scales the merging of repeated crossings; `hmin` the default smallest loop.
 ///
@@ -33,7 +43,7 @@ pub struct ExportParams {
 pub fn curves(
     mesh: &Mesh,
     u: &[f64],
-    center: Point,
+    at: &Placement,
     diag: f64,
     hmin: f64,
     scan: Option<(&Analysis, f64)>,
@@ -59,7 +69,7 @@ pub fn curves(
         polylines = support::cut_to_support(&polylines, &a.support, tol, hmin, 0.5 * tol, hmin);
         features = support::unexplained(&a.run_points(), &polylines, tol);
         for f in &mut features {
-            f.center = add(f.center, center);
+            f.center = at.to_data(f.center);
         }
     }
     if params.simplify > 0.0 {
@@ -70,7 +80,7 @@ pub fn curves(
     }
     for pl in &mut polylines {
         for p in &mut pl.points {
-            *p = add(*p, center);
+            *p = at.to_data(*p);
         }
     }
     (polylines, features)

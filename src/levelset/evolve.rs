@@ -5,7 +5,7 @@ use std::time::Instant;
 
 use crate::fem::locate::locate_all;
 use crate::fem::P1Space;
-use crate::geom::Point;
+use crate::geom::Placement;
 use crate::levelset::init::{self, Init};
 use crate::levelset::params::{Settle, SolverParams};
 use crate::levelset::settle::center_on_data;
@@ -55,14 +55,15 @@ pub enum Start<'a> {
 }
 
 /// The level set of one frame on its adapted mesh (`field` is the frame's distance
-/// field and metric frames, in the mesh's coordinates; `diag` its data's diagonal),
-/// from `start` (`shift` takes the previous frame's coordinates to these), evolved by the
-/// solver and, on noisy data, settled on the data's median.
+/// field and metric frames, in the mesh's local coordinates; `diag` its data's diagonal
+/// in them; `params` in local units), from `start` (`at` places the local coordinates in
+/// the data's, where a previous frame is), evolved by the solver and, on noisy data,
+/// settled on the data's median.
 pub fn solve(
     field: &MetricField,
     adapted: &AdaptedMesh,
     diag: f64,
-    shift: Point,
+    at: &Placement,
     start: Start<'_>,
     params: &SolverParams,
 ) -> Solved {
@@ -108,7 +109,7 @@ pub fn solve(
         median_settle: params.settle == Settle::Median,
     };
     let warm = match start {
-        Start::Warm(prev) => warm_start(prev, shift, mesh, &data, &criteria),
+        Start::Warm(prev) => warm_start(prev, at, mesh, &data, &criteria),
         _ => None,
     };
     let warm_start = warm.is_some();

@@ -134,6 +134,16 @@ impl SolverParams {
         self
     }
 
+    /// The same parameters with every length multiplied by `s` (into other units).
+    pub fn scaled(&self, s: f64) -> SolverParams {
+        SolverParams {
+            alpha: self.alpha.map(|a| a / s),
+            eps: self.eps.map(|e| e * s),
+            tube: self.tube.map(|t| t * s),
+            ..self.clone()
+        }
+    }
+
     /// Checks the values that are set; every problem is listed.
     pub fn validate(&self) -> std::result::Result<(), Vec<String>> {
         let mut problems = Vec::new();
@@ -168,14 +178,21 @@ impl SolverParams {
                 self.linear_max_iterations
             ));
         }
-        if self.max_iterations == Some(0) {
-            problems.push("solver.max_iterations = 0: must be at least 1".into());
-        }
-        if self.patience == Some(0) {
-            problems.push("solver.patience = 0: must be at least 1".into());
-        }
-        if self.warm_patience == Some(0) {
-            problems.push("solver.warm_patience = 0: must be at least 1".into());
+        // Bounds on the work a frame may take: ten million steps is hours on any mesh.
+        for (key, v) in [
+            ("solver.max_iterations", self.max_iterations),
+            ("solver.patience", self.patience),
+            ("solver.warm_patience", self.warm_patience),
+            (
+                "solver.renormalize_every",
+                self.renormalize_every.filter(|&n| n > 0),
+            ),
+        ] {
+            if let Some(n) = v {
+                if !(1..=10_000_000).contains(&n) {
+                    problems.push(format!("{key} = {n}: must be in 1..=10000000"));
+                }
+            }
         }
         if problems.is_empty() {
             Ok(())

@@ -12,7 +12,7 @@
 //! the data): cold start.
 
 use crate::fem::locate::{locate_all, Location};
-use crate::geom::{sub, BBox, Point};
+use crate::geom::{BBox, Placement, Point};
 use crate::levelset::solver::residual;
 use crate::mesh::Mesh;
 
@@ -22,9 +22,9 @@ use crate::mesh::Mesh;
 pub struct Previous<'a> {
     /// The previous frame's mesh, in data coordinates.
     pub mesh: &'a Mesh,
-    /// Its level set.
+    /// Its level set, in data units.
     pub u: &'a [f64],
-    /// Its eq. 11 residual.
+    /// Its eq. 11 residual, in data units.
     pub residual: f64,
 }
 
@@ -70,35 +70,39 @@ pub fn decide(residual: f64, previous_residual: f64, c: &WarmCriteria) -> Decisi
     }
 }
 
-/// The level set `u` of `old` (whose coordinates less `shift` are those of `coords`) at
-/// each of `coords`, by walking to each point; `None` when `old` does not cover every
-/// point.
-pub fn carry(old: &Mesh, u: &[f64], shift: Point, coords: &[Point]) -> Option<Vec<f64>> {
+/// The level set `u` of `old` (in data coordinates and units) at each of `coords` (in
+/// the local coordinates of `at`), in local units, by walking to each point; `None`
+/// when `old` does not cover every point.
+pub fn carry(old: &Mesh, u: &[f64], at: &Placement, coords: &[Point]) -> Option<Vec<f64>> {
     let mut old = old.clone();
     for c in &mut old.coords {
-        *c = sub(*c, shift);
+        *c = at.to_local(*c);
     }
     let bbox = BBox::of(&old.coords)?;
     if !coords.iter().all(|&c| bbox.contains(c)) {
         return None;
     }
-    let at = locate_all(&old, coords);
-    Some(at.iter().map(|l| l.interpolate(&old, u)).collect())
+    let loc = locate_all(&old, coords);
+    Some(
+        loc.iter()
+            .map(|l| at.len_to_local(l.interpolate(&old, u)))
+            .collect(),
+    )
 }
 
-/// A warm start for the frame meshed by `mesh` (coordinates shifted by `shift` from the
-/// previous frame's) with samples located at `data`: the carried level set and whether
-/// it was near (taken as it is), or `None` for a cold start.
+/// A warm start for the frame meshed by `mesh` (in the local coordinates of `at`; the
+/// previous frame is in data coordinates) with samples located at `data`: the carried
+/// level set and whether it was near (taken as it is), or `None` for a cold start.
 pub fn warm_start(
     prev: Previous<'_>,
-    shift: Point,
+    at: &Placement,
     mesh: &Mesh,
     data: &[Location],
     c: &WarmCriteria,
 ) -> Option<(Vec<f64>, bool)> {
-    let mut u = carry(prev.mesh, prev.u, shift, &mesh.coords)?;
+    let mut u = carry(prev.mesh, prev.u, at, &mesh.coords)?;
     let (res, _) = residual(mesh, data, &u);
-    let decision = decide(res, prev.residual, c);
+    let decision = decide(res, at.len_to_local(prev.residual), c);
     tracing::debug!(residual = res, ?decision, "warm start");
     match decision {
         Decision::Near => Some((u, true)),
@@ -115,6 +119,11 @@ pub fn warm_start(
 mod tests {
     use super::*;
     use crate::geom::dist;
+
+    const UNIT: Placement = Placement {
+        center: [0.0, 0.0],
+        scale: 1.0,
+    };
 
     const C: WarmCriteria = WarmCriteria {
         settle_width: 0.02,
@@ -150,14 +159,18 @@ mod tests {
         let old = Mesh::structured(&bbox, 40);
         // A linear field is carried exactly by P1 interpolation.
         let u: Vec<f64> = old.coords.iter().map(|p| 2.0 * p[0] - p[1]).collect();
-        let shift = [0.1, -0.2];
-        let probes = [[0.0, 0.0], [0.5, -0.3], [-0.85, 0.75]];
-        let got = carry(&old, &u, shift, &probes).unwrap();
+        // Local coordinates centred at (0.1, -0.2) and half the size: values halve too.
+        let at = Placement {
+            center: [0.1, -0.2],
+            scale: 0.5,
+        };
+        let probes = [[0.0, 0.0], [0.5, -0.3], [-1.7, 1.5]];
+        let got = carry(&old, &u, &at, &probes).unwrap();
         for (p, g) in probes.iter().zip(&got) {
-            let q = [p[0] + shift[0], p[1] + shift[1]];
-            assert!((g - (2.0 * q[0] - q[1])).abs() < 1e-12, "{p:?}: {g}");
+            let q = at.to_data(*p);
+            assert!((g - (2.0 * q[0] - q[1]) / 0.5).abs() < 1e-12, "{p:?}: {g}");
         }
-        assert!(carry(&old, &u, shift, &[[0.95, 0.0]]).is_none());
+        assert!(carry(&old, &u, &at, &[[1.9, 0.0]]).is_none());
     }
 
     #[test]
@@ -186,7 +199,7 @@ mod tests {
             u: &prev_u,
             residual: 0.0,
         };
-        let (u, near) = warm_start(prev, [0.0, 0.0], &mesh, &data, &C).unwrap();
+        let (u, near) = warm_start(prev, &UNIT, &mesh, &data, &C).unwrap();
         assert!(near && u == prev_u);
         // 0.03 inside the samples: too far for the settle, within twice the previous
         // residual, so offset outward past every sample by eps (P1 interpolation of the
@@ -197,7 +210,7 @@ mod tests {
             residual: 0.02,
             ..prev
         };
-        let (u, near) = warm_start(prev, [0.0, 0.0], &mesh, &data, &C).unwrap();
+        let (u, near) = warm_start(prev, &UNIT, &mesh, &data, &C).unwrap();
         assert!(!near);
         let (res, _) = residual(&mesh, &data, &u);
         assert!((res - C.eps).abs() < 5e-4, "{res}");
@@ -207,6 +220,6 @@ mod tests {
             residual: 0.0,
             ..prev
         };
-        assert!(warm_start(prev, [0.0, 0.0], &mesh, &data, &C).is_none());
+        assert!(warm_start(prev, &UNIT, &mesh, &data, &C).is_none());
     }
 }

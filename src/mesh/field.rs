@@ -8,11 +8,15 @@ use crate::distance::DistanceField;
 use crate::error::{Error, Result};
 use rayon::prelude::*;
 
-use crate::geom::{dot, sub, BBox, Point, Sym2};
+use crate::geom::{dot, BBox, Point, Sym2};
 use crate::mesh::adapt::{AdaptOptions, AdaptReport, Adapter};
 use crate::mesh::metric::{CurveMetric, MetricParams};
 use crate::mesh::quality::{mesh_stats, MeshStats};
 use crate::mesh::Mesh;
+
+/// The largest `max_vertices` accepted: a mesh takes about 300 bytes a vertex while it is
+/// adapted, so this bounds a frame's mesh near 6 GB.
+pub const MAX_VERTICES: usize = 20_000_000;
 
 /// Mesh parameters; `None` means "derive from the data" (see each field).
 #[derive(Clone, Debug, PartialEq)]
@@ -103,6 +107,52 @@ impl MeshParams {
         self
     }
 
+    /// The same parameters with every length multiplied by `s` (into other units).
+    pub fn scaled(&self, s: f64) -> MeshParams {
+        let m = |x: Option<f64>| x.map(|v| v * s);
+        MeshParams {
+            hmin: m(self.hmin),
+            hmax: m(self.hmax),
+            eps: m(self.eps),
+            band: m(self.band),
+            ..self.clone()
+        }
+    }
+
+    /// Checks the lengths that are set against data of extent (bounding-box diagonal)
+    /// `extent`, in the same units: `hmin` below it, and every length within nine
+    /// orders of magnitude of it, beyond which sizes are meaningless or their squares
+    /// leave the floating-point range. Every problem is listed.
+    pub fn check_against(&self, extent: f64) -> std::result::Result<(), Vec<String>> {
+        let mut problems = Vec::new();
+        for (key, v) in [
+            ("mesh.hmin", self.hmin),
+            ("mesh.hmax", self.hmax),
+            ("mesh.eps", self.eps),
+            ("mesh.band", self.band),
+        ] {
+            if let Some(v) = v {
+                if !(v >= 1e-9 * extent && v <= 1e9 * extent) {
+                    problems.push(format!(
+                        "{key} = {v:e}: must be within 1e-9 to 1e9 times the data's extent ({extent:e})"
+                    ));
+                }
+            }
+        }
+        if let Some(h) = self.hmin {
+            if h >= extent {
+                problems.push(format!(
+                    "mesh.hmin = {h:e}: must be below the data's extent ({extent:e}), or nothing is resolved"
+                ));
+            }
+        }
+        if problems.is_empty() {
+            Ok(())
+        } else {
+            Err(problems)
+        }
+    }
+
     /// Checks the values that are set; every problem is listed.
     pub fn validate(&self) -> std::result::Result<(), Vec<String>> {
         let mut problems = Vec::new();
@@ -116,8 +166,11 @@ impl MeshParams {
                 problems.push(format!("mesh.hmax = {b}: must be at least mesh.hmin = {a}"));
             }
         }
-        if !(self.padding.is_finite() && self.padding >= 0.0) {
-            problems.push(format!("mesh.padding = {}: must be >= 0", self.padding));
+        if !(self.padding.is_finite() && (0.0..=10.0).contains(&self.padding)) {
+            problems.push(format!(
+                "mesh.padding = {}: must be in [0, 10] (a fraction of the data's extent)",
+                self.padding
+            ));
         }
         if !(3..=256).contains(&self.neighbours) {
             problems.push(format!(
@@ -137,9 +190,9 @@ impl MeshParams {
                 self.warm_change
             ));
         }
-        if self.max_vertices < 16 {
+        if !(16..=MAX_VERTICES).contains(&self.max_vertices) {
             problems.push(format!(
-                "mesh.max_vertices = {}: must be >= 16",
+                "mesh.max_vertices = {}: must be in 16..={MAX_VERTICES}",
                 self.max_vertices
             ));
         }
@@ -193,8 +246,9 @@ pub struct AdaptedMesh {
 
 /// Adapts a mesh of the padded bounding box of `points` to their distance field.
 ///
-/// The computation runs in coordinates centred on the data (so that large offsets cost
-/// no precision in element shapes); the returned mesh is in data coordinates.
+/// The computation runs in coordinates centred on the data and scaled to its size
+/// ([`crate::geom::Placement`]); the returned mesh, sizes and noise estimate are in data
+/// coordinates and units. The metrics stay in local units.
 ///
 /// ```
 /// use isoline::mesh::{adapt_to_points, MeshParams};
@@ -211,16 +265,22 @@ pub struct AdaptedMesh {
 pub fn adapt_to_points(points: &[Point], params: &MeshParams) -> Result<AdaptedMesh> {
     crate::distance::validate_points(points)?;
     let bbox = BBox::of(points).ok_or(Error::EmptyPointSet)?;
-    let center = bbox.center();
-    let local: Vec<Point> = points.iter().map(|&p| sub(p, center)).collect();
-    let (mut m, _) = adapt_local(&local, params)?;
+    let at = crate::geom::Placement::of(&bbox);
+    let local: Vec<Point> = points.iter().map(|&p| at.to_local(p)).collect();
+    let (mut m, _) = adapt_local(&local, &params.scaled(1.0 / at.scale))?;
     for p in &mut m.mesh.coords {
-        *p = crate::geom::add(*p, center);
+        *p = at.to_data(*p);
     }
     m.domain = BBox {
-        min: crate::geom::add(m.domain.min, center),
-        max: crate::geom::add(m.domain.max, center),
+        min: at.to_data(m.domain.min),
+        max: at.to_data(m.domain.max),
     };
+    let len = |x: f64| at.len_to_data(x);
+    m.params.hmin = len(m.params.hmin);
+    m.params.hmax = len(m.params.hmax);
+    m.params.eps = len(m.params.eps);
+    m.params.band = len(m.params.band);
+    m.noise_estimate = len(m.noise_estimate);
     Ok(m)
 }
 
@@ -545,7 +605,14 @@ impl MetricField {
             (b.contains(enough.min) && b.contains(enough.max)).then_some((b, m))
         }) {
             Some((b, m)) => (b, m, true),
-            None => (wanted, Mesh::of_box(&wanted, self.params.hmax), false),
+            None => {
+                // The lattice holds at most a quarter of the vertex budget, whatever the
+                // padding and hmax: max_vertices bounds the whole mesh.
+                let size = wanted.size();
+                let budget = (self.max_vertices / 4).max(4) as f64;
+                let h = self.params.hmax.max((size[0] * size[1] / budget).sqrt());
+                (wanted, Mesh::of_box(&wanted, h), false)
+            }
         };
         let mut opts = AdaptOptions::default()
             .with_max_passes(self.max_passes)

@@ -144,20 +144,13 @@ impl Daemon {
         ));
         threads.push((
             "solve",
-            stages::spawn_solve(
-                solve_rx,
-                to_renorm,
-                feedback_rx,
-                policy,
-                warm,
-                params.clone(),
-            )?,
+            stages::spawn_solve(solve_rx, to_renorm, feedback_rx, policy, warm)?,
         ));
         threads.push((
             "renormalize",
             stages::spawn_renormalize(renorm_rx, to_export, warm.then_some(feedback_tx))?,
         ));
-        let export = stages::spawn_export(export_rx, sink, cfg.svg_dir.clone(), params, stop)?;
+        let export = stages::spawn_export(export_rx, sink, cfg.svg_dir.clone(), stop)?;
         Ok(Daemon {
             threads,
             export,

@@ -18,7 +18,7 @@ use super::source::Line;
 use super::{RunSummary, Sink};
 use crate::error::{Error, Result};
 use crate::format::ResultRecord;
-use crate::geom::{add, Point};
+use crate::geom::Point;
 use crate::levelset::evolve::Solved;
 use crate::levelset::warm::Previous;
 use crate::mesh::field::AdaptedMesh;
@@ -321,7 +321,7 @@ pub(crate) fn spawn_adapt(
                 if warm {
                     let mut mesh = adapted.mesh.clone();
                     for c in &mut mesh.coords {
-                        *c = add(*c, p.center);
+                        *c = p.placement.to_data(*c);
                     }
                     last.insert(m.key().to_string(), (m.frame, mesh));
                 }
@@ -349,7 +349,6 @@ pub(crate) fn spawn_solve(
     feedback: Receiver<Feedback>,
     policy: Policy,
     warm: bool,
-    params: Arc<Params>,
 ) -> Result<JoinHandle<()>> {
     spawn("solve", move || {
         let mut state: HashMap<String, SolveState> = HashMap::new();
@@ -393,7 +392,7 @@ pub(crate) fn spawn_solve(
                     u: &l.u,
                     residual: l.residual,
                 });
-                let solved = reconstruct::solve(&p, &adapted, previous, &params);
+                let solved = reconstruct::solve(&p, &adapted, previous);
                 if warm {
                     s.pending += 1;
                 }
@@ -428,14 +427,17 @@ pub(crate) fn spawn_renormalize(
                     let (p, adapted, solved) = &mut **b;
                     reconstruct::renormalize(&adapted.mesh, solved);
                     feedback.as_ref().map(|_| {
+                        // Kept in data coordinates and units: the next frame is placed
+                        // differently.
+                        let at = p.placement;
                         let mut mesh = adapted.mesh.clone();
                         for c in &mut mesh.coords {
-                            *c = add(*c, p.center);
+                            *c = at.to_data(*c);
                         }
                         LevelSet {
                             mesh,
-                            u: solved.u.clone(),
-                            residual: solved.report.residual,
+                            u: solved.u.iter().map(|&x| at.len_to_data(x)).collect(),
+                            residual: at.len_to_data(solved.report.residual),
                         }
                     })
                 }));
@@ -463,7 +465,6 @@ pub(crate) fn spawn_export(
     rx: Receiver<Msg>,
     mut sink: Sink,
     svg_dir: Option<PathBuf>,
-    params: Arc<Params>,
     stop: Arc<AtomicBool>,
 ) -> Result<JoinHandle<Result<RunSummary>>> {
     spawn("export", move || {
@@ -487,12 +488,12 @@ pub(crate) fn spawn_export(
                 Work::Solved(b) => {
                     let (p, adapted, solved) = *b;
                     let points: Vec<Point> = if svg_dir.is_some() {
-                        p.local.iter().map(|&q| add(q, p.center)).collect()
+                        p.local.iter().map(|&q| p.placement.to_data(q)).collect()
                     } else {
                         Vec::new()
                     };
                     catch_unwind(AssertUnwindSafe(|| {
-                        reconstruct::export(&p, adapted, solved, &params.export)
+                        reconstruct::export(&p, adapted, solved)
                     }))
                     .map(|r| Work::Exported(Box::new(r), points))
                     .unwrap_or_else(|panic| Work::Failed(internal_error("export", panic.as_ref())))

@@ -22,7 +22,7 @@
 use std::f64::consts::TAU;
 
 use crate::error::{Error, Result};
-use crate::geom::{add, dist, point_segment_dist2, sub, Point, Polyline};
+use crate::geom::{add, dist, point_segment_dist2, sub, Placement, Point, Polyline};
 use crate::mesh::field::{MeshParams, MetricField};
 
 /// How scan frames are read: the breakpoint test, dropouts and small clusters.
@@ -54,6 +54,14 @@ impl Default for ScanParams {
 }
 
 impl ScanParams {
+    /// The same parameters with every length multiplied by `s` (into other units).
+    pub fn scaled(&self, s: f64) -> ScanParams {
+        ScanParams {
+            range_noise: self.range_noise.map(|x| x * s),
+            ..self.clone()
+        }
+    }
+
     /// Checks the values; every problem is listed with its key in `[scan]`.
     pub fn validate(&self) -> std::result::Result<(), Vec<String>> {
         let mut problems = Vec::new();
@@ -249,10 +257,12 @@ impl Scan {
         }
     }
 
-    /// The same scan moved by `-shift` (its coordinates relative to `shift`).
-    pub fn shifted(&self, shift: Point) -> Scan {
+    /// The same scan in the local coordinates of `at` (lengths scaled with them).
+    pub fn placed(&self, at: &Placement) -> Scan {
         Scan {
-            origin: sub(self.origin, shift),
+            origin: at.to_local(self.origin),
+            ranges: self.ranges.iter().map(|&r| at.len_to_local(r)).collect(),
+            range_max: at.len_to_local(self.range_max),
             ..self.clone()
         }
     }
@@ -667,15 +677,20 @@ impl Analysis {
             .collect()
     }
 
-    /// The same analysis in coordinates relative to `shift`.
-    pub fn shifted(&self, shift: Point) -> Analysis {
-        let mv = |p: &Point| sub(*p, shift);
+    /// The same analysis in the local coordinates of `at` (lengths scaled with them).
+    pub fn placed(&self, at: &Placement) -> Analysis {
+        let len = |x: f64| at.len_to_local(x);
         Analysis {
-            scan: self.scan.shifted(shift),
+            scan: self.scan.placed(at),
             runs: self.runs.clone(),
-            scales: self.scales,
+            scales: Scales {
+                noise: len(self.scales.noise),
+                noise_estimate: self.scales.noise_estimate.map(len),
+                spacing: len(self.scales.spacing),
+            },
             free: FreeSpace {
-                origin: sub(self.free.origin, shift),
+                origin: at.to_local(self.free.origin),
+                reach: self.free.reach.iter().map(|&r| len(r)).collect(),
                 ..self.free.clone()
             },
             support: self
@@ -683,7 +698,7 @@ impl Analysis {
                 .iter()
                 .map(|pl| Polyline {
                     closed: pl.closed,
-                    points: pl.points.iter().map(mv).collect(),
+                    points: pl.points.iter().map(|&p| at.to_local(p)).collect(),
                 })
                 .collect(),
         }
