@@ -466,8 +466,10 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.contains("mesh.hmin = 1e300"), "{e}");
-        let mut wide = MeshParams::default();
-        wide.padding = 1e300;
+        let wide = MeshParams {
+            padding: 1e300,
+            ..Default::default()
+        };
         let e = reconstruct(&unit, &with(wide)).unwrap_err().to_string();
         assert!(e.contains("mesh.padding"), "{e}");
         let tiny: Vec<Point> = unit
