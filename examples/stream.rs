@@ -39,7 +39,7 @@ fn main() {
         let stats = back.stats.expect("a reconstructed frame has stats");
         println!(
             "frame {}: {} polyline(s), warm start {}, {:.1} ms",
-            back.frame,
+            frame.frame,
             back.polylines.map_or(0, |p| p.len()),
             stats.warm_start,
             stats.ms.total

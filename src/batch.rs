@@ -20,12 +20,16 @@
 //!
 //! Everything is checked before any work starts. Files run in parallel on one rayon pool
 //! of `workers` threads, and each file's own parallel loops run on that same pool, so the
-//! machine is never oversubscribed. Outputs are written through a temporary file and a
-//! rename; an input whose outputs are all newer than it and than the job file is skipped,
-//! so an interrupted job resumes where it stopped.
+//! machine is never oversubscribed. A file's failure, even a panic (a bug), is that
+//! file's: the job goes on and reports it. Outputs are written through a temporary file
+//! and a rename, and no output may be an input or a job summary; an input whose outputs
+//! are all newer than it and than the job file, and that did not fail, is skipped, so an
+//! interrupted job resumes where it stopped.
 
 use std::path::{Path, PathBuf};
 use std::time::{Instant, SystemTime};
+
+use std::panic::{catch_unwind, AssertUnwindSafe};
 
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
@@ -305,20 +309,58 @@ impl Job {
                 params,
             });
         }
-        if !problems.is_empty() {
-            return Err(config_error(path, problems));
-        }
-        Ok(Job {
+        let job = Job {
             path: path.to_path_buf(),
             tasks,
             output,
             formats,
             workers,
-        })
+        };
+        problems.extend(job.collisions());
+        if !problems.is_empty() {
+            return Err(config_error(path, problems));
+        }
+        Ok(job)
     }
 
-    /// The output files of `task`. SVG drawings hold one frame each; frames beyond the
-    /// first are drawn into `<stem>-<frame>.svg` when they are written.
+    /// Outputs that would overwrite an input or a job summary.
+    fn collisions(&self) -> Vec<String> {
+        let inputs: std::collections::HashMap<PathBuf, &Path> = self
+            .tasks
+            .iter()
+            .filter_map(|t| crate::files::identity(&t.input).map(|id| (id, t.input.as_path())))
+            .collect();
+        let summaries = [SUMMARY_JSON, SUMMARY_CSV].map(|n| self.output.join(n));
+        let mut problems = Vec::new();
+        for t in &self.tasks {
+            let mut outs = self.outputs(t);
+            if self.formats.contains(&Format::Svg) {
+                outs.push(frames_dir(t));
+            }
+            for out in outs {
+                if let Some(input) = crate::files::identity(&out).and_then(|id| inputs.get(&id)) {
+                    problems.push(format!(
+                        "batch.output: {} would overwrite the input {} (choose another output \
+                         folder)",
+                        out.display(),
+                        input.display()
+                    ));
+                } else if summaries.contains(&out) {
+                    problems.push(format!(
+                        "batch.inputs: the results of {} would overwrite the job's {} \
+                         (rename the input)",
+                        t.input.display(),
+                        out.display()
+                    ));
+                }
+            }
+        }
+        problems
+    }
+
+    /// The output files of `task`. SVG drawings hold one frame each: `<stem>.svg` draws
+    /// the first, and an input of several frames also gets one drawing per frame in
+    /// `<stem>-frames/`.
     pub fn outputs(&self, task: &Task) -> Vec<PathBuf> {
         self.formats
             .iter()
@@ -331,8 +373,45 @@ impl Job {
             .collect()
     }
 
-    /// Whether every output of `task` is newer than its input and the job file.
+    /// Whether `task` can be skipped: every output is newer than its input and the job
+    /// file, and the last run did not fail on it (by the last `summary.json`, and by
+    /// the error records of its NDJSON output).
     pub fn up_to_date(&self, task: &Task) -> bool {
+        self.outputs_newer(task) && !self.failed_before(task)
+    }
+
+    fn failed_before(&self, task: &Task) -> bool {
+        let file = task.input.display().to_string();
+        let summary = std::fs::read_to_string(self.output.join(SUMMARY_JSON))
+            .ok()
+            .and_then(|t| serde_json::from_str::<Summary>(&t).ok());
+        if let Some(s) = summary {
+            if s.files
+                .iter()
+                .any(|f| f.file == file && f.status == "failed")
+            {
+                return true;
+            }
+        }
+        self.previous_records(task)
+            .is_some_and(|recs| recs.iter().any(|r| r.error.is_some()))
+    }
+
+    /// The records of the NDJSON output of `task`, if it has one.
+    fn previous_records(&self, task: &Task) -> Option<Vec<crate::format::ResultRecord>> {
+        let ndjson = self
+            .outputs(task)
+            .into_iter()
+            .find(|p| p.extension().is_some_and(|e| e == "ndjson"))?;
+        let text = std::fs::read_to_string(ndjson).ok()?;
+        Some(
+            text.lines()
+                .filter_map(|l| serde_json::from_str(l).ok())
+                .collect(),
+        )
+    }
+
+    fn outputs_newer(&self, task: &Task) -> bool {
         let mtime = |p: &Path| std::fs::metadata(p).and_then(|m| m.modified()).ok();
         let Some(newest_source) = [mtime(&task.input), mtime(&self.path)]
             .into_iter()
@@ -350,6 +429,17 @@ impl Job {
     /// that are up to date are skipped unless `force`), calling `progress` once per input
     /// as it finishes. Writes `summary.json` and `summary.csv` into the output folder.
     pub fn run(&self, force: bool, progress: impl Fn(&FileSummary) + Sync) -> Result<Summary> {
+        self.run_with(force, progress, |task| self.process(task))
+    }
+
+    /// [`Job::run`] with `process` making each file's summary; a panic in it fails that
+    /// file only.
+    fn run_with(
+        &self,
+        force: bool,
+        progress: impl Fn(&FileSummary) + Sync,
+        process: impl Fn(&Task) -> FileSummary + Sync,
+    ) -> Result<Summary> {
         std::fs::create_dir_all(&self.output).map_err(|e| Error::io(&self.output, e))?;
         let pool = rayon::ThreadPoolBuilder::new()
             .num_threads(self.workers)
@@ -363,7 +453,22 @@ impl Job {
                     let s = if !force && self.up_to_date(task) {
                         self.skipped(task)
                     } else {
-                        self.process(task)
+                        let t0 = Instant::now();
+                        catch_unwind(AssertUnwindSafe(|| process(task))).unwrap_or_else(|p| {
+                            let what = p
+                                .downcast_ref::<&str>()
+                                .map(|s| s.to_string())
+                                .or_else(|| p.downcast_ref::<String>().cloned())
+                                .unwrap_or_else(|| "unknown panic".into());
+                            tracing::error!(file = %task.input.display(), %what, "panicked");
+                            FileSummary {
+                                file: task.input.display().to_string(),
+                                status: "failed".into(),
+                                reason: Some(format!("internal error (a bug in isoline): {what}")),
+                                ms: t0.elapsed().as_secs_f64() * 1e3,
+                                ..Default::default()
+                            }
+                        })
                     };
                     progress(&s);
                     s
@@ -389,9 +494,9 @@ impl Job {
         };
         let summary = Summary { files, totals };
         let json = serde_json::to_string_pretty(&summary).expect("summary serialises") + "\n";
-        let path = self.output.join("summary.json");
+        let path = self.output.join(SUMMARY_JSON);
         writers::write_atomic(&path, json.as_bytes()).map_err(|e| Error::io(&path, e))?;
-        let path = self.output.join("summary.csv");
+        let path = self.output.join(SUMMARY_CSV);
         writers::write_atomic(&path, summary_csv(&summary).as_bytes())
             .map_err(|e| Error::io(&path, e))?;
         Ok(summary)
@@ -404,15 +509,7 @@ impl Job {
             status: "skipped".into(),
             ..Default::default()
         };
-        let ndjson = self
-            .outputs(task)
-            .into_iter()
-            .find(|p| p.extension().is_some_and(|e| e == "ndjson"));
-        if let Some(text) = ndjson.and_then(|p| std::fs::read_to_string(p).ok()) {
-            let recs: Vec<crate::format::ResultRecord> = text
-                .lines()
-                .filter_map(|l| serde_json::from_str(l).ok())
-                .collect();
+        if let Some(recs) = self.previous_records(task) {
             tally(&mut s, &recs);
         }
         s
@@ -460,26 +557,14 @@ impl Job {
         let errors: Vec<String> = recs
             .iter()
             .filter_map(|r| r.error.as_ref().map(|e| (r.frame, e)))
-            .map(|(k, e)| {
-                if frames.len() > 1 {
-                    format!("frame {k}: {e}")
-                } else {
-                    e.clone()
-                }
+            .map(|(k, e)| match k {
+                Some(k) if frames.len() > 1 => format!("frame {k}: {e}"),
+                _ => e.clone(),
             })
             .collect();
         for (format, out) in self.formats.iter().zip(self.outputs(task)) {
             let written = match format {
-                Format::Svg => drawings.iter().enumerate().try_for_each(|(i, (k, doc))| {
-                    let path = if i == 0 {
-                        out.clone()
-                    } else {
-                        let mut p = task.stem.clone().into_os_string();
-                        p.push(format!("-{k}.svg"));
-                        PathBuf::from(p)
-                    };
-                    writers::write_atomic(&path, doc.as_bytes())
-                }),
+                Format::Svg => write_drawings(&out, &frames_dir(task), &drawings, frames.len()),
                 other => writers::write_atomic(&out, writers::render(*other, &recs).as_bytes()),
             };
             if let Err(e) = written {
@@ -502,6 +587,38 @@ impl Job {
         s.ms = t0.elapsed().as_secs_f64() * 1e3;
         s
     }
+}
+
+/// The job summaries in the output folder.
+const SUMMARY_JSON: &str = "summary.json";
+/// See [`SUMMARY_JSON`].
+const SUMMARY_CSV: &str = "summary.csv";
+
+/// The folder of per-frame drawings of a multi-frame input: `<stem>-frames`.
+fn frames_dir(task: &Task) -> PathBuf {
+    let mut p = task.stem.clone().into_os_string();
+    p.push("-frames");
+    PathBuf::from(p)
+}
+
+/// Writes the first drawing to `first` and, for an input of several frames, each one to
+/// `dir/frame-FRAME.svg`.
+fn write_drawings(
+    first: &Path,
+    dir: &Path,
+    drawings: &[(u64, String)],
+    frames: usize,
+) -> std::io::Result<()> {
+    if let Some((_, doc)) = drawings.first() {
+        writers::write_atomic(first, doc.as_bytes())?;
+    }
+    if frames > 1 && !drawings.is_empty() {
+        std::fs::create_dir_all(dir)?;
+        for (k, doc) in drawings {
+            writers::write_atomic(&dir.join(format!("frame-{k:06}.svg")), doc.as_bytes())?;
+        }
+    }
+    Ok(())
 }
 
 /// Adds the stats of `recs` to `s`.
@@ -598,5 +715,116 @@ mod tests {
         assert_eq!(j.tasks.len(), 1);
         assert_eq!(j.tasks[0].params.solver.alpha, Some(5.0));
         assert_eq!(j.formats, vec![Format::Ndjson, Format::Svg]);
+    }
+
+    fn job_in(dir: &Path, text: &str) -> Result<Job> {
+        let job = dir.join("job.toml");
+        std::fs::write(&job, text).unwrap();
+        Job::load(&job)
+    }
+
+    #[test]
+    fn no_output_may_overwrite_an_input_or_a_summary() {
+        let dir = tempfile::tempdir().unwrap();
+        let d = dir.path();
+        let frame = r#"{"frame":1,"points":[[0,0],[1,0],[0,1]]}"#;
+        std::fs::write(d.join("a.ndjson"), format!("{frame}\n")).unwrap();
+        // Results into the input folder: a.ndjson would be replaced by its own results.
+        let e = job_in(d, "[batch]\ninputs = [\"*.ndjson\"]\noutput = \".\"\n")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("would overwrite the input"), "{e}");
+        assert_eq!(
+            std::fs::read_to_string(d.join("a.ndjson")).unwrap(),
+            format!("{frame}\n")
+        );
+        // Through another spelling of the same folder, too.
+        std::fs::create_dir(d.join("sub")).unwrap();
+        let e = job_in(d, "[batch]\ninputs = [\"*.ndjson\"]\noutput = \"sub/..\"\n");
+        assert!(e.is_err());
+        // An input called summary would write over the job summary.
+        std::fs::write(d.join("sub/summary.xy"), "0 0\n1 0\n0 1\n").unwrap();
+        let e = job_in(
+            d,
+            "[batch]\ninputs = [\"sub/*.xy\"]\noutput = \"out\"\nformats = [\"json\"]\n",
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(
+            e.contains("summary.json") && e.contains("rename the input"),
+            "{e}"
+        );
+        // A multi-frame drawing folder and another input's drawing do not meet.
+        std::fs::write(d.join("sub/a-1.xy"), "0 0\n1 0\n0 1\n").unwrap();
+        std::fs::remove_file(d.join("sub/summary.xy")).unwrap();
+        let j = job_in(
+            d,
+            "[batch]\ninputs = [\"*.ndjson\", \"sub/*.xy\"]\noutput = \"out\"\n",
+        )
+        .unwrap();
+        assert_eq!(j.tasks.len(), 2);
+    }
+
+    #[test]
+    fn a_panicking_file_fails_alone() {
+        let dir = tempfile::tempdir().unwrap();
+        let d = dir.path();
+        for name in ["a", "b", "c"] {
+            std::fs::write(d.join(format!("{name}.xy")), "0 0\n1 0\n0 1\n").unwrap();
+        }
+        let j = job_in(
+            d,
+            "[batch]\ninputs = [\"*.xy\"]\noutput = \"out\"\nworkers = 2\n",
+        )
+        .unwrap();
+        let hook = std::panic::take_hook();
+        std::panic::set_hook(Box::new(|_| {}));
+        let s = j.run_with(
+            true,
+            |_| {},
+            |t| {
+                assert!(!t.input.ends_with("b.xy"), "b is cursed");
+                FileSummary {
+                    file: t.input.display().to_string(),
+                    status: "ok".into(),
+                    ..Default::default()
+                }
+            },
+        );
+        std::panic::set_hook(hook);
+        let s = s.unwrap();
+        assert_eq!((s.totals.ok, s.totals.failed), (2, 1));
+        let b = s.files.iter().find(|f| f.file.ends_with("b.xy")).unwrap();
+        assert!(
+            b.reason.as_deref().unwrap().contains("b is cursed"),
+            "{b:?}"
+        );
+        assert!(d.join("out/summary.json").is_file());
+    }
+
+    #[test]
+    fn a_rerun_retries_a_file_whose_frame_failed() {
+        let dir = tempfile::tempdir().unwrap();
+        let d = dir.path();
+        let good = (0..40)
+            .map(|i| {
+                let a = f64::from(i) * std::f64::consts::TAU / 40.0;
+                format!("[{},{}]", a.cos(), a.sin())
+            })
+            .collect::<Vec<_>>()
+            .join(",");
+        std::fs::write(
+            d.join("s.ndjson"),
+            format!("{{\"frame\":1,\"points\":[{good}]}}\n{{\"frame\":2,\"points\":[[0,0]]}}\n"),
+        )
+        .unwrap();
+        let j = job_in(d, "[batch]\ninputs = [\"*.ndjson\"]\noutput = \"out\"\n").unwrap();
+        let first = j.run(false, |_| {}).unwrap();
+        assert_eq!(first.totals.failed, 1, "{first:?}");
+        // Its outputs are newer than the input, but they hold a failure: not skipped.
+        assert!(!j.up_to_date(&j.tasks[0]));
+        let again = j.run(false, |_| {}).unwrap();
+        assert_eq!((again.totals.failed, again.totals.skipped), (1, 0));
+        assert!(d.join("out/s-frames/frame-000001.svg").is_file());
     }
 }

@@ -273,8 +273,14 @@ pub struct ResultRecord {
     /// Stream id, as in the input.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub stream: Option<String>,
-    /// Frame number, as in the input.
-    pub frame: u64,
+    /// Frame number, as in the input; absent on the error record of a line whose frame
+    /// number could not be read (see `line`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub frame: Option<u64>,
+    /// Daemon error records: the input line (1-based, within its file or TCP client)
+    /// that the record answers.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub line: Option<u64>,
     /// The curves.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub polylines: Option<Vec<PolylineJson>>,
@@ -302,7 +308,7 @@ impl ResultRecord {
     ) -> ResultRecord {
         ResultRecord {
             stream,
-            frame,
+            frame: Some(frame),
             polylines: Some(r.polylines.iter().map(PolylineJson::from).collect()),
             features: r
                 .stats

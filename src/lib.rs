@@ -40,6 +40,7 @@ pub mod error;
 pub mod eval;
 pub mod export;
 pub mod fem;
+pub mod files;
 pub mod format;
 pub mod geom;
 pub mod ingest;

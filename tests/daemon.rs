@@ -105,9 +105,10 @@ fn a_malformed_line_gets_an_error_record_and_the_stream_goes_on() {
     assert_eq!(frame_ids(&recs), vec![0, 1, 2, 3]);
     let e1 = recs[1]["error"].as_str().unwrap();
     assert!(e1.contains("in.ndjson, line 2"), "{e1}");
-    // A truncated line is not JSON: its stream and number are those of the frame before
-    // it, plus one.
+    // A truncated line is not JSON: its stream and number are read up to the cut, and
+    // its record names the line.
     assert_eq!(recs[1]["stream"], "lidar0");
+    assert_eq!(recs[1]["line"], 2);
     let e2 = recs[2]["error"].as_str().unwrap();
     assert!(e2.contains("point") || e2.contains("coincide"), "{e2}");
     assert_eq!(recs[2]["stream"], "lidar0");
@@ -314,9 +315,13 @@ fn every_streamed_frame_is_as_accurate_as_a_one_shot_reconstruction() {
         let rec: isoline::format::ResultRecord = serde_json::from_value(r.clone()).unwrap();
         let polylines: Vec<isoline::geom::Polyline> =
             rec.polylines.unwrap().into_iter().map(Into::into).collect();
-        let acc = isoline::eval::compare(&polylines, &truth.for_frame(Some(rec.frame)), None);
+        let acc = isoline::eval::compare(&polylines, &truth.for_frame(rec.frame), None);
         let h = acc.hausdorff.unwrap();
-        assert!(h <= bound, "frame {}: Hausdorff {h} > {bound}", rec.frame);
+        assert!(
+            h <= bound,
+            "frame {}: Hausdorff {h} > {bound}",
+            rec.frame.unwrap()
+        );
         assert_eq!(acc.components_recon, 1);
     }
 }
@@ -422,4 +427,79 @@ fn a_recorded_replay_keeps_the_time_stamps() {
         t0.elapsed()
     );
     assert_eq!(records(&dir.path().join("out.ndjson")).len(), 6);
+}
+
+#[test]
+fn configurations_that_would_destroy_data_or_hang_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let text: String = std::fs::read_to_string(fixture("ellipse-stream-20.ndjson"))
+        .unwrap()
+        .lines()
+        .take(3)
+        .map(|l| format!("{l}\n"))
+        .collect();
+    std::fs::write(d.join("in.ndjson"), &text).unwrap();
+    let run = |toml: &str| {
+        let out = bin()
+            .args(["run", "-c", config(d, toml).to_str().unwrap()])
+            .output()
+            .unwrap();
+        (
+            out.status.success(),
+            String::from_utf8_lossy(&out.stderr).to_string(),
+        )
+    };
+    for (toml, needle) in [
+        (
+            "[input]\npath = \"in.ndjson\"\n[output]\npath = \"./in.ndjson\"\n",
+            "is the input file",
+        ),
+        (
+            "[input]\npath = \"in.ndjson\"\n[tracing]\nchrome_trace = \"in.ndjson\"\n",
+            "is the input file",
+        ),
+        ("[input]\npath = \".\"\n", "a folder"),
+        (
+            "[input]\npath = \"in.ndjson\"\nreplay = 1e-19\n",
+            "input.replay",
+        ),
+        (
+            "[input]\nkind = \"tcp\"\nbind = \"0.0.0.0:0\"\n",
+            "input.allow_remote = true",
+        ),
+        (
+            "[input]\nkind = \"stdin\"\nmax_line_bytes = 10\n",
+            "input.max_line_bytes",
+        ),
+        ("[pipeline]\nmax_streams = 0\n", "pipeline.max_streams"),
+    ] {
+        let (ok, stderr) = run(toml);
+        assert!(!ok && stderr.contains(needle), "{toml}: {stderr}");
+    }
+    assert_eq!(std::fs::read_to_string(d.join("in.ndjson")).unwrap(), text);
+
+    // A full disk ends the run with an error that names the output.
+    let (ok, stderr) =
+        run("[input]\npath = \"in.ndjson\"\nreplay = \"fast\"\n[output]\npath = \"/dev/full\"\n");
+    assert!(!ok && stderr.contains("/dev/full"), "{stderr}");
+
+    // Wild time stamps neither panic nor stall a recorded replay.
+    let stamps: String = text
+        .lines()
+        .zip([1e19, 0.0, -1e300])
+        .map(|(l, t)| {
+            let mut v: Value = serde_json::from_str(l).unwrap();
+            v["t"] = t.into();
+            format!("{v}\n")
+        })
+        .collect();
+    std::fs::write(d.join("stamps.ndjson"), stamps).unwrap();
+    let t0 = Instant::now();
+    let (ok, stderr) = run(
+        "[input]\npath = \"stamps.ndjson\"\n[output]\npath = \"out.ndjson\"\n[mesh]\nhmin = 0.002\n",
+    );
+    assert!(ok, "{stderr}");
+    assert!(t0.elapsed() < Duration::from_secs(20));
+    assert_eq!(records(&d.join("out.ndjson")).len(), 3);
 }

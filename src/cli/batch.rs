@@ -62,7 +62,7 @@ pub fn run(a: Args) -> Result<()> {
     if let Some(b) = bar {
         b.finish_and_clear();
     }
-    println!(
+    let mut table = format!(
         "{:<40} {:>8} {:>7} {:>9} {:>9} {:>9} {:>10} {:>9}",
         "file", "status", "points", "polylines", "vertices", "iterations", "residual", "ms"
     );
@@ -70,20 +70,21 @@ pub fn run(a: Args) -> Result<()> {
         let name = Path::new(&f.file)
             .file_name()
             .map_or(f.file.clone(), |n| n.to_string_lossy().into_owned());
-        println!(
-            "{:<40} {:>8} {:>7} {:>9} {:>9} {:>9} {:>10.2e} {:>9.0}",
+        table += &format!(
+            "\n{:<40} {:>8} {:>7} {:>9} {:>9} {:>9} {:>10.2e} {:>9.0}",
             name, f.status, f.points, f.polylines, f.vertices, f.iterations, f.residual, f.ms
         );
         if let Some(r) = &f.reason {
-            println!("    {r}");
+            table += &format!("\n    {r}");
         }
     }
     let t = &summary.totals;
-    println!(
-        "total: {} files, {} reconstructed, {} skipped, {} failed; {} points, {} polylines; {:.1} s, {:.2} files/s",
+    table += &format!(
+        "\ntotal: {} files, {} reconstructed, {} skipped, {} failed; {} points, {} polylines; {:.1} s, {:.2} files/s",
         t.files, t.ok, t.skipped, t.failed, t.points, t.polylines, t.ms / 1e3, t.files_per_second
     );
-    println!("summary: {}", job.output.join("summary.json").display());
+    table += &format!("\nsummary: {}\n", job.output.join("summary.json").display());
+    super::print(&table)?;
     if t.failed > 0 {
         bail!(
             "{} of {} files failed (reasons in summary.json)",

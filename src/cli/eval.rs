@@ -108,8 +108,7 @@ pub fn run(a: Args) -> Result<()> {
         v["frames"] = json!(results);
         v
     };
-    println!("{out}");
-    Ok(())
+    super::print(&format!("{out}\n"))
 }
 
 fn finite(x: f64) -> serde_json::Value {

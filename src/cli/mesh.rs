@@ -35,6 +35,7 @@ pub fn run(a: Args) -> Result<()> {
     let cfg = super::load_config(a.config.as_deref())?;
     let mut params = cfg.mesh_params();
     params.isotropic |= a.isotropic;
+    super::refuse_overwrite(&a.input, &[a.output.as_deref(), a.stats.as_deref()])?;
     let points = isoline::ingest::read_points(&a.input, a.frame)?;
     let m = adapt_to_points(&points, &params)
         .with_context(|| format!("meshing {}", a.input.display()))?;
@@ -78,7 +79,7 @@ pub fn run(a: Args) -> Result<()> {
     }
     match a.stats {
         Some(path) => super::write(&path, format!("{summary:#}\n"))?,
-        None => println!("{summary}"),
+        None => super::print(&format!("{summary}\n"))?,
     }
     Ok(())
 }

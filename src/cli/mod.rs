@@ -56,6 +56,30 @@ pub fn read(path: &Path) -> Result<String> {
     std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))
 }
 
+/// Writes `text` to standard output. A reader that has gone (`| head`) is not an error:
+/// the output is simply not wanted any more.
+pub fn print(text: &str) -> Result<()> {
+    use std::io::Write;
+    let mut out = std::io::stdout().lock();
+    match out.write_all(text.as_bytes()).and_then(|()| out.flush()) {
+        Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => Ok(()),
+        r => r.context("writing to standard output"),
+    }
+}
+
+/// Refuses to run when one of `outputs` is the file `input`: it would be overwritten.
+pub fn refuse_overwrite(input: &Path, outputs: &[Option<&Path>]) -> Result<()> {
+    for out in outputs.iter().flatten() {
+        if isoline::files::same_file(input, out) {
+            anyhow::bail!(
+                "{} is the input file; writing there would destroy it",
+                out.display()
+            );
+        }
+    }
+    Ok(())
+}
+
 /// Writes `text` to `path`, naming it in the error.
 pub fn write(path: &Path, text: impl AsRef<[u8]>) -> Result<()> {
     std::fs::write(path, text).with_context(|| format!("writing {}", path.display()))

@@ -1,6 +1,5 @@
 //! `isoline reconstruct`: curves from a point file or from each frame of a stream.
 
-use std::io::Write;
 use std::path::PathBuf;
 
 use anyhow::{bail, Context, Result};
@@ -68,6 +67,7 @@ pub fn run(a: Args) -> Result<()> {
             )
         })?,
     };
+    super::refuse_overwrite(input, &[output, stats])?;
     let all = isoline::ingest::read_input(input)?;
     let frames: Vec<Frame> = match frame {
         Some(f) => all.into_iter().filter(|r| r.frame == f).collect(),
@@ -122,11 +122,7 @@ pub fn run(a: Args) -> Result<()> {
     };
     match output {
         Some(p) => super::write(p, text)?,
-        None => {
-            let mut out = std::io::stdout().lock();
-            out.write_all(text.as_bytes())?;
-            out.flush()?;
-        }
+        None => super::print(&text)?,
     }
     if let Some(path) = stats {
         let all: Vec<_> = records.iter().map(|r| &r.stats).collect();

@@ -71,13 +71,17 @@ pub fn render(format: Format, recs: &[ResultRecord]) -> String {
 }
 
 /// Writes `text` to `path` through a temporary file renamed into place, so that an
-/// interrupted run never leaves a truncated file that looks finished.
+/// interrupted run never leaves a truncated file that looks finished, and a failed write
+/// (a full disk) leaves no temporary file behind.
 pub fn write_atomic(path: &Path, text: &[u8]) -> std::io::Result<()> {
     let mut tmp = path.as_os_str().to_owned();
     tmp.push(".part");
     let tmp = std::path::PathBuf::from(tmp);
-    std::fs::write(&tmp, text)?;
-    std::fs::rename(&tmp, path)
+    let written = std::fs::write(&tmp, text).and_then(|()| std::fs::rename(&tmp, path));
+    if written.is_err() {
+        let _ = std::fs::remove_file(&tmp);
+    }
+    written
 }
 
 /// Writes one record as an NDJSON line.
@@ -136,12 +140,13 @@ pub fn to_csv(recs: &[ResultRecord]) -> String {
     let mut s = String::from("stream,frame,polyline,closed,vertex,x,y\n");
     for r in recs {
         let stream = r.stream.as_deref().unwrap_or("");
+        let frame = r.frame.map_or(String::new(), |f| f.to_string());
         for (k, pl) in r.polylines.iter().flatten().enumerate() {
             for (i, p) in pl.points.iter().enumerate() {
                 let _ = writeln!(
                     s,
-                    "{stream},{},{k},{},{i},{},{}",
-                    r.frame, pl.closed, p[0], p[1]
+                    "{stream},{frame},{k},{},{i},{},{}",
+                    pl.closed, p[0], p[1]
                 );
             }
         }
@@ -157,7 +162,7 @@ mod tests {
     fn rec() -> ResultRecord {
         ResultRecord {
             stream: Some("s".into()),
-            frame: 3,
+            frame: Some(3),
             polylines: Some(vec![PolylineJson {
                 closed: true,
                 points: vec![[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]],

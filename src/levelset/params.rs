@@ -84,6 +84,9 @@ pub struct SolverParams {
 
 /// Default `alpha * D`.
 pub const ALPHA_D: f64 = 10.0;
+
+/// The most solver steps a setting may ask for: ten million steps is hours on any mesh.
+pub const MAX_STEPS: usize = 10_000_000;
 /// Default semi-implicit step in units of `hmin`.
 pub const DT_FACTOR: f64 = 10.0;
 
@@ -189,8 +192,8 @@ impl SolverParams {
             ),
         ] {
             if let Some(n) = v {
-                if !(1..=10_000_000).contains(&n) {
-                    problems.push(format!("{key} = {n}: must be in 1..=10000000"));
+                if !(1..=MAX_STEPS).contains(&n) {
+                    problems.push(format!("{key} = {n}: must be in 1..={MAX_STEPS}"));
                 }
             }
         }

@@ -9,6 +9,7 @@ use std::time::Duration;
 
 use serde::Deserialize;
 
+use super::source::Limits;
 use crate::config::{value_problem, Config};
 use crate::error::{Error, Result};
 use crate::reconstruct::Params;
@@ -76,6 +77,13 @@ pub struct DaemonConfig {
     pub chrome_trace: Option<PathBuf>,
     /// How often waiting sources and the ingest stage look for a shutdown request.
     pub poll: Duration,
+    /// Longest line and most TCP clients.
+    pub limits: Limits,
+    /// Streams whose state (last mesh and level set) is kept; the least recently seen
+    /// one is forgotten first.
+    pub max_streams: usize,
+    /// A stream not seen for this long is forgotten (its next frame starts cold).
+    pub stream_idle: Duration,
     /// Reconstruction parameters.
     pub params: Params,
 }
@@ -90,6 +98,12 @@ struct InputTable {
     replay: Option<toml::Value>,
     /// TCP: address to listen on. Default `127.0.0.1:7878`.
     bind: Option<String>,
+    /// TCP: a bind address other than loopback must be asked for.
+    allow_remote: Option<bool>,
+    /// TCP: clients served at once.
+    max_clients: Option<i64>,
+    /// The longest line, in bytes.
+    max_line_bytes: Option<i64>,
 }
 
 #[derive(Debug, Default, Deserialize)]
@@ -106,6 +120,8 @@ struct PipelineTable {
     queue: Option<usize>,
     policy: Option<String>,
     warm_start: Option<bool>,
+    max_streams: Option<i64>,
+    stream_idle: Option<f64>,
 }
 
 #[derive(Debug, Default, Deserialize)]
@@ -119,12 +135,76 @@ struct TracingTable {
 /// unless its configuration says so.
 pub const DEFAULT_BIND: &str = "127.0.0.1:7878";
 
+/// The slowest and fastest fixed replay rates, frames per second.
+pub const MIN_RATE: f64 = 1e-3;
+/// See [`MIN_RATE`].
+pub const MAX_RATE: f64 = 1e6;
+
+/// Default of `pipeline.max_streams`.
+pub const DEFAULT_MAX_STREAMS: usize = 256;
+/// Default of `pipeline.stream_idle`.
+pub const DEFAULT_STREAM_IDLE: Duration = Duration::from_secs(60);
+
 impl DaemonConfig {
-    /// Reads and validates a daemon configuration file.
+    /// Reads and validates a daemon configuration file, paths included
+    /// ([`DaemonConfig::check_paths`]).
     pub fn load(path: &Path) -> Result<DaemonConfig> {
         let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
         let base = path.parent().unwrap_or(Path::new(".")).to_path_buf();
-        Self::parse(&text, &path.display().to_string(), &base)
+        let name = path.display().to_string();
+        let cfg = Self::parse(&text, &name, &base)?;
+        cfg.check_paths().map_err(|e| match e {
+            Error::Config { problems, .. } => Error::Config {
+                path: name,
+                problems,
+            },
+            e => e,
+        })?;
+        Ok(cfg)
+    }
+
+    /// Refuses files the run would write over its input or over each other (the
+    /// results, the trace), and an input that is a folder.
+    pub fn check_paths(&self) -> Result<()> {
+        let mut problems = Vec::new();
+        let mut written: Vec<(&str, &Path)> = Vec::new();
+        if let Some(p) = &self.output {
+            written.push(("output.path", p));
+        }
+        if let Some(p) = &self.chrome_trace {
+            written.push(("tracing.chrome_trace", p));
+        }
+        if let Source::File { path: input, .. } = &self.source {
+            if input.is_dir() {
+                problems.push(format!(
+                    "input.path = {:?}: a folder, not a frame file",
+                    input.display().to_string()
+                ));
+            }
+            for (key, p) in &written {
+                if crate::files::same_file(input, p) {
+                    problems.push(format!(
+                        "{key} = {:?} is the input file: it would be overwritten",
+                        p.display().to_string()
+                    ));
+                }
+            }
+        }
+        for (i, (k1, p1)) in written.iter().enumerate() {
+            for (k2, p2) in &written[i + 1..] {
+                if crate::files::same_file(p1, p2) {
+                    problems.push(format!("{k1} and {k2} name the same file"));
+                }
+            }
+        }
+        if problems.is_empty() {
+            Ok(())
+        } else {
+            Err(Error::Config {
+                path: "(daemon configuration)".into(),
+                problems,
+            })
+        }
     }
 
     /// Parses and validates configuration text; `name` labels errors and relative paths
@@ -190,11 +270,11 @@ impl DaemonConfig {
                         Some(toml::Value::String(s)) if s == "recorded" => Some(Replay::Recorded),
                         Some(toml::Value::String(s)) if s == "fast" => Some(Replay::Fast),
                         Some(v) => match v.as_float().or(v.as_integer().map(|i| i as f64)) {
-                            Some(r) if r.is_finite() && r > 0.0 => Some(Replay::Rate(r)),
+                            Some(r) if (MIN_RATE..=MAX_RATE).contains(&r) => Some(Replay::Rate(r)),
                             _ => {
                                 problems.push(format!(
                                     "input.replay = {v}: expected \"recorded\", \"fast\" or \
-                                     frames per second > 0"
+                                     frames per second in [{MIN_RATE}, {MAX_RATE}]"
                                 ));
                                 None
                             }
@@ -210,6 +290,14 @@ impl DaemonConfig {
             "tcp" => {
                 let bind = input.bind.clone().unwrap_or_else(|| DEFAULT_BIND.into());
                 match bind.parse::<SocketAddr>() {
+                    Ok(b) if !b.ip().is_loopback() && input.allow_remote != Some(true) => {
+                        problems.push(format!(
+                            "input.bind = {bind:?}: not a loopback address, so clients on \
+                             the network could send frames; set input.allow_remote = true to \
+                             mean it"
+                        ));
+                        None
+                    }
                     Ok(bind) => Some(Source::Tcp { bind }),
                     Err(e) => {
                         problems.push(format!(
@@ -231,11 +319,57 @@ impl DaemonConfig {
                 "input.path and input.replay apply to kind = \"file\", not {kind:?}"
             ));
         }
-        if kind != "tcp" && input.bind.is_some() {
+        if kind != "tcp"
+            && (input.bind.is_some() || input.allow_remote.is_some() || input.max_clients.is_some())
+        {
             problems.push(format!(
-                "input.bind applies to kind = \"tcp\", not {kind:?}"
+                "input.bind, input.allow_remote and input.max_clients apply to kind = \"tcp\", \
+                 not {kind:?}"
             ));
         }
+        let defaults = Limits::default();
+        let mut bounded = |key: &str, v: Option<i64>, default: usize, lo: usize, hi: usize| match v
+        {
+            None => default,
+            Some(v) if (lo as i64..=hi as i64).contains(&v) => v as usize,
+            Some(v) => {
+                problems.push(format!("{key} = {v}: must be in {lo}..={hi}"));
+                default
+            }
+        };
+        let limits = Limits {
+            max_line_bytes: bounded(
+                "input.max_line_bytes",
+                input.max_line_bytes,
+                defaults.max_line_bytes,
+                1 << 10,
+                1 << 30,
+            ),
+            max_clients: bounded(
+                "input.max_clients",
+                input.max_clients,
+                defaults.max_clients,
+                1,
+                4096,
+            ),
+        };
+        let max_streams = bounded(
+            "pipeline.max_streams",
+            pipeline.max_streams,
+            DEFAULT_MAX_STREAMS,
+            1,
+            1 << 20,
+        );
+        let stream_idle = match pipeline.stream_idle {
+            None => DEFAULT_STREAM_IDLE,
+            Some(s) if (0.001..=1e6).contains(&s) => Duration::from_secs_f64(s),
+            Some(s) => {
+                problems.push(format!(
+                    "pipeline.stream_idle = {s}: must be in [0.001, 1e6] seconds"
+                ));
+                DEFAULT_STREAM_IDLE
+            }
+        };
         let queue = pipeline.queue.unwrap_or(4);
         if !(1..=4096).contains(&queue) {
             problems.push(format!("pipeline.queue = {queue}: must be in 1..=4096"));
@@ -268,6 +402,9 @@ impl DaemonConfig {
                 log,
                 chrome_trace: tracing_t.chrome_trace.map(|p| resolve(&p)),
                 poll: Duration::from_millis(50),
+                limits,
+                max_streams,
+                stream_idle,
                 params,
             }),
             _ => Err(fail(problems)),
@@ -366,5 +503,58 @@ mod tests {
             e.contains("pipeline.queue = 0") && e.contains("pipeline.policy"),
             "{e}"
         );
+    }
+
+    #[test]
+    fn limits_are_read_and_bounded_and_remote_clients_are_a_choice() {
+        let c = DaemonConfig::parse(
+            "[input]\nkind = \"tcp\"\nbind = \"0.0.0.0:7000\"\nallow_remote = true\n\
+             max_clients = 3\nmax_line_bytes = 4096\n[pipeline]\nmax_streams = 5\n\
+             stream_idle = 2.5\n",
+            "d.toml",
+            Path::new("."),
+        )
+        .unwrap();
+        assert_eq!(
+            c.limits,
+            Limits {
+                max_line_bytes: 4096,
+                max_clients: 3
+            }
+        );
+        assert_eq!(
+            (c.max_streams, c.stream_idle),
+            (5, Duration::from_millis(2500))
+        );
+        let d = DaemonConfig::parse("", "d.toml", Path::new(".")).unwrap();
+        assert_eq!(d.limits, Limits::default());
+        assert_eq!(
+            (d.max_streams, d.stream_idle),
+            (DEFAULT_MAX_STREAMS, DEFAULT_STREAM_IDLE)
+        );
+        let e = DaemonConfig::parse(
+            "[input]\nkind = \"tcp\"\nbind = \"[::]:7000\"\nmax_clients = 0\n\
+             max_line_bytes = 2000000000\n[pipeline]\nstream_idle = -1\n",
+            "d.toml",
+            Path::new("."),
+        )
+        .unwrap_err()
+        .to_string();
+        for key in [
+            "allow_remote",
+            "input.max_clients = 0",
+            "input.max_line_bytes",
+            "pipeline.stream_idle",
+        ] {
+            assert!(e.contains(key), "{key} missing from: {e}");
+        }
+        for rate in ["1e-19", "1e300", "0"] {
+            let e = DaemonConfig::parse(
+                &format!("[input]\npath = \"f\"\nreplay = {rate}\n"),
+                "d.toml",
+                Path::new("."),
+            );
+            assert!(e.is_err(), "replay = {rate}");
+        }
     }
 }

@@ -17,6 +17,7 @@
 //! waits for it before solving the stream's next frame.
 
 pub mod config;
+mod sink;
 pub mod source;
 mod stages;
 
@@ -87,6 +88,8 @@ impl std::fmt::Display for RunSummary {
 
 /// Handles of a running daemon.
 pub struct Daemon {
+    source: std::thread::JoinHandle<Result<()>>,
+    stdin: bool,
     threads: Vec<(&'static str, std::thread::JoinHandle<()>)>,
     export: std::thread::JoinHandle<Result<RunSummary>>,
     /// The TCP address listened on, when the source is TCP.
@@ -97,7 +100,8 @@ impl Daemon {
     /// Starts sources and stages. It runs until the input ends or `stop` is set; then
     /// ingest stops, frames in flight finish and the sinks flush.
     pub fn start(cfg: &DaemonConfig, stop: Arc<AtomicBool>) -> Result<Daemon> {
-        let sink = open_sink(cfg.output.as_deref())?;
+        cfg.check_paths()?;
+        let sink = sink::Sink::open(cfg.output.as_deref())?;
         if let Some(dir) = &cfg.svg_dir {
             std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
         }
@@ -107,18 +111,19 @@ impl Daemon {
         let (line_tx, line_rx) = bounded(q);
         let mut threads = Vec::new();
         let mut tcp_addr = None;
-        match &cfg.source {
-            Source::File { path, replay } => threads.push((
-                "source",
-                source::spawn_file(path, *replay, line_tx, stop.clone())?,
-            )),
-            Source::Stdin => threads.push(("source", source::spawn_stdin(line_tx, stop.clone())?)),
-            Source::Tcp { bind } => {
-                let (addr, h) = source::spawn_tcp(*bind, line_tx, stop.clone(), cfg.poll)?;
-                tcp_addr = Some(addr);
-                threads.push(("source", h));
+        let limits = cfg.limits;
+        let source = match &cfg.source {
+            Source::File { path, replay } => {
+                source::spawn_file(path, *replay, limits, line_tx, stop.clone())?
             }
-        }
+            Source::Stdin => source::spawn_stdin(limits, line_tx, stop.clone())?,
+            Source::Tcp { bind } => {
+                let (addr, h) = source::spawn_tcp(*bind, limits, line_tx, stop.clone(), cfg.poll)?;
+                tcp_addr = Some(addr);
+                h
+            }
+        };
+        let streams = (cfg.max_streams, cfg.stream_idle);
         let (to_distance, distance_rx) = bounded(q);
         let (to_adapt, adapt_rx) = bounded(q);
         let (to_solve, solve_rx) = bounded(q);
@@ -140,11 +145,11 @@ impl Daemon {
         ));
         threads.push((
             "adapt",
-            stages::spawn_adapt(adapt_rx, to_solve, policy, warm)?,
+            stages::spawn_adapt(adapt_rx, to_solve, policy, warm, streams)?,
         ));
         threads.push((
             "solve",
-            stages::spawn_solve(solve_rx, to_renorm, feedback_rx, policy, warm)?,
+            stages::spawn_solve(solve_rx, to_renorm, feedback_rx, policy, warm, streams)?,
         ));
         threads.push((
             "renormalize",
@@ -152,6 +157,8 @@ impl Daemon {
         ));
         let export = stages::spawn_export(export_rx, sink, cfg.svg_dir.clone(), stop)?;
         Ok(Daemon {
+            source,
+            stdin: cfg.source == Source::Stdin,
             threads,
             export,
             tcp_addr,
@@ -159,21 +166,41 @@ impl Daemon {
     }
 
     /// Waits for the end of the run (end of input, or the stop flag and the drain).
+    /// Every thread is joined and the first failure reported: the sink's, a stage's
+    /// panic, or the source's read error (the records before it are written).
     pub fn wait(self) -> Result<RunSummary> {
         let summary = self
             .export
             .join()
-            .map_err(|_| Error::Internal("the export stage panicked".into()))?;
+            .map_err(|_| Error::Internal("the export stage panicked".into()))
+            .and_then(|s| s);
+        let mut failure = None;
         for (name, t) in self.threads {
-            // A source blocked reading standard input cannot be interrupted; it ends with
-            // the process.
-            if name == "source" && !t.is_finished() {
-                continue;
+            if t.join().is_err() {
+                failure.get_or_insert(Error::Internal(format!("the {name} stage panicked")));
             }
-            t.join()
-                .map_err(|_| Error::Internal(format!("the {name} stage panicked")))?;
         }
-        summary
+        // A source blocked reading standard input cannot be interrupted; it ends with the
+        // process. Every other source has seen the flag or the closed pipeline.
+        if !self.stdin || self.source.is_finished() {
+            match self.source.join() {
+                Ok(Ok(())) => {}
+                Ok(Err(e)) => {
+                    failure.get_or_insert(e);
+                }
+                Err(_) => {
+                    failure.get_or_insert(Error::Internal("the source panicked".into()));
+                }
+            }
+        }
+        let summary = summary?;
+        match failure {
+            Some(e) => {
+                tracing::error!(records = summary.records, "run ended by: {e}");
+                Err(e)
+            }
+            None => Ok(summary),
+        }
     }
 }
 
@@ -187,23 +214,6 @@ pub fn run(cfg: &DaemonConfig, stop: Arc<AtomicBool>) -> Result<RunSummary> {
         "daemon finished"
     );
     Ok(summary)
-}
-
-/// The NDJSON sink: a file (created, truncated) or standard output.
-pub(crate) type Sink = Box<dyn std::io::Write + Send>;
-
-fn open_sink(path: Option<&Path>) -> Result<Sink> {
-    Ok(match path {
-        None => Box::new(std::io::stdout()),
-        Some(p) => {
-            if let Some(dir) = p.parent().filter(|d| !d.as_os_str().is_empty()) {
-                std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
-            }
-            Box::new(std::io::BufWriter::new(
-                std::fs::File::create(p).map_err(|e| Error::io(p, e))?,
-            ))
-        }
-    })
 }
 
 /// The SVG file of one frame: `DIR/STREAM-FRAME.svg` (`frame-FRAME.svg` without a

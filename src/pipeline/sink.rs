@@ -1,0 +1,160 @@
+//! The NDJSON sink: whole records or nothing. A record is serialized first and written
+//! with one call; if that fails (a full disk), the file is cut back to its last whole
+//! record, so that a reader never meets half a line.
+
+use std::fs::File;
+use std::io::{Seek, SeekFrom, Write};
+use std::path::{Path, PathBuf};
+
+use crate::error::{Error, Result};
+use crate::format::ResultRecord;
+
+/// A writer that can be cut back to a length.
+pub(crate) trait Truncate: Write {
+    /// Drops everything after the first `len` bytes and writes from there on.
+    fn truncate(&mut self, len: u64) -> std::io::Result<()>;
+}
+
+impl Truncate for File {
+    fn truncate(&mut self, len: u64) -> std::io::Result<()> {
+        self.set_len(len)?;
+        self.seek(SeekFrom::Start(len)).map(|_| ())
+    }
+}
+
+/// Where the daemon's records go.
+pub(crate) enum Sink {
+    /// A file, created (truncated) at start; `len` is the end of the last whole record.
+    File {
+        out: Box<dyn Truncate + Send>,
+        path: PathBuf,
+        len: u64,
+    },
+    /// Standard output: a pipe cannot be cut back, so a failed write ends the run.
+    Stdout(std::io::Stdout),
+}
+
+impl Sink {
+    /// Opens the output: `path`, its folder created, or standard output.
+    pub(crate) fn open(path: Option<&Path>) -> Result<Sink> {
+        let Some(p) = path else {
+            return Ok(Sink::Stdout(std::io::stdout()));
+        };
+        if let Some(dir) = p.parent().filter(|d| !d.as_os_str().is_empty()) {
+            std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+        }
+        let file = File::create(p).map_err(|e| Error::io(p, e))?;
+        Ok(Sink::File {
+            out: Box::new(file),
+            path: p.to_path_buf(),
+            len: 0,
+        })
+    }
+
+    /// Writes one record as one line and flushes it.
+    pub(crate) fn write_record(&mut self, rec: &ResultRecord) -> Result<()> {
+        let mut line = serde_json::to_vec(rec).map_err(|e| Error::Internal(e.to_string()))?;
+        line.push(b'\n');
+        match self {
+            Sink::Stdout(out) => {
+                let mut out = out.lock();
+                out.write_all(&line)
+                    .and_then(|()| out.flush())
+                    .map_err(|e| Error::io(Path::new("standard output"), e))
+            }
+            Sink::File { out, path, len } => {
+                match out.write_all(&line).and_then(|()| out.flush()) {
+                    Ok(()) => {
+                        *len += line.len() as u64;
+                        Ok(())
+                    }
+                    Err(e) => {
+                        if let Err(t) = out.truncate(*len) {
+                            tracing::error!(path = %path.display(), error = %t,
+                                "could not cut the output back to its last whole record");
+                        }
+                        Err(Error::io(path.clone(), e))
+                    }
+                }
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::sync::{Arc, Mutex};
+
+    /// A disk with `room` bytes, shared so the test can read it afterwards.
+    #[derive(Clone)]
+    struct Disk {
+        data: Arc<Mutex<Vec<u8>>>,
+        room: usize,
+    }
+
+    impl Write for Disk {
+        fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+            let mut d = self.data.lock().unwrap();
+            let n = buf.len().min(self.room.saturating_sub(d.len()));
+            if n == 0 && !buf.is_empty() {
+                return Err(std::io::Error::from_raw_os_error(28)); // ENOSPC
+            }
+            d.extend_from_slice(&buf[..n]);
+            Ok(n)
+        }
+        fn flush(&mut self) -> std::io::Result<()> {
+            Ok(())
+        }
+    }
+
+    impl Truncate for Disk {
+        fn truncate(&mut self, len: u64) -> std::io::Result<()> {
+            self.data.lock().unwrap().truncate(len as usize);
+            Ok(())
+        }
+    }
+
+    #[test]
+    fn a_full_disk_leaves_whole_records_only() {
+        let disk = Disk {
+            data: Arc::default(),
+            room: 100,
+        };
+        let mut sink = Sink::File {
+            out: Box::new(disk.clone()),
+            path: "out.ndjson".into(),
+            len: 0,
+        };
+        let rec = |frame| ResultRecord {
+            stream: Some("s".into()),
+            frame: Some(frame),
+            error: Some("x".repeat(10)),
+            ..Default::default()
+        };
+        let mut written = 0;
+        let err = loop {
+            match sink.write_record(&rec(written)) {
+                Ok(()) => written += 1,
+                Err(e) => break e,
+            }
+        };
+        assert!(err.to_string().contains("out.ndjson"), "{err}");
+        assert!(written >= 1);
+        let text = String::from_utf8(disk.data.lock().unwrap().clone()).unwrap();
+        assert!(text.ends_with('\n'));
+        let lines: Vec<ResultRecord> = text
+            .lines()
+            .map(|l| serde_json::from_str(l).unwrap())
+            .collect();
+        assert_eq!(lines.len() as u64, written);
+    }
+
+    #[cfg(target_os = "linux")]
+    #[test]
+    fn dev_full_is_an_error_not_a_silent_loss() {
+        let mut sink = Sink::open(Some(Path::new("/dev/full"))).unwrap();
+        let e = sink.write_record(&ResultRecord::default()).unwrap_err();
+        assert!(e.to_string().contains("/dev/full"), "{e}");
+    }
+}
