@@ -189,4 +189,22 @@ mod tests {
             Some(Format::GeoJson)
         );
     }
+
+    #[test]
+    fn a_failed_atomic_write_leaves_nothing_behind() {
+        let dir = tempfile::tempdir().unwrap();
+        // A folder where the file should go: the rename fails, as a full disk would
+        // make the write fail.
+        let target = dir.path().join("out.ndjson");
+        std::fs::create_dir(&target).unwrap();
+        std::fs::write(target.join("keep"), "x").unwrap();
+        assert!(write_atomic(&target, b"data").is_err());
+        assert!(!dir.path().join("out.ndjson.part").exists());
+        write_atomic(&dir.path().join("ok.ndjson"), b"data").unwrap();
+        assert_eq!(
+            std::fs::read(dir.path().join("ok.ndjson")).unwrap(),
+            b"data"
+        );
+        assert!(!dir.path().join("ok.ndjson.part").exists());
+    }
 }
