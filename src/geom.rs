@@ -332,9 +332,49 @@ impl Sym2 {
     }
 }
 
+/// A pose `[x, y, theta]`: where a frame's coordinates sit in a world frame (metres and
+/// radians, counter-clockwise), as scanners' odometry gives it.
+pub type Pose = [f64; 3];
+
+/// `p` (world) in the frame at `pose`.
+pub fn to_sensor(pose: Pose, p: Point) -> Point {
+    let (s, c) = pose[2].sin_cos();
+    let d = sub(p, [pose[0], pose[1]]);
+    [c * d[0] + s * d[1], -s * d[0] + c * d[1]]
+}
+
+/// `p` (in the frame at `pose`) in the world.
+pub fn to_world(pose: Pose, p: Point) -> Point {
+    let (s, c) = pose[2].sin_cos();
+    [pose[0] + c * p[0] - s * p[1], pose[1] + s * p[0] + c * p[1]]
+}
+
+/// Moves points given in the frame at pose `from` into the frame at pose `to`: how a
+/// moving sensor's previous frame is seen from its new one.
+pub fn reframe(from: Pose, to: Pose, points: &mut [Point]) {
+    for p in points {
+        *p = to_sensor(to, to_world(from, *p));
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_moving_frames_points_follow_it() {
+        // A wall point 2 m ahead of a sensor at the origin facing +x, seen again after
+        // the sensor drove 0.5 m forward and turned left by 90 degrees: 1.5 m to its
+        // right.
+        let (from, to) = ([0.0, 0.0, 0.0], [0.5, 0.0, std::f64::consts::FRAC_PI_2]);
+        let mut pts = [[2.0, 0.0]];
+        reframe(from, to, &mut pts);
+        assert!(dist(pts[0], [0.0, -1.5]) < 1e-12, "{:?}", pts[0]);
+        for pose in [[1.0, -2.0, 0.3], [0.0, 0.0, -3.0]] {
+            let p = [0.7, 0.2];
+            assert!(dist(to_sensor(pose, to_world(pose, p)), p) < 1e-12);
+        }
+    }
 
     #[test]
     fn eigen_matches_nalgebra() {

@@ -132,6 +132,21 @@ fn scan(mesh: &Mesh, p: Point) -> Location {
     clamp(mesh, best.1, p)
 }
 
+/// Whether every point of `points` lies in the mesh's domain (its boundary included).
+pub fn covers(mesh: &Mesh, points: &[Point]) -> bool {
+    if mesh.tris.iter().all(|t| t[0] == INVALID) {
+        return false;
+    }
+    let mut start = first_live(mesh) as u32;
+    points.iter().all(|&p| {
+        let l = locate(mesh, p, start);
+        start = l.tri;
+        // The walk clamps a point outside to the boundary; the true coordinates tell.
+        let bc = barycentric(mesh, l.tri as usize, p);
+        bc.iter().all(|&b| b >= -1e-9)
+    })
+}
+
 /// Locates every point of `points`, in parallel chunks; each walk starts where the
 /// previous point of its chunk was found.
 pub fn locate_all(mesh: &Mesh, points: &[Point]) -> Vec<Location> {

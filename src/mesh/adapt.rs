@@ -229,6 +229,8 @@ impl Adapter {
             last_change = change;
         }
         let order = mesh.renumber_spatially();
+        // Renumbering dropped the removed triangles the free list pointed to.
+        self.free_tris.clear();
         let metrics: Vec<Sym2> = order.iter().map(|&v| self.metrics[v as usize]).collect();
         let near: Vec<u32> = order.iter().map(|&v| self.near[v as usize]).collect();
         (self.metrics, self.near) = (metrics, near);

@@ -584,6 +584,12 @@ impl MetricField {
     /// coordinates, e.g. the previous frame's) when its domain still covers the data's
     /// box padded by half the padding, else from a lattice of the padded box.
     pub fn adapt(&self, start: Option<Mesh>) -> AdaptedMesh {
+        self.adapt_from(start)
+    }
+
+    /// [`MetricField::adapt`] from the first of `starts` that covers the data (for a
+    /// moving sensor: its previous mesh moved into the new frame, then as it was).
+    pub fn adapt_from(&self, starts: impl IntoIterator<Item = Mesh>) -> AdaptedMesh {
         let t0 = Instant::now();
         let bbox = self.bbox;
         let diag = bbox.diag();
@@ -598,12 +604,18 @@ impl MetricField {
         );
         let wanted = bbox.padded(self.padding * scale + 2.0 * hmin);
         // A start mesh will do while the data keep at least half the padding from its
-        // edge (a moving shape keeps its mesh until it has drifted that far).
-        let enough = bbox.padded(0.5 * self.padding * scale + 2.0 * hmin);
-        let (local_box, mut mesh, warm) = match start.and_then(|m| {
+        // edge (a moving shape keeps its mesh until it has drifted that far). Its domain
+        // is convex (a box, or a box moved and turned with a moving sensor's frame), so
+        // it does when it holds the data's extreme points in 16 directions, each pushed
+        // that far out: a turned box that holds the data well need not hold the corners
+        // of their axis-aligned box.
+        let margin = 0.5 * self.padding * scale + 2.0 * hmin;
+        let probes = support_points(self.field.points(), 16, margin);
+        let covering = starts.into_iter().find_map(|m| {
             let b = BBox::of(&m.coords)?;
-            (b.contains(enough.min) && b.contains(enough.max)).then_some((b, m))
-        }) {
+            crate::fem::locate::covers(&m, &probes).then_some((b, m))
+        });
+        let (local_box, mut mesh, warm) = match covering {
             Some((b, m)) => (b, m, true),
             None => {
                 // The lattice holds at most a quarter of the vertex budget, whatever the
@@ -647,5 +659,61 @@ impl MetricField {
                 ..self.ms
             },
         }
+    }
+}
+
+/// For each of `directions` directions evenly spread round the circle, the point of
+/// `points` farthest along it, pushed `margin` further that way. A convex domain that
+/// holds them all holds every point with about `margin` to spare (at least
+/// `margin * cos(pi / directions)` in every direction between the probes'; the hull's
+/// corners between two probes are within the polygon they span).
+pub fn support_points(points: &[Point], directions: usize, margin: f64) -> Vec<Point> {
+    (0..directions)
+        .filter_map(|k| {
+            let a = std::f64::consts::TAU * k as f64 / directions as f64;
+            let d = [a.cos(), a.sin()];
+            let p = points.iter().copied().max_by(|p, q| {
+                (p[0] * d[0] + p[1] * d[1]).total_cmp(&(q[0] * d[0] + q[1] * d[1]))
+            })?;
+            Some([p[0] + margin * d[0], p[1] + margin * d[1]])
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A box turned by 0.1 rad holds data well inside it, though not the corners of the
+    /// data's axis-aligned box; a box that leaves a point less than the margin does not.
+    #[test]
+    fn a_turned_domain_is_judged_by_the_data_not_their_box() {
+        let square = BBox {
+            min: [-1.0, -1.0],
+            max: [1.0, 1.0],
+        };
+        let mut mesh = Mesh::of_box(&square, 0.5);
+        let (s, c) = 0.1f64.sin_cos();
+        for p in &mut mesh.coords {
+            *p = [c * p[0] - s * p[1], s * p[0] + c * p[1]];
+        }
+        // A ring of radius 0.95 leaves at least 0.05 to the turned square, whose corner
+        // (0.95, 0.95) turns to x = 0.95 (cos 0.1 + sin 0.1) = 1.04, outside.
+        let ring: Vec<Point> = (0..100)
+            .map(|i| {
+                let a = std::f64::consts::TAU * i as f64 / 100.0;
+                [0.95 * a.cos(), 0.95 * a.sin()]
+            })
+            .collect();
+        let corners = [[0.95, 0.95], [-0.95, 0.95], [-0.95, -0.95], [0.95, -0.95]];
+        assert!(!crate::fem::locate::covers(&mesh, &corners));
+        assert!(crate::fem::locate::covers(
+            &mesh,
+            &support_points(&ring, 16, 0.04)
+        ));
+        assert!(!crate::fem::locate::covers(
+            &mesh,
+            &support_points(&ring, 16, 0.06)
+        ));
     }
 }

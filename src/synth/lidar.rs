@@ -37,8 +37,7 @@ pub const TRUTH_MIN_BEAMS: usize = 3;
 /// default `scan.dropout_beams`).
 pub const TRUTH_MAX_DROPOUT: usize = 2;
 
-/// A sensor's pose in the world: position and heading (radians).
-pub type Pose = [f64; 3];
+pub use crate::geom::Pose;
 
 /// A scanner model.
 #[derive(Clone, Debug, PartialEq)]
@@ -533,18 +532,7 @@ pub struct ScanFrame {
     pub openings: Vec<(Point, Point)>,
 }
 
-/// `p` (world) in the frame of a sensor at `pose`.
-pub fn to_sensor(pose: Pose, p: Point) -> Point {
-    let (s, c) = pose[2].sin_cos();
-    let d = sub(p, [pose[0], pose[1]]);
-    [c * d[0] + s * d[1], -s * d[0] + c * d[1]]
-}
-
-/// `p` (in the frame of a sensor at `pose`) in the world.
-pub fn to_world(pose: Pose, p: Point) -> Point {
-    let (s, c) = pose[2].sin_cos();
-    [pose[0] + c * p[0] - s * p[1], pose[1] + s * p[0] + c * p[1]]
-}
+pub use crate::geom::{to_sensor, to_world};
 
 /// Simulates the scans.
 pub fn simulate(params: &LidarParams) -> Result<Vec<ScanFrame>, String> {
