@@ -246,6 +246,17 @@ pub struct FrameStats {
     /// Scan frames: the range noise used (configured, or estimated from the returns).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub range_noise: Option<f64>,
+    /// The share of the points within `3 sigma + 2 hmin` of a curve (the accuracy bound;
+    /// sigma the noise used).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub explained: Option<f64>,
+    /// The 90th percentile of the points' distances to the curves.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub fit_p90: Option<f64>,
+    /// A warm start was tried, came out clearly worse than the previous frame, and was
+    /// replaced by a cold one (`warm_start` is then false).
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub cold_fallback: bool,
 }
 
 /// A cluster of returns that no curve explains, on the wire:
@@ -297,6 +308,10 @@ pub struct ResultRecord {
     /// Daemon only: `true` when the frame was skipped for a newer one of its stream.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub skipped: Option<bool>,
+    /// What is wrong with a result that has one: no curve where the data have support,
+    /// or most of the data unexplained.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub warnings: Option<Vec<String>>,
 }
 
 impl ResultRecord {
@@ -315,6 +330,7 @@ impl ResultRecord {
                 .unexplained
                 .map(|_| r.features.iter().map(FeatureJson::from).collect()),
             stats: Some(r.stats.clone()),
+            warnings: (!r.warnings.is_empty()).then(|| r.warnings.clone()),
             ..Default::default()
         }
     }

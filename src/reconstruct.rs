@@ -76,8 +76,11 @@ pub struct Reconstruction {
     pub u: Vec<f64>,
     /// Per-frame statistics (the `stats` of a result record).
     pub stats: FrameStats,
-    /// The solver's report.
+    /// The solver's report (lengths in the local units of the frame's placement).
     pub solve: SolveReport,
+    /// The 90th percentile of `|u|` at the data, in data units: how far the level set's
+    /// zero isoline is from the data, robustly ([`SolveReport::spread`]).
+    pub spread: f64,
     /// The solver settings used.
     pub settings: SolverSettings,
     /// The estimated noise of the data (median local-fit residual; for a scan, the range
@@ -88,6 +91,8 @@ pub struct Reconstruction {
     /// Scan frames: the sensor's position and the boundary of the free space its rays
     /// swept, in data coordinates.
     pub free_space: Option<(Point, Polyline)>,
+    /// What is wrong with the result, if anything ([`crate::export::fit::warnings`]).
+    pub warnings: Vec<String>,
 }
 
 /// Reconstructs curves from `points`.
@@ -167,11 +172,7 @@ pub fn reconstruct_with(
     let _span = tracing::debug_span!("reconstruct", points = points.len()).entered();
     let prepared = prepare(points, scan, params)?;
     let adapted = adapt(&prepared, previous.map(|p| &p.mesh));
-    let warm = previous.map(|p| Previous {
-        mesh: &p.mesh,
-        u: &p.u,
-        residual: p.stats.residual,
-    });
+    let warm = previous.map(Previous::of);
     let mut solved = solve(&prepared, &adapted, warm);
     renormalize(&adapted.mesh, &mut solved);
     Ok(export(&prepared, adapted, solved))
@@ -266,14 +267,35 @@ pub fn prepare(points: &[Point], scan: Option<&Scan>, params: &Params) -> Result
 /// `previous` (a mesh in data coordinates, the previous frame's) when it still covers the
 /// data, else from a lattice.
 pub fn adapt(prepared: &Prepared, previous: Option<&Mesh>) -> AdaptedMesh {
-    let start = previous.map(|m| {
+    adapt_moving(prepared, previous, None)
+}
+
+/// [`adapt`] for a moving sensor: `previous` (in the coordinates of the previous
+/// frame, at pose `motion.0`) is first moved into this frame's (at `motion.1`), and
+/// used as it was if, moved, its domain no longer covers the data (its box, turned,
+/// no longer holds this frame's box).
+pub fn adapt_moving(
+    prepared: &Prepared,
+    previous: Option<&Mesh>,
+    motion: Option<(crate::geom::Pose, crate::geom::Pose)>,
+) -> AdaptedMesh {
+    let local = |m: &Mesh, motion: Option<(crate::geom::Pose, crate::geom::Pose)>| {
         let mut m = m.clone();
+        if let Some((from, to)) = motion {
+            crate::geom::reframe(from, to, &mut m.coords);
+        }
         for c in &mut m.coords {
             *c = prepared.placement.to_local(*c);
         }
         m
+    };
+    let starts = previous.into_iter().flat_map(|m| {
+        let moved = motion.map(|mv| local(m, Some(mv)));
+        moved
+            .into_iter()
+            .chain(std::iter::once_with(move || local(m, None)))
     });
-    prepared.metric.adapt(start)
+    prepared.metric.adapt_from(starts)
 }
 
 /// The solve stage: see [`evolve::solve`] (with the parameters [`prepare`] put in local
@@ -325,9 +347,46 @@ pub fn export(prepared: &Prepared, adapted: AdaptedMesh, solved: Solved) -> Reco
     });
     let (polylines, features) =
         crate::export::curves(&mesh, &solved.u, &at, prepared.diag, hmin, scan, params);
+    let min_run = prepared.params.scan.min_run;
+    let residual = match &prepared.scan {
+        // Eq. 11 over the returns of runs: isolated returns (spurious, or too few to
+        // place a curve by) get no curve by design, and |u| at them follows whatever
+        // the mesh happens to resolve there, which a warm and a cold mesh do not share.
+        Some(a) => {
+            let returns: Vec<Point> = a
+                .runs
+                .iter()
+                .filter(|r| r.beams.len() >= min_run)
+                .flat_map(|r| {
+                    r.beams
+                        .iter()
+                        .map(|&b| a.scan.at(b as usize, a.scan.ranges[b as usize]))
+                })
+                .collect();
+            crate::fem::locate::locate_all(&mesh, &returns)
+                .iter()
+                .map(|l| l.interpolate(&mesh, &solved.u).abs())
+                .fold(0.0, f64::max)
+        }
+        None => solved.report.residual,
+    };
     for p in &mut mesh.coords {
         *p = at.to_data(*p);
     }
+    let sigma = scan.map_or(adapted.noise_estimate, |(a, _)| a.scales.noise);
+    let tolerance = at.len_to_data(3.0 * sigma + 2.0 * hmin);
+    let data: Vec<Point> = prepared.local.iter().map(|&q| at.to_data(q)).collect();
+    let fit = crate::export::fit::fit(&data, &polylines, tolerance);
+    let supported = match &prepared.scan {
+        Some(a) => a
+            .runs
+            .iter()
+            .map(|r| r.beams.len())
+            .filter(|&n| n >= min_run)
+            .sum(),
+        None => data.len(),
+    };
+    let warnings = crate::export::fit::warnings(supported, &polylines, &fit, tolerance);
     let report = solved.report;
     let ms_export = t0.elapsed().as_secs_f64() * 1e3;
     let renormalize = report.ms_renormalize + solved.ms_renormalize;
@@ -349,7 +408,7 @@ pub fn export(prepared: &Prepared, adapted: AdaptedMesh, solved: Solved) -> Reco
         vertices: mesh.num_vertices(),
         triangles: mesh.num_triangles(),
         iterations: report.iterations,
-        residual: at.len_to_data(report.residual),
+        residual: at.len_to_data(residual),
         converged: report.converged,
         warm_start: solved.warm_start,
         ms,
@@ -367,12 +426,16 @@ pub fn export(prepared: &Prepared, adapted: AdaptedMesh, solved: Solved) -> Reco
             .scan
             .as_ref()
             .map(|a| at.len_to_data(a.scales.noise)),
+        explained: Some(fit.explained),
+        fit_p90: fit.p90.is_finite().then_some(fit.p90),
+        cold_fallback: solved.cold_fallback,
     };
     Reconstruction {
         polylines,
         mesh,
         u,
         stats,
+        spread: at.len_to_data(report.spread),
         solve: report,
         settings: solved.settings,
         noise_estimate: at.len_to_data(adapted.noise_estimate),
@@ -382,6 +445,7 @@ pub fn export(prepared: &Prepared, adapted: AdaptedMesh, solved: Solved) -> Reco
             poly.points.iter_mut().for_each(|p| *p = at.to_data(*p));
             (at.to_data(a.free.origin), poly)
         }),
+        warnings,
     }
 }
 
@@ -480,6 +544,39 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.contains("below the supported 1e-150"), "{e}");
+    }
+
+    /// A new object with a twentieth of the samples: the warm start's curve is near nine
+    /// samples in ten and is taken, but it misses the object, which a cold start
+    /// captures. The result explains less than the previous frame did, so the frame is
+    /// redone cold.
+    #[test]
+    fn a_warm_start_that_misses_new_data_falls_back_to_cold() {
+        let ring = |n: usize, c: Point, r: f64| -> Vec<Point> {
+            (0..n)
+                .map(|i| {
+                    let a = i as f64 * std::f64::consts::TAU / n as f64;
+                    [c[0] + r * a.cos(), c[1] + r * a.sin()]
+                })
+                .collect()
+        };
+        let params = Params::default();
+        let first = ring(760, [0.4, 0.5], 0.3);
+        let before = reconstruct(&first, &params).unwrap();
+        let mut next = first.clone();
+        // Inside the old curve, where the old mesh covers it.
+        next.extend(ring(40, [0.4, 0.5], 0.06));
+        let r = reconstruct_warm(&next, &params, Some(&before)).unwrap();
+        assert!(
+            r.stats.cold_fallback && !r.stats.warm_start,
+            "{:?}",
+            r.stats
+        );
+        assert_eq!(r.polylines.len(), 2);
+        // The same frame again is near and explained: warm, no fallback.
+        let again = reconstruct_warm(&next, &params, Some(&r)).unwrap();
+        assert!(again.stats.warm_start && !again.stats.cold_fallback);
+        assert_eq!(again.polylines.len(), 2);
     }
 
     /// `mesh.max_vertices` bounds the mesh whatever the padding asks for (padding 20 with

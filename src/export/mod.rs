@@ -2,6 +2,7 @@
 //! for results (NDJSON, JSON, GeoJSON, CSV, SVG).
 
 pub mod contour;
+pub mod fit;
 pub mod support;
 pub mod svg;
 pub mod writers;

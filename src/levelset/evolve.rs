@@ -9,7 +9,7 @@ use crate::geom::Placement;
 use crate::levelset::init::{self, Init};
 use crate::levelset::params::{Settle, SolverParams};
 use crate::levelset::settle::center_on_data;
-use crate::levelset::solver::{SolveReport, Solver, SolverSettings, StopReason};
+use crate::levelset::solver::{spread, SolveReport, Solver, SolverSettings, StopReason};
 use crate::levelset::warm::{warm_start, Previous, WarmCriteria};
 use crate::mesh::field::{AdaptedMesh, MetricField};
 use crate::redistance::Redistancer;
@@ -28,6 +28,9 @@ pub struct Solved {
     pub settings: SolverSettings,
     /// Whether the level set started from the previous frame's.
     pub warm_start: bool,
+    /// Whether a warm start was tried, found worse than the previous frame, and
+    /// replaced by a cold one.
+    pub cold_fallback: bool,
     /// Whether `u` is already the signed distance to its zero isoline over the whole mesh
     /// (the median settle's last accepted round leaves it so).
     pub renormalized: bool,
@@ -92,7 +95,7 @@ pub fn solve(
     let data = locate_all(mesh, pts);
     let ms_distance = t0.elapsed().as_secs_f64() * 1e3;
 
-    let mut settings = params.resolve(diag, hmin);
+    let settings = params.resolve(diag, hmin);
     let warm_patience = params
         .warm_patience
         .unwrap_or((settings.patience / 2).max(1));
@@ -100,110 +103,156 @@ pub fn solve(
         .tube
         .unwrap_or_else(|| init::tube_radius(kd, 2.0 * hmin));
     let settle_width = 4.0 * adapted.noise_estimate + 4.0 * hmin;
-    let mut fm = Redistancer::new();
-    let mut ms_renormalize = 0.0;
     let criteria = WarmCriteria {
         settle_width,
         tube_radius,
         eps: settings.eps,
         median_settle: params.settle == Settle::Median,
     };
-    let warm = match start {
-        Start::Warm(prev) => warm_start(prev, at, mesh, &data, &criteria),
-        _ => None,
-    };
-    let warm_start = warm.is_some();
-    let mut u = match (warm, start) {
-        (Some((u, near)), _) => {
-            if near {
-                settings.patience = warm_patience;
+    let run = |start: Start<'_>| -> Attempt {
+        let mut settings = settings.clone();
+        let mut fm = Redistancer::new();
+        let mut ms_renormalize = 0.0;
+        let warm = match start {
+            Start::Warm(prev) => warm_start(prev, at, mesh, &data, &criteria),
+            _ => None,
+        };
+        let warm_start = warm.is_some();
+        let mut u = match (warm, start) {
+            (Some((u, near)), _) => {
+                if near {
+                    settings.patience = warm_patience;
+                }
+                u
             }
-            u
-        }
-        (None, Start::FreeSpace(free)) => {
+            (None, Start::FreeSpace(free)) => {
+                let t = Instant::now();
+                let u = init::free_space(mesh, &space, free, &mut fm);
+                ms_renormalize += t.elapsed().as_secs_f64() * 1e3;
+                u
+            }
+            (None, _) => {
+                let t = Instant::now();
+                let start = init::cold_start(
+                    params.init,
+                    mesh,
+                    &space,
+                    &dist,
+                    pts,
+                    tube_radius,
+                    params.margin * diag,
+                    &mut fm,
+                );
+                ms_renormalize += t.elapsed().as_secs_f64() * 1e3;
+                if start.init == Init::Medial && params.settle == Settle::Median {
+                    // Like a warm start at the data: nothing to capture, the settle
+                    // places the curve.
+                    settings.patience = warm_patience;
+                }
+                if params.init == Init::Tube {
+                    // The pinned vertices must lie inside the starting curve, or nothing
+                    // moves.
+                    settings.tube = settings.tube.min(0.5 * tube_radius);
+                }
+                start.u
+            }
+        };
+        let mut report = if let Start::FreeSpace(_) = start {
+            // The free-space start already lies on the returns, and the evolution could
+            // only move what lies away from them, which export cuts: it would pinch thin
+            // shadows (behind a leg, say) into loops and cost time for nothing. The
+            // settle alone places the curve in the noise band.
+            let (residual, mean) = crate::levelset::solver::residual(mesh, &data, &u);
+            SolveReport {
+                residual,
+                mean_residual: mean,
+                initial_residual: residual,
+                converged: residual < settings.eps,
+                stop: if residual < settings.eps {
+                    StopReason::Converged
+                } else {
+                    StopReason::Settled
+                },
+                dt: settings.dt,
+                ..Default::default()
+            }
+        } else {
+            Solver::new().solve(mesh, &space, &dist, &data, &mut u, &settings)
+        };
+        let mut renormalized = false;
+        if params.settle == Settle::Median {
             let t = Instant::now();
-            let u = init::free_space(mesh, &space, free, &mut fm);
-            ms_renormalize += t.elapsed().as_secs_f64() * 1e3;
-            u
+            let settled =
+                center_on_data(mesh, &space, field, &data, &nearest, &mut u, settle_width);
+            renormalized = settled.moved;
+            report.residual = settled.residual;
+            report.mean_residual = settled.mean;
+            // Rounds are kept by the mean distance, so the maximum can move either way.
+            let converged = settled.residual < settings.eps;
+            if converged != report.converged {
+                report.converged = converged;
+                report.stop = if converged {
+                    StopReason::Converged
+                } else {
+                    StopReason::Settled
+                };
+            }
+            report.ms_solve += t.elapsed().as_secs_f64() * 1e3;
         }
-        (None, _) => {
-            let t = Instant::now();
-            let start = init::cold_start(
-                params.init,
-                mesh,
-                &space,
-                &dist,
-                pts,
-                tube_radius,
-                params.margin * diag,
-                &mut fm,
+        (report.spread, report.near) = spread(mesh, &data, &u, settle_width);
+        Attempt {
+            u,
+            report,
+            settings,
+            warm_start,
+            renormalized,
+            ms_renormalize,
+        }
+    };
+    let mut attempt = run(start);
+    let mut cold_fallback = false;
+    if let (Start::Warm(prev), true) = (start, attempt.warm_start) {
+        // Never worse than a cold start: a warm result that explains clearly less of
+        // the data than the previous frame did, or lies clearly farther from it, is
+        // replaced by a cold one (robust measures: a maximum would follow outliers).
+        let prev_spread = at.len_to_local(prev.spread);
+        let worse = attempt.report.near < prev.near - 0.03
+            || attempt.report.spread > 2.0 * prev_spread.max(settle_width);
+        if worse {
+            tracing::info!(
+                near = attempt.report.near,
+                previous_near = prev.near,
+                spread = attempt.report.spread,
+                "warm start worse than the previous frame: cold start"
             );
-            ms_renormalize += t.elapsed().as_secs_f64() * 1e3;
-            if start.init == Init::Medial && params.settle == Settle::Median {
-                // Like a warm start at the data: nothing to capture, the settle places
-                // the curve.
-                settings.patience = warm_patience;
-            }
-            if params.init == Init::Tube {
-                // The pinned vertices must lie inside the starting curve, or nothing
-                // moves.
-                settings.tube = settings.tube.min(0.5 * tube_radius);
-            }
-            start.u
+            let ms_first = attempt.ms_renormalize + attempt.report.ms_solve;
+            attempt = run(Start::Cold);
+            attempt.report.ms_solve += ms_first;
+            cold_fallback = true;
         }
-    };
-    let mut report = if let Start::FreeSpace(_) = start {
-        // The free-space start already lies on the returns, and the evolution could only
-        // move what lies away from them, which export cuts: it would pinch thin shadows
-        // (behind a leg, say) into loops and cost time for nothing. The settle alone
-        // places the curve in the noise band.
-        let (residual, mean) = crate::levelset::solver::residual(mesh, &data, &u);
-        SolveReport {
-            residual,
-            mean_residual: mean,
-            initial_residual: residual,
-            converged: residual < settings.eps,
-            stop: if residual < settings.eps {
-                StopReason::Converged
-            } else {
-                StopReason::Settled
-            },
-            dt: settings.dt,
-            ..Default::default()
-        }
-    } else {
-        Solver::new().solve(mesh, &space, &dist, &data, &mut u, &settings)
-    };
-    let mut renormalized = false;
-    if params.settle == Settle::Median {
-        let t = Instant::now();
-        let settled = center_on_data(mesh, &space, field, &data, &nearest, &mut u, settle_width);
-        renormalized = settled.moved;
-        report.residual = settled.residual;
-        report.mean_residual = settled.mean;
-        // Rounds are kept by the mean distance, so the maximum can move either way.
-        let converged = settled.residual < settings.eps;
-        if converged != report.converged {
-            report.converged = converged;
-            report.stop = if converged {
-                StopReason::Converged
-            } else {
-                StopReason::Settled
-            };
-        }
-        report.ms_solve += t.elapsed().as_secs_f64() * 1e3;
     }
     Solved {
-        u,
+        u: attempt.u,
         space,
-        report,
-        settings,
-        warm_start,
-        renormalized,
+        report: attempt.report,
+        settings: attempt.settings,
+        warm_start: attempt.warm_start,
+        cold_fallback,
+        renormalized: attempt.renormalized,
         ms_distance,
         ms: t0.elapsed().as_secs_f64() * 1e3,
-        ms_renormalize,
+        ms_renormalize: attempt.ms_renormalize,
     }
+}
+
+/// One try at a frame's level set, from one start.
+struct Attempt {
+    u: Vec<f64>,
+    report: SolveReport,
+    settings: SolverSettings,
+    warm_start: bool,
+    renormalized: bool,
+    ms_renormalize: f64,
 }
 
 /// The renormalize stage: `u` becomes the signed distance to its zero isoline over the

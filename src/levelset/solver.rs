@@ -225,6 +225,12 @@ pub struct SolveReport {
     pub ms_solve: f64,
     /// Milliseconds in renormalization.
     pub ms_renormalize: f64,
+    /// The 90th percentile of `|u|` at the data: how far the curve is from the data,
+    /// robust to the outliers and isolated returns that the maximum (eq. 11) follows.
+    pub spread: f64,
+    /// The share of the data within the median settle's reach (`4 sigma + 4 hmin`) of
+    /// the curve.
+    pub near: f64,
 }
 
 /// The stopping residual of eq. 11, the largest `|u|` interpolated at the data points,
@@ -239,6 +245,23 @@ pub fn residual(mesh: &Mesh, data: &[Location], u: &[f64]) -> (f64, f64) {
         })
         .reduce(|| (0.0, 0.0), |a, b| (a.0.max(b.0), a.1 + b.1));
     (max, sum / data.len().max(1) as f64)
+}
+
+/// Robust measures of how far the zero isoline of `u` is from the data: the 90th
+/// percentile of `|u|` there, and the share of the data with `|u| <= width`.
+pub fn spread(mesh: &Mesh, data: &[Location], u: &[f64], width: f64) -> (f64, f64) {
+    if data.is_empty() {
+        return (0.0, 1.0);
+    }
+    let mut a: Vec<f64> = data
+        .par_iter()
+        .with_min_len(MIN_LEN)
+        .map(|l| l.interpolate(mesh, u).abs())
+        .collect();
+    let near = a.iter().filter(|&&x| x <= width).count() as f64 / a.len() as f64;
+    let k = ((0.9 * a.len() as f64).ceil() as usize).clamp(1, a.len()) - 1;
+    let (_, p90, _) = a.select_nth_unstable_by(k, f64::total_cmp);
+    (*p90, near)
 }
 
 /// The curvature operator `K(u)` as a CSR matrix whose pattern (vertex rings, the

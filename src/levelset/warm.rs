@@ -2,30 +2,49 @@
 //! decision whether it is a better start than a cold one.
 //!
 //! The previous level set was renormalized, so interpolated onto the new mesh it is a
-//! signed distance to within the interpolation error. Where its curve already lies within
-//! the median settle's reach of every new sample it is used as it is: the capture phase
-//! then stagnates within its (warm) patience window and the settle moves the curve the
-//! rest of the way, in either direction. Otherwise, while it is no farther from the data
-//! than a cold tube start would be (twice the larger of the tube radius and the previous
-//! residual), it is offset outward past every sample, because the evolution only moves
-//! the curve inward. Farther (a jump, a restarted stream, a mesh that no longer covers
-//! the data): cold start.
+//! signed distance to within the interpolation error. How far its curve is from the new
+//! data is measured robustly, by the 90th percentile of `|u|` there (the spread): the
+//! maximum (eq. 11) follows the farthest outlier or isolated return, which no curve
+//! reaches, and once made every warm start fail, be pushed outward by it and end farther
+//! out, frame after frame. Where the spread is within the median settle's reach the level
+//! set is used as it is: the capture phase then stagnates within its (warm) patience
+//! window and the settle moves the curve the rest of the way, in either direction.
+//! Otherwise, while it is no farther from the data than a cold tube start would be (twice
+//! the larger of the tube radius and the previous frame's spread), it is offset outward
+//! past nine samples in ten, because the evolution only moves the curve inward. Farther
+//! (a jump, a restarted stream, a mesh that no longer covers the data): cold start. The
+//! solve stage then checks the result against the previous frame's and falls back to a
+//! cold start when it is clearly worse ([`crate::levelset::evolve::solve`]).
 
 use crate::fem::locate::{locate_all, Location};
 use crate::geom::{BBox, Placement, Point};
-use crate::levelset::solver::residual;
+use crate::levelset::solver::spread;
 use crate::mesh::Mesh;
 
 /// The level set a frame may start from: the previous frame's mesh, its renormalized
-/// level set and its eq. 11 residual.
+/// level set and how well it fitted its own data.
 #[derive(Clone, Copy, Debug)]
 pub struct Previous<'a> {
     /// The previous frame's mesh, in data coordinates.
     pub mesh: &'a Mesh,
     /// Its level set, in data units.
     pub u: &'a [f64],
-    /// Its eq. 11 residual, in data units.
-    pub residual: f64,
+    /// Its spread (90th percentile of `|u|` at its data), in data units.
+    pub spread: f64,
+    /// The share of its data within the median settle's reach of its curve.
+    pub near: f64,
+}
+
+impl<'a> Previous<'a> {
+    /// The previous frame as [`crate::reconstruct::reconstruct_warm`] takes it.
+    pub fn of(r: &'a crate::reconstruct::Reconstruction) -> Previous<'a> {
+        Previous {
+            mesh: &r.mesh,
+            u: &r.u,
+            spread: r.spread,
+            near: r.solve.near,
+        }
+    }
 }
 
 /// What decides between a warm and a cold start.
@@ -54,17 +73,17 @@ pub enum Decision {
     Cold,
 }
 
-/// The decision for a carried level set whose eq. 11 residual on the new data is
-/// `residual`, when the previous frame ended at `previous_residual` from its own data.
-pub fn decide(residual: f64, previous_residual: f64, c: &WarmCriteria) -> Decision {
-    let near = residual <= c.settle_width && c.median_settle;
+/// The decision for a carried level set whose spread on the new data is `spread`, when
+/// the previous frame ended with `previous_spread` on its own data.
+pub fn decide(spread: f64, previous_spread: f64, c: &WarmCriteria) -> Decision {
+    let near = spread <= c.settle_width && c.median_settle;
     if near {
         return Decision::Near;
     }
     // A cold tube start begins about one tube radius from the data, and the previous
-    // frame ended at `previous_residual` from its own.
-    if residual <= 2.0 * c.tube_radius.max(previous_residual) + c.eps {
-        Decision::Offset(residual + c.eps)
+    // frame ended `previous_spread` from its own.
+    if spread <= 2.0 * c.tube_radius.max(previous_spread) + c.eps {
+        Decision::Offset(spread + c.eps)
     } else {
         Decision::Cold
     }
@@ -78,8 +97,11 @@ pub fn carry(old: &Mesh, u: &[f64], at: &Placement, coords: &[Point]) -> Option<
     for c in &mut old.coords {
         *c = at.to_local(*c);
     }
-    let bbox = BBox::of(&old.coords)?;
-    if !coords.iter().all(|&c| bbox.contains(c)) {
+    // The old domain is convex (a box, possibly moved and turned with a moving
+    // sensor's frame): it covers the new mesh when it holds the corners of its box.
+    let b = BBox::of(coords)?;
+    let corners = [b.min, [b.max[0], b.min[1]], b.max, [b.min[0], b.max[1]]];
+    if !crate::fem::locate::covers(&old, &corners) {
         return None;
     }
     let loc = locate_all(&old, coords);
@@ -101,9 +123,9 @@ pub fn warm_start(
     c: &WarmCriteria,
 ) -> Option<(Vec<f64>, bool)> {
     let mut u = carry(prev.mesh, prev.u, at, &mesh.coords)?;
-    let (res, _) = residual(mesh, data, &u);
-    let decision = decide(res, at.len_to_local(prev.residual), c);
-    tracing::debug!(residual = res, ?decision, "warm start");
+    let (spread, _) = spread(mesh, data, &u, c.settle_width);
+    let decision = decide(spread, at.len_to_local(prev.spread), c);
+    tracing::debug!(spread, ?decision, "warm start");
     match decision {
         Decision::Near => Some((u, true)),
         Decision::Offset(offset) => {
@@ -197,29 +219,63 @@ mod tests {
         let prev = Previous {
             mesh: &mesh,
             u: &prev_u,
-            residual: 0.0,
+            spread: 0.0,
+            near: 1.0,
         };
         let (u, near) = warm_start(prev, &UNIT, &mesh, &data, &C).unwrap();
         assert!(near && u == prev_u);
         // 0.03 inside the samples: too far for the settle, within twice the previous
-        // residual, so offset outward past every sample by eps (P1 interpolation of the
+        // spread, so offset outward past the samples by eps (P1 interpolation of the
         // circle's distance errs by h^2 / (8 r) = 1.6e-4 on this mesh).
         let prev_u = circle(0.47);
         let prev = Previous {
             u: &prev_u,
-            residual: 0.02,
+            spread: 0.02,
             ..prev
         };
         let (u, near) = warm_start(prev, &UNIT, &mesh, &data, &C).unwrap();
         assert!(!near);
-        let (res, _) = residual(&mesh, &data, &u);
+        let (res, _) = crate::levelset::solver::residual(&mesh, &data, &u);
         assert!((res - C.eps).abs() < 5e-4, "{res}");
         let prev_u = circle(0.3);
         let prev = Previous {
             u: &prev_u,
-            residual: 0.0,
+            spread: 0.0,
             ..prev
         };
         assert!(warm_start(prev, &UNIT, &mesh, &data, &C).is_none());
+    }
+
+    /// A tenth of the samples far out (outliers, isolated returns) do not decide: the
+    /// curve at the other nine tenths is near, and is kept. Decided by the maximum, it
+    /// was offset by the outliers' distance, and the next frame farther still.
+    #[test]
+    fn outliers_do_not_push_a_warm_start_away() {
+        let bbox = BBox {
+            min: [-1.0, -1.0],
+            max: [1.0, 1.0],
+        };
+        let mesh = Mesh::structured(&bbox, 80);
+        let mut samples: Vec<Point> = (0..95)
+            .map(|i| {
+                let a = i as f64 * 0.066;
+                [0.5 * a.cos(), 0.5 * a.sin()]
+            })
+            .collect();
+        samples.extend((0..5).map(|i| [0.9, -0.8 + 0.3 * i as f64]));
+        let data = locate_all(&mesh, &samples);
+        let u: Vec<f64> = mesh
+            .coords
+            .iter()
+            .map(|&p| dist(p, [0.0, 0.0]) - 0.5)
+            .collect();
+        let prev = Previous {
+            mesh: &mesh,
+            u: &u,
+            spread: 0.0,
+            near: 0.95,
+        };
+        let (carried, near) = warm_start(prev, &UNIT, &mesh, &data, &C).unwrap();
+        assert!(near && carried == u);
     }
 }

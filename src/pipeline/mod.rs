@@ -46,6 +46,13 @@ pub struct RunSummary {
     pub skipped: usize,
     /// Reconstructed frames that started from their predecessor's level set.
     pub warm: usize,
+    /// Warm starts found worse than the previous frame and redone cold.
+    pub cold_fallbacks: usize,
+    /// Records with warnings (no curve where the data have support, most data
+    /// unexplained).
+    pub warnings: usize,
+    /// Reconstructed frames without any curve.
+    pub empty: usize,
     /// Seconds from the first frame read to the last record written.
     pub seconds: f64,
     /// Records per second over that time.
@@ -78,8 +85,12 @@ impl std::fmt::Display for RunSummary {
         let its = |x: Option<f64>| x.map_or("-".to_string(), |v| format!("{v}"));
         write!(
             f,
-            "; {} warm starts; median iterations warm {} cold {}",
+            "; {} warm starts ({} cold fallbacks); {} with warnings, {} empty; median \
+             iterations warm {} cold {}",
             self.warm,
+            self.cold_fallbacks,
+            self.warnings,
+            self.empty,
             its(self.iterations_warm),
             its(self.iterations_cold)
         )

@@ -19,7 +19,7 @@ use super::source::Line;
 use super::RunSummary;
 use crate::error::{Error, Result};
 use crate::format::ResultRecord;
-use crate::geom::Point;
+use crate::geom::{Point, Pose};
 use crate::levelset::evolve::Solved;
 use crate::levelset::warm::Previous;
 use crate::mesh::field::AdaptedMesh;
@@ -34,6 +34,8 @@ pub(crate) struct Msg {
     frame: Option<u64>,
     /// The input line, for error records.
     line: u64,
+    /// Where the frame's coordinates sit in the world, when the frame says.
+    pose: Option<Pose>,
     arrived: Instant,
     work: Work,
 }
@@ -149,7 +151,18 @@ pub(crate) struct Feedback {
 struct LevelSet {
     mesh: Mesh,
     u: Vec<f64>,
-    residual: f64,
+    spread: f64,
+    near: f64,
+    pose: Option<Pose>,
+}
+
+/// Moves a stream's state (a mesh in the coordinates of the frame at `from`) into the
+/// coordinates of the next frame, at `to`, when both frames carry poses.
+fn follow(mesh: &mut Mesh, from: &mut Option<Pose>, to: Option<Pose>) {
+    if let (Some(a), Some(b)) = (*from, to) {
+        crate::geom::reframe(a, b, &mut mesh.coords);
+        *from = Some(b);
+    }
 }
 
 fn spawn<T: Send + 'static>(
@@ -315,21 +328,28 @@ fn parse_line(line: Line) -> Msg {
                 .map_err(|e| (e.to_string(), guess_ids(text)))
         }
     };
-    let (stream, frame, work) = match parsed {
+    let (stream, frame, pose, work) = match parsed {
         Ok(mut f) => (
             f.stream.take().or(default_stream),
             Some(f.frame),
+            f.pose,
             Work::Input(Box::new(f)),
         ),
         Err((message, (stream, frame))) => {
             tracing::warn!(error = %message, "bad input line");
-            (stream.or(default_stream), frame, Work::Failed(message))
+            (
+                stream.or(default_stream),
+                frame,
+                None,
+                Work::Failed(message),
+            )
         }
     };
     Msg {
         stream,
         frame,
         line: line.line,
+        pose,
         arrived: line.arrived,
         work,
     }
@@ -408,7 +428,8 @@ pub(crate) fn spawn_adapt(
     streams: (usize, Duration),
 ) -> Result<JoinHandle<()>> {
     spawn("adapt", move || {
-        let mut last: Streams<Option<(u64, Mesh)>> = Streams::new(streams.0, streams.1);
+        let mut last: Streams<Option<(u64, Mesh, Option<Pose>)>> =
+            Streams::new(streams.0, streams.1);
         run_stage(
             "adapt",
             rx,
@@ -422,16 +443,15 @@ pub(crate) fn spawn_adapt(
                 let frame = m.number();
                 let adapted = if warm {
                     let slot = last.seen(m.key(), Instant::now(), |_| true, || None);
-                    let previous = slot
-                        .as_ref()
-                        .filter(|(f, _)| *f < frame)
-                        .map(|(_, mesh)| mesh);
-                    let adapted = reconstruct::adapt(&p, previous);
+                    let previous = slot.as_ref().filter(|(f, _, _)| *f < frame);
+                    let motion = previous.and_then(|(_, _, pose)| pose.zip(m.pose));
+                    let adapted =
+                        reconstruct::adapt_moving(&p, previous.map(|(_, mesh, _)| mesh), motion);
                     let mut mesh = adapted.mesh.clone();
                     for c in &mut mesh.coords {
                         *c = p.placement.to_data(*c);
                     }
-                    *slot = Some((frame, mesh));
+                    *slot = Some((frame, mesh, m.pose));
                     adapted
                 } else {
                     reconstruct::adapt(&p, None)
@@ -507,10 +527,14 @@ pub(crate) fn spawn_solve(
                     s.level_set = None;
                 }
                 s.last_frame = Some(frame);
-                let previous = s.level_set.as_ref().filter(|_| warm).map(|l| Previous {
-                    mesh: &l.mesh,
-                    u: &l.u,
-                    residual: l.residual,
+                let previous = s.level_set.as_mut().filter(|_| warm).map(|l| {
+                    follow(&mut l.mesh, &mut l.pose, m.pose);
+                    Previous {
+                        mesh: &l.mesh,
+                        u: &l.u,
+                        spread: l.spread,
+                        near: l.near,
+                    }
                 });
                 let solved = reconstruct::solve(&p, &adapted, previous);
                 if warm {
@@ -538,6 +562,7 @@ pub(crate) fn spawn_renormalize(
             |m, d| stage_span!("renormalize", m, d),
             |m| {
                 let key = m.key().to_string();
+                let pose = m.pose;
                 let Work::Solved(b) = &mut m.work else {
                     unreachable!("renormalize takes solved frames")
                 };
@@ -557,7 +582,9 @@ pub(crate) fn spawn_renormalize(
                         LevelSet {
                             mesh,
                             u: solved.u.iter().map(|&x| at.len_to_data(x)).collect(),
-                            residual: at.len_to_data(solved.report.residual),
+                            spread: at.len_to_data(solved.report.spread),
+                            near: solved.report.near,
+                            pose,
                         }
                     })
                 }));
@@ -630,6 +657,9 @@ pub(crate) fn spawn_export(
                     if stats.warm_start {
                         summary.warm += 1;
                     }
+                    summary.cold_fallbacks += usize::from(stats.cold_fallback);
+                    summary.warnings += usize::from(rec.warnings.is_some());
+                    summary.empty += usize::from(r.polylines.is_empty());
                     tally.iterations(stats.warm_start, stats.iterations);
                     summary.reconstructed += 1;
                     if svg_dir.is_some() {
@@ -733,6 +763,7 @@ mod tests {
             stream: Some(stream.into()),
             frame: Some(frame),
             line: frame,
+            pose: None,
             arrived: Instant::now(),
             work: if live {
                 Work::Input(Default::default())
