@@ -50,6 +50,16 @@ pub struct Mesh {
     pub tag: Vec<VertexTag>,
 }
 
+impl Mesh {
+    /// Bytes the mesh's arrays hold (their lengths, not their capacities).
+    pub fn bytes(&self) -> usize {
+        self.coords.len() * std::mem::size_of::<Point>()
+            + (self.tris.len() + self.adj.len()) * 12
+            + self.vert_tri.len() * 4
+            + self.tag.len() * std::mem::size_of::<VertexTag>()
+    }
+}
+
 /// Local index (0..3) of vertex `v` in `tri`, if present.
 #[inline]
 pub fn local_index(tri: [u32; 3], v: u32) -> Option<usize> {

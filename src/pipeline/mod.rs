@@ -53,6 +53,10 @@ pub struct RunSummary {
     pub warnings: usize,
     /// Reconstructed frames without any curve.
     pub empty: usize,
+    /// The most state a stream held after a frame, bytes: the mesh the adapt stage
+    /// keeps, and the mesh and level set the solve stage keeps, for the next frame
+    /// (0 without warm starts).
+    pub state_bytes_max: usize,
     /// Seconds from the first frame read to the last record written.
     pub seconds: f64,
     /// Records per second over that time.
@@ -86,13 +90,14 @@ impl std::fmt::Display for RunSummary {
         write!(
             f,
             "; {} warm starts ({} cold fallbacks); {} with warnings, {} empty; median \
-             iterations warm {} cold {}",
+             iterations warm {} cold {}; state per stream up to {:.0} KiB",
             self.warm,
             self.cold_fallbacks,
             self.warnings,
             self.empty,
             its(self.iterations_warm),
-            its(self.iterations_cold)
+            its(self.iterations_cold),
+            self.state_bytes_max as f64 / 1024.0
         )
     }
 }
@@ -166,7 +171,7 @@ impl Daemon {
             "renormalize",
             stages::spawn_renormalize(renorm_rx, to_export, warm.then_some(feedback_tx))?,
         ));
-        let export = stages::spawn_export(export_rx, sink, cfg.svg_dir.clone(), stop)?;
+        let export = stages::spawn_export(export_rx, sink, cfg.svg_dir.clone(), stop, warm)?;
         Ok(Daemon {
             source,
             stdin: cfg.source == Source::Stdin,

@@ -613,6 +613,7 @@ pub(crate) fn spawn_export(
     mut sink: Sink,
     svg_dir: Option<PathBuf>,
     stop: Arc<AtomicBool>,
+    warm: bool,
 ) -> Result<JoinHandle<Result<RunSummary>>> {
     spawn("export", move || {
         let mut summary = RunSummary::default();
@@ -660,6 +661,10 @@ pub(crate) fn spawn_export(
                     summary.cold_fallbacks += usize::from(stats.cold_fallback);
                     summary.warnings += usize::from(rec.warnings.is_some());
                     summary.empty += usize::from(r.polylines.is_empty());
+                    if warm {
+                        let state = 2 * r.mesh.bytes() + r.u.len() * 8;
+                        summary.state_bytes_max = summary.state_bytes_max.max(state);
+                    }
                     tally.iterations(stats.warm_start, stats.iterations);
                     summary.reconstructed += 1;
                     if svg_dir.is_some() {
