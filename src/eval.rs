@@ -35,8 +35,17 @@ impl SegmentIndex {
             }
         }
         let mut lens: Vec<f64> = segs.iter().map(|&(a, b)| dist(a, b)).collect();
+        let total: f64 = lens.iter().sum();
         lens.sort_by(f64::total_cmp);
-        let piece = lens.get(lens.len() / 2).copied().unwrap_or(0.0).max(1e-300);
+        // Pieces of about the median segment, but at most 4 a segment on average: a
+        // few long segments among many tiny ones (a curve's specks beside a long chord)
+        // once made a billion pieces.
+        let piece = lens
+            .get(lens.len() / 2)
+            .copied()
+            .unwrap_or(0.0)
+            .max(total / (4 * segs.len() + 16) as f64)
+            .max(1e-300);
         let mut mids = Vec::with_capacity(segs.len());
         let mut piece_seg = Vec::with_capacity(segs.len());
         for (i, &(a, b)) in segs.iter().enumerate() {
@@ -378,6 +387,31 @@ pub fn scan_scores(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Many zero-length segments beside one long one: the pieces stay a few per
+    /// segment (they were the long one's length over the median, zero: a billion and
+    /// an out-of-memory abort), and the answers stay exact.
+    #[test]
+    fn a_long_segment_among_specks_stays_small_and_exact() {
+        let mut curves: Vec<Polyline> = (0..30)
+            .map(|_| Polyline {
+                closed: false,
+                points: vec![[0.0, 0.0], [0.0, 0.0]],
+            })
+            .collect();
+        curves.push(Polyline {
+            closed: false,
+            points: vec![[0.0, 0.0], [1.0, 0.0]],
+        });
+        let index = SegmentIndex::new(&curves);
+        assert!(
+            index.piece_seg.len() <= 4 * 31 + 16 + 31,
+            "{}",
+            index.piece_seg.len()
+        );
+        assert!((index.distance([0.5, 0.25]) - 0.25).abs() < 1e-15);
+        assert!((index.distance([2.0, 0.0]) - 1.0).abs() < 1e-15);
+    }
     use rand::{Rng, SeedableRng};
 
     fn circle(r: f64, n: usize) -> Polyline {

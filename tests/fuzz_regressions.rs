@@ -81,3 +81,31 @@ fn small_point_sets() {
         harness::reconstruct_points(&data);
     }
 }
+
+/// Three distinct points a few ulps apart (23 samples of them): the curve came out as a
+/// long chord among specks of zero length, and indexing its segments for the fit
+/// statistics once asked for a billion pieces and aborted out of memory (found by the
+/// property test of reconstruct).
+#[test]
+fn points_a_few_ulps_apart_do_not_exhaust_memory() {
+    let x = 1.6850288147230907e-27;
+    let ys = [
+        -7.788671795046529e-126,
+        -7.788671795046519e-126,
+        -7.788671795046508e-126,
+    ];
+    let pts: Vec<[f64; 2]> = [
+        1, 1, 1, 1, 2, 2, 0, 1, 1, 1, 0, 0, 1, 0, 1, 1, 0, 2, 2, 0, 2, 1, 1,
+    ]
+    .iter()
+    .map(|&i| [x, ys[i]])
+    .collect();
+    match isoline::reconstruct::reconstruct(&pts, &isoline::reconstruct::Params::default()) {
+        Ok(r) => assert!(r.polylines.iter().all(|p| p
+            .points
+            .iter()
+            .flatten()
+            .all(|c| c.is_finite()))),
+        Err(e) => assert!(!e.to_string().is_empty()),
+    }
+}
