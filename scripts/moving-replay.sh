@@ -3,8 +3,9 @@
 # corridor by the Hokuyo UTM-30LX-like sensor (1,080 beams, 40 Hz) driving 0.1 m and
 # turning up to 0.1 rad a frame, range noise 1 cm, 1% spurious short returns, 2% dropout.
 # Each stream goes through the daemon warm with the frames' poses, warm without them,
-# and cold, as fast as it takes them; the first also at the recorded 40 Hz. Prints the
-# daemon's summaries, the peak memory, and per frame the accuracy warm against cold.
+# cold, and refined over a window of 10 frames (accumulate = 10), as fast as it takes
+# them; the first also at the recorded 40 Hz. Prints the daemon's summaries, the peak
+# memory, and per frame the accuracy of each against the scene.
 # Usage: scripts/moving-replay.sh [FRAMES]   (default 300)
 set -euo pipefail
 . "$(dirname "$0")/lib.sh"
@@ -24,13 +25,15 @@ with open(sys.argv[2], "w") as out:
         out.write(json.dumps(v) + "\n")
 PY
   echo "== $scene, $n frames"
-  for run in warm:fast nopose:fast cold:fast warm:recorded; do
+  for run in warm:fast nopose:fast cold:fast refined:fast warm:recorded; do
     kind=${run%%:*}
     replay=${run##*:}
     input=$scene.ndjson
     [ "$kind" = nopose ] && input=$scene-nopose.ndjson
     warm=true
     [ "$kind" = cold ] && warm=false
+    accumulate=0
+    [ "$kind" = refined ] && accumulate=10
     cat > "$dir/$scene-$kind-$replay.toml" <<TOML
 [input]
 path = "$input"
@@ -39,25 +42,29 @@ replay = "$replay"
 path = "$scene-$kind-$replay.out.ndjson"
 [pipeline]
 warm_start = $warm
+accumulate = $accumulate
 TOML
     echo "$kind, replay = $replay:"
     /usr/bin/time -f "  peak memory %M kB" $bin run -c "$dir/$scene-$kind-$replay.toml" 2>&1 |
       grep -E "isoline run:|peak memory"
   done
-  for kind in warm cold; do
+  for kind in warm cold refined; do
     $bin eval "$dir/$scene-$kind-fast.out.ndjson" --truth "$dir/$scene.truth.json" \
       --frames "$dir/$scene.ndjson" > "$dir/$scene-$kind.eval.json"
   done
   python3 - "$dir" "$scene" <<'PY'
 import json, sys
 d, s = sys.argv[1:]
-recs = {k: [json.loads(l) for l in open(f"{d}/{s}-{k}-fast.out.ndjson")] for k in ("warm", "cold")}
-ev = {k: json.load(open(f"{d}/{s}-{k}.eval.json"))["frames"] for k in ("warm", "cold")}
-for k in ("warm", "cold"):
+kinds = ("warm", "cold", "refined")
+recs = {k: [json.loads(l) for l in open(f"{d}/{s}-{k}-fast.out.ndjson")] for k in kinds}
+ev = {k: json.load(open(f"{d}/{s}-{k}.eval.json"))["frames"] for k in kinds}
+for k in kinds:
     h = sorted(f["hausdorff"] for f in ev[k])
+    m = sorted(f["mean_distance"] for f in ev[k])
     x = sorted(r["stats"]["explained"] for r in recs[k])
     p = sorted(r["stats"]["fit_p90"] for r in recs[k])
     print(f"  {k}: Hausdorff median {h[len(h) // 2]:.3f} worst {h[-1]:.3f} m; "
+          f"mean distance median {1e3 * m[len(m) // 2]:.2f} mm; "
           f"explained median {x[len(x) // 2]:.3f} min {x[0]:.3f}; "
           f"fit p90 median {1e3 * p[len(p) // 2]:.1f} mm")
 ratio = max(w["stats"]["fit_p90"] / c["stats"]["fit_p90"] for w, c in zip(recs["warm"], recs["cold"]))

@@ -257,6 +257,21 @@ pub struct FrameStats {
     /// replaced by a cold one (`warm_start` is then false).
     #[serde(default, skip_serializing_if = "std::ops::Not::not")]
     pub cold_fallback: bool,
+    /// With refinement over frames (`[pipeline] accumulate`): the window the frame was
+    /// reconstructed from; its curves are then in the world's coordinates.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub window: Option<WindowStats>,
+}
+
+/// The window of frames a record was reconstructed from.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct WindowStats {
+    /// Frames in it, this one included.
+    pub frames: usize,
+    /// Their returns.
+    pub points: usize,
+    /// Bytes the stream's window holds, roughly.
+    pub bytes: usize,
 }
 
 /// A cluster of returns that no curve explains, on the wire:

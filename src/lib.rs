@@ -33,6 +33,7 @@
 #![warn(missing_docs)]
 #![deny(rustdoc::broken_intra_doc_links)]
 
+pub mod accumulate;
 pub mod batch;
 pub mod config;
 pub mod distance;

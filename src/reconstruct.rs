@@ -335,33 +335,81 @@ pub fn solve(prepared: &Prepared, adapted: &AdaptedMesh, previous: Option<Previo
 /// The export stage: the curves ([`crate::export::curves`]) in data coordinates, with the
 /// frame's statistics (lengths in data units).
 pub fn export(prepared: &Prepared, adapted: AdaptedMesh, solved: Solved) -> Reconstruction {
+    export_with(prepared, adapted, solved, None)
+}
+
+/// The export stage with refinement over frames ([`crate::accumulate`]): the frame (a
+/// scan taken at `pose`) joins its stream's `window`, and its level set is replaced by
+/// the average of the window's that agree with it, on its mesh. The record stays in the
+/// frame's coordinates.
+#[allow(clippy::too_many_arguments)]
+pub fn export_refined(
+    prepared: &Prepared,
+    adapted: AdaptedMesh,
+    mut solved: Solved,
+    frame: u64,
+    t: Option<f64>,
+    pose: crate::geom::Pose,
+    window: &mut crate::accumulate::Window,
+    limits: &crate::accumulate::WindowLimits,
+) -> Reconstruction {
+    use crate::geom::to_world;
+    let Some(scan) = &prepared.scan else {
+        return export(prepared, adapted, solved);
+    };
+    let at = prepared.placement;
+    let scale = at.len_to_data(1.0);
+    let world = |p: Point| to_world(pose, at.to_data(p));
+    let mut mesh = adapted.mesh.clone();
+    mesh.coords.iter_mut().for_each(|c| *c = world(*c));
+    let mut u: Vec<f64> = solved.u.iter().map(|&x| at.len_to_data(x)).collect();
+    let analysis = scan.transformed(&world, pose[2], scale);
+    let tol = at.len_to_data(2.0 * scan.scales.noise + adapted.params.hmin);
+    window.push(
+        crate::accumulate::View::new(frame, t, mesh.clone(), u.clone(), analysis, tol),
+        limits,
+    );
+    window.fuse(&mesh.coords, &mut u);
+    solved.u = u.iter().map(|&x| at.len_to_local(x)).collect();
+    let stats = crate::format::WindowStats {
+        frames: window.len(),
+        points: window.points(),
+        bytes: window.bytes(),
+    };
+    export_with(prepared, adapted, solved, Some(stats))
+}
+
+/// [`export`], with the window the frame was refined over.
+fn export_with(
+    prepared: &Prepared,
+    adapted: AdaptedMesh,
+    solved: Solved,
+    window: Option<crate::format::WindowStats>,
+) -> Reconstruction {
+    let scan_analysis = prepared.scan.as_ref();
     let t0 = Instant::now();
     let at = prepared.placement;
     let params = &prepared.params.export;
     let hmin = adapted.params.hmin;
     let mut mesh = adapted.mesh;
     let u: Vec<f64> = solved.u.iter().map(|&x| at.len_to_data(x)).collect();
-    let scan = prepared.scan.as_ref().map(|a| {
+    let scan = scan_analysis.map(|a| {
         let sigma = a.scales.noise;
         (a, 2.0 * sigma + hmin)
     });
     let (polylines, features) =
         crate::export::curves(&mesh, &solved.u, &at, prepared.diag, hmin, scan, params);
     let min_run = prepared.params.scan.min_run;
-    let residual = match &prepared.scan {
+    let residual = match &scan_analysis {
         // Eq. 11 over the returns of runs: isolated returns (spurious, or too few to
         // place a curve by) get no curve by design, and |u| at them follows whatever
         // the mesh happens to resolve there, which a warm and a cold mesh do not share.
         Some(a) => {
             let returns: Vec<Point> = a
-                .runs
-                .iter()
-                .filter(|r| r.beams.len() >= min_run)
-                .flat_map(|r| {
-                    r.beams
-                        .iter()
-                        .map(|&b| a.scan.at(b as usize, a.scan.ranges[b as usize]))
-                })
+                .run_points()
+                .into_iter()
+                .filter(|r| r.len() >= min_run)
+                .flatten()
                 .collect();
             crate::fem::locate::locate_all(&mesh, &returns)
                 .iter()
@@ -377,11 +425,11 @@ pub fn export(prepared: &Prepared, adapted: AdaptedMesh, solved: Solved) -> Reco
     let tolerance = at.len_to_data(3.0 * sigma + 2.0 * hmin);
     let data: Vec<Point> = prepared.local.iter().map(|&q| at.to_data(q)).collect();
     let fit = crate::export::fit::fit(&data, &polylines, tolerance);
-    let supported = match &prepared.scan {
+    let supported = match &scan_analysis {
         Some(a) => a
-            .runs
+            .run_points()
             .iter()
-            .map(|r| r.beams.len())
+            .map(Vec::len)
             .filter(|&n| n >= min_run)
             .sum(),
         None => data.len(),
@@ -429,6 +477,7 @@ pub fn export(prepared: &Prepared, adapted: AdaptedMesh, solved: Solved) -> Reco
         explained: Some(fit.explained),
         fit_p90: fit.p90.is_finite().then_some(fit.p90),
         cold_fallback: solved.cold_fallback,
+        window,
     };
     Reconstruction {
         polylines,
@@ -440,7 +489,7 @@ pub fn export(prepared: &Prepared, adapted: AdaptedMesh, solved: Solved) -> Reco
         settings: solved.settings,
         noise_estimate: at.len_to_data(adapted.noise_estimate),
         features,
-        free_space: prepared.scan.as_ref().map(|a| {
+        free_space: scan_analysis.map(|a| {
             let mut poly = a.free.polygon();
             poly.points.iter_mut().for_each(|p| *p = at.to_data(*p));
             (at.to_data(a.free.origin), poly)

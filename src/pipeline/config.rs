@@ -10,6 +10,7 @@ use std::time::Duration;
 use serde::Deserialize;
 
 use super::source::Limits;
+use crate::accumulate::WindowLimits;
 use crate::config::{value_problem, Config};
 use crate::error::{Error, Result};
 use crate::reconstruct::Params;
@@ -84,6 +85,9 @@ pub struct DaemonConfig {
     pub max_streams: usize,
     /// A stream not seen for this long is forgotten (its next frame starts cold).
     pub stream_idle: Duration,
+    /// Refinement over frames: each scan frame with a pose has its level set averaged
+    /// with its stream's last frames' ([`crate::accumulate`]).
+    pub accumulate: Option<WindowLimits>,
     /// Reconstruction parameters.
     pub params: Params,
 }
@@ -122,6 +126,10 @@ struct PipelineTable {
     warm_start: Option<bool>,
     max_streams: Option<i64>,
     stream_idle: Option<f64>,
+    /// Frames in a refinement window; unset or 0: off.
+    accumulate: Option<i64>,
+    /// Seconds a frame stays in the window at most.
+    accumulate_seconds: Option<f64>,
 }
 
 #[derive(Debug, Default, Deserialize)]
@@ -142,6 +150,9 @@ pub const MAX_RATE: f64 = 1e6;
 
 /// Default of `pipeline.max_streams`.
 pub const DEFAULT_MAX_STREAMS: usize = 256;
+/// The most frames `pipeline.accumulate` may keep: each holds a mesh and a level set
+/// (about 0.35 MB for a 1,080-beam scan), so a window of 100 is 35 MB a stream.
+pub const MAX_ACCUMULATE: usize = 100;
 /// Default of `pipeline.stream_idle`.
 pub const DEFAULT_STREAM_IDLE: Duration = Duration::from_secs(60);
 
@@ -360,6 +371,13 @@ impl DaemonConfig {
             1,
             1 << 20,
         );
+        let frames = bounded(
+            "pipeline.accumulate",
+            pipeline.accumulate,
+            0,
+            0,
+            MAX_ACCUMULATE,
+        );
         let stream_idle = match pipeline.stream_idle {
             None => DEFAULT_STREAM_IDLE,
             Some(s) if (0.001..=1e6).contains(&s) => Duration::from_secs_f64(s),
@@ -370,6 +388,16 @@ impl DaemonConfig {
                 DEFAULT_STREAM_IDLE
             }
         };
+        let seconds = match pipeline.accumulate_seconds {
+            Some(s) if !(0.001..=1e6).contains(&s) => {
+                problems.push(format!(
+                    "pipeline.accumulate_seconds = {s}: must be in [0.001, 1e6] seconds"
+                ));
+                None
+            }
+            s => s,
+        };
+        let accumulate = (frames > 1).then_some(WindowLimits { frames, seconds });
         let queue = pipeline.queue.unwrap_or(4);
         if !(1..=4096).contains(&queue) {
             problems.push(format!("pipeline.queue = {queue}: must be in 1..=4096"));
@@ -405,6 +433,7 @@ impl DaemonConfig {
                 limits,
                 max_streams,
                 stream_idle,
+                accumulate,
                 params,
             }),
             _ => Err(fail(problems)),
@@ -501,6 +530,32 @@ mod tests {
         .to_string();
         assert!(
             e.contains("pipeline.queue = 0") && e.contains("pipeline.policy"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn refinement_windows_are_read_and_bounded() {
+        let parse = |t: &str| DaemonConfig::parse(t, "d.toml", Path::new("."));
+        assert_eq!(parse("").unwrap().accumulate, None);
+        assert_eq!(
+            parse("[pipeline]\naccumulate = 1\n").unwrap().accumulate,
+            None
+        );
+        assert_eq!(
+            parse("[pipeline]\naccumulate = 10\naccumulate_seconds = 0.5\n")
+                .unwrap()
+                .accumulate,
+            Some(WindowLimits {
+                frames: 10,
+                seconds: Some(0.5)
+            })
+        );
+        let e = parse("[pipeline]\naccumulate = 101\naccumulate_seconds = 0\n")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("pipeline.accumulate = 101") && e.contains("pipeline.accumulate_seconds"),
             "{e}"
         );
     }

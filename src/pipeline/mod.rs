@@ -171,7 +171,15 @@ impl Daemon {
             "renormalize",
             stages::spawn_renormalize(renorm_rx, to_export, warm.then_some(feedback_tx))?,
         ));
-        let export = stages::spawn_export(export_rx, sink, cfg.svg_dir.clone(), stop, warm)?;
+        let export = stages::spawn_export(
+            export_rx,
+            sink,
+            cfg.svg_dir.clone(),
+            stop,
+            warm,
+            cfg.accumulate,
+            streams,
+        )?;
         Ok(Daemon {
             source,
             stdin: cfg.source == Source::Stdin,

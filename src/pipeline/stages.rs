@@ -17,6 +17,7 @@ use super::config::Policy;
 use super::sink::Sink;
 use super::source::Line;
 use super::RunSummary;
+use crate::accumulate::{Window, WindowLimits};
 use crate::error::{Error, Result};
 use crate::format::ResultRecord;
 use crate::geom::{Point, Pose};
@@ -36,6 +37,8 @@ pub(crate) struct Msg {
     line: u64,
     /// Where the frame's coordinates sit in the world, when the frame says.
     pose: Option<Pose>,
+    /// The frame's time stamp, when it has one.
+    t: Option<f64>,
     arrived: Instant,
     work: Work,
 }
@@ -328,11 +331,12 @@ fn parse_line(line: Line) -> Msg {
                 .map_err(|e| (e.to_string(), guess_ids(text)))
         }
     };
-    let (stream, frame, pose, work) = match parsed {
+    let (stream, frame, pose, t, work) = match parsed {
         Ok(mut f) => (
             f.stream.take().or(default_stream),
             Some(f.frame),
             f.pose,
+            f.t,
             Work::Input(Box::new(f)),
         ),
         Err((message, (stream, frame))) => {
@@ -340,6 +344,7 @@ fn parse_line(line: Line) -> Msg {
             (
                 stream.or(default_stream),
                 frame,
+                None,
                 None,
                 Work::Failed(message),
             )
@@ -350,6 +355,7 @@ fn parse_line(line: Line) -> Msg {
         frame,
         line: line.line,
         pose,
+        t,
         arrived: line.arrived,
         work,
     }
@@ -614,10 +620,13 @@ pub(crate) fn spawn_export(
     svg_dir: Option<PathBuf>,
     stop: Arc<AtomicBool>,
     warm: bool,
+    accumulate: Option<WindowLimits>,
+    streams: (usize, Duration),
 ) -> Result<JoinHandle<Result<RunSummary>>> {
     spawn("export", move || {
         let mut summary = RunSummary::default();
         let mut tally = Tally::new();
+        let mut windows: Streams<Window> = Streams::new(streams.0, streams.1);
         let mut first: Option<Instant> = None;
         let mut result = Ok(());
         while let Ok(m) = rx.recv() {
@@ -640,8 +649,17 @@ pub(crate) fn spawn_export(
                     } else {
                         Vec::new()
                     };
-                    catch_unwind(AssertUnwindSafe(|| {
-                        reconstruct::export(&p, adapted, solved)
+                    let refine = accumulate.as_ref().zip(m.pose).filter(|_| p.scan.is_some());
+                    let (key, t) = (m.stream.as_deref().unwrap_or(""), m.t);
+                    catch_unwind(AssertUnwindSafe(|| match refine {
+                        Some((limits, pose)) => {
+                            let window =
+                                windows.seen(key, Instant::now(), |_| true, Window::default);
+                            reconstruct::export_refined(
+                                &p, adapted, solved, frame, t, pose, window, limits,
+                            )
+                        }
+                        None => reconstruct::export(&p, adapted, solved),
                     }))
                     .map(|r| Work::Exported(Box::new(r), points))
                     .unwrap_or_else(|panic| Work::Failed(internal_error("export", panic.as_ref())))
@@ -662,7 +680,8 @@ pub(crate) fn spawn_export(
                     summary.warnings += usize::from(rec.warnings.is_some());
                     summary.empty += usize::from(r.polylines.is_empty());
                     if warm {
-                        let state = 2 * r.mesh.bytes() + r.u.len() * 8;
+                        let window = stats.window.map_or(0, |w| w.bytes);
+                        let state = 2 * r.mesh.bytes() + r.u.len() * 8 + window;
                         summary.state_bytes_max = summary.state_bytes_max.max(state);
                     }
                     tally.iterations(stats.warm_start, stats.iterations);
@@ -769,6 +788,7 @@ mod tests {
             frame: Some(frame),
             line: frame,
             pose: None,
+            t: None,
             arrived: Instant::now(),
             work: if live {
                 Work::Input(Default::default())
