@@ -109,6 +109,11 @@ impl View {
         near * (end / (4.0 * self.tol)).clamp(0.0, 1.0)
     }
 
+    /// The ends of its runs (those not closed).
+    pub fn ends(&self) -> &[Point] {
+        &self.ends
+    }
+
     /// Bytes this view holds, roughly.
     pub fn bytes(&self) -> usize {
         let a = &self.analysis;
@@ -171,6 +176,31 @@ impl Window {
     /// Whether it holds none.
     pub fn is_empty(&self) -> bool {
         self.views.is_empty()
+    }
+
+    /// The median position of the run ends of the window's views within `radius` of
+    /// `end` (the nearest of each view's), or `None` when no view has one there.
+    pub fn median_end(&self, end: Point, radius: f64) -> Option<Point> {
+        let mut xs = Vec::new();
+        let mut ys = Vec::new();
+        for v in &self.views {
+            let nearest = v
+                .ends
+                .iter()
+                .map(|&e| (crate::geom::dist(e, end), e))
+                .filter(|&(d, _)| d <= radius)
+                .min_by(|a, b| a.0.total_cmp(&b.0));
+            if let Some((_, e)) = nearest {
+                xs.push(e[0]);
+                ys.push(e[1]);
+            }
+        }
+        if xs.is_empty() {
+            return None;
+        }
+        xs.sort_by(f64::total_cmp);
+        ys.sort_by(f64::total_cmp);
+        Some([xs[xs.len() / 2], ys[ys.len() / 2]])
     }
 
     /// The returns of its runs.

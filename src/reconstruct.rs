@@ -335,7 +335,7 @@ pub fn solve(prepared: &Prepared, adapted: &AdaptedMesh, previous: Option<Previo
 /// The export stage: the curves ([`crate::export::curves`]) in data coordinates, with the
 /// frame's statistics (lengths in data units).
 pub fn export(prepared: &Prepared, adapted: AdaptedMesh, solved: Solved) -> Reconstruction {
-    export_with(prepared, adapted, solved, None)
+    export_with(prepared, prepared.scan.as_ref(), adapted, solved, None)
 }
 
 /// The export stage with refinement over frames ([`crate::accumulate`]): the frame (a
@@ -371,22 +371,35 @@ pub fn export_refined(
     );
     window.fuse(&mesh.coords, &mut u);
     solved.u = u.iter().map(|&x| at.len_to_local(x)).collect();
+    // A curve ends where its run's last return is; each frame's is off by its own
+    // noise, and the median over the window much less.
+    let mut own = scan.clone();
+    let local = |p: Point| at.to_local(crate::geom::to_sensor(pose, p));
+    for pl in own.support.iter_mut().filter(|pl| !pl.closed) {
+        let n = pl.points.len();
+        for i in [0, n.saturating_sub(1)] {
+            if let Some(m) = window.median_end(world(pl.points[i]), 2.0 * tol) {
+                pl.points[i] = local(m);
+            }
+        }
+    }
     let stats = crate::format::WindowStats {
         frames: window.len(),
         points: window.points(),
         bytes: window.bytes(),
     };
-    export_with(prepared, adapted, solved, Some(stats))
+    export_with(prepared, Some(&own), adapted, solved, Some(stats))
 }
 
-/// [`export`], with the window the frame was refined over.
+/// [`export`] with the scan analysis `scan_analysis` (the prepared one, or one with the
+/// window's run ends) and the window the frame was refined over.
 fn export_with(
     prepared: &Prepared,
+    scan_analysis: Option<&Analysis>,
     adapted: AdaptedMesh,
     solved: Solved,
     window: Option<crate::format::WindowStats>,
 ) -> Reconstruction {
-    let scan_analysis = prepared.scan.as_ref();
     let t0 = Instant::now();
     let at = prepared.placement;
     let params = &prepared.params.export;

@@ -265,11 +265,14 @@ fn scans(
 }
 
 /// Refinement over frames on a static scanner, 20 frames of the room at 1 cm range
-/// noise: from the 10th frame on, each frame averages ten frames' level sets, so its
-/// curves stray about 1/sqrt 10 = 0.32 as far from the walls as one frame's (checked:
-/// the mean distance to the visible walls at most half of one frame's). The Hausdorff
-/// distance is set by the ends of the runs and the corners, which each frame sees
-/// alike: it must not get worse.
+/// noise. With refinement a frame's returns are not smoothed along their runs and its
+/// mesh resolves half the noise, so one frame alone is noisier than the default one;
+/// from the 10th frame on each frame averages ten frames' level sets, and its curves
+/// stray 1/sqrt 10 = 0.32 as far from the walls as the refined run's first frame
+/// (checked: at most 0.45) and about half as far as a default frame (at most 0.6). The
+/// Hausdorff distance, set by the run ends and the corners that every frame sees
+/// alike, falls with the corners the smoothing no longer rounds: at most 0.7 of a
+/// default frame's.
 #[test]
 fn refinement_over_frames_averages_the_noise_down() {
     let dir = tempfile::tempdir().unwrap();
@@ -281,6 +284,7 @@ fn refinement_over_frames_averages_the_noise_down() {
     }
     let single = evaluate(dir.path(), "single", &frames, &truth);
     let refined = evaluate(dir.path(), "refined", &frames, &truth);
+    let first = refined[0]["mean_distance"].as_f64().unwrap();
     let (ms, mr) = (
         median(&single[9..], "mean_distance"),
         median(&refined[9..], "mean_distance"),
@@ -289,9 +293,22 @@ fn refinement_over_frames_averages_the_noise_down() {
         median(&single[9..], "hausdorff"),
         median(&refined[9..], "hausdorff"),
     );
-    eprintln!("mean distance {ms:.5} one frame, {mr:.5} ten; Hausdorff {hs:.4}, {hr:.4}");
-    assert!(mr <= 0.5 * ms, "mean distance {mr} refined, {ms} one frame");
-    assert!(hr <= 1.1 * hs, "Hausdorff {hr} refined, {hs} one frame");
+    eprintln!(
+        "mean distance: one default frame {ms:.5}, one refined frame {first:.5}, ten {mr:.5}; \
+         Hausdorff: one default frame {hs:.4}, ten {hr:.4}"
+    );
+    assert!(
+        mr <= 0.45 * first,
+        "mean distance {mr} after ten, {first} after one"
+    );
+    assert!(
+        mr <= 0.6 * ms,
+        "mean distance {mr} refined, {ms} one default frame"
+    );
+    assert!(
+        hr <= 0.7 * hs,
+        "Hausdorff {hr} refined, {hs} one default frame"
+    );
 }
 
 /// Refinement over frames on the moving scanner (300 frames round the room, 0.1 m a

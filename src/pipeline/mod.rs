@@ -148,7 +148,9 @@ impl Daemon {
         // The renormalize stage can finish at most its queue plus the frame in hand while
         // the solve stage is blocked sending: that bounds the level sets in flight.
         let (feedback_tx, feedback_rx) = bounded(q + 2);
-        let params = Arc::new(cfg.params.clone());
+        let mut params = cfg.params.clone();
+        params.scan.refine = cfg.accumulate.is_some();
+        let params = Arc::new(params);
         let warm = cfg.warm_start;
         let policy = cfg.policy;
         threads.push((

@@ -40,6 +40,11 @@ pub struct ScanParams {
     /// At most this many consecutive beams without a return inside a run are dropouts
     /// rather than gaps. Default 2.
     pub dropout_beams: usize,
+    /// Set by the daemon's refinement over frames (`[pipeline] accumulate`), not a key
+    /// of `[scan]`: the window's average takes the noise down, so a frame's returns are
+    /// not smoothed along their runs (which rounds corners) and its mesh resolves half
+    /// the noise.
+    pub refine: bool,
 }
 
 impl Default for ScanParams {
@@ -49,6 +54,7 @@ impl Default for ScanParams {
             incidence_limit: 10.0,
             min_run: 3,
             dropout_beams: 2,
+            refine: false,
         }
     }
 }
@@ -564,6 +570,8 @@ pub struct Analysis {
     /// smoothed along the run ([`Scan::smoothed_ranges`]; a run that wraps all the way
     /// round a full turn closes): where curves may run.
     pub support: Vec<Polyline>,
+    /// Analysed for refinement over frames ([`ScanParams::refine`]).
+    pub refine: bool,
 }
 
 impl Analysis {
@@ -582,7 +590,10 @@ impl Analysis {
         } else {
             scan.runs(scales.noise, params)
         };
-        let smooth = scan.smoothed_ranges(&runs, 4, scales.noise);
+        // Four returns a side smooth a frame's noise along its runs; with refinement the
+        // window's average does, without rounding the corners.
+        let window = if params.refine { 0 } else { 4 };
+        let smooth = scan.smoothed_ranges(&runs, window, scales.noise);
         let free = scan.free_space(&runs, params.dropout_beams, &smooth);
         let n = scan.angles.len();
         let support = runs
@@ -619,6 +630,7 @@ impl Analysis {
             scales,
             free,
             support,
+            refine: params.refine,
         }
     }
 
@@ -655,6 +667,7 @@ impl Analysis {
                     points: pl.points.iter().map(|&p| f(p)).collect(),
                 })
                 .collect(),
+            refine: self.refine,
         }
     }
 
@@ -668,9 +681,12 @@ impl Analysis {
     pub fn mesh_params(&self, mesh: &MeshParams, diag: f64) -> MeshParams {
         let mut p = mesh.clone();
         let s = &self.scales;
+        // With refinement the window averages the noise down, and the mesh resolves
+        // half of it.
+        let share = if self.refine { 0.5 } else { 1.0 };
         let hmin = p
             .hmin
-            .unwrap_or_else(|| s.noise.max(0.25 * s.spacing).max(1e-4 * diag));
+            .unwrap_or_else(|| (share * s.noise).max(0.25 * s.spacing).max(1e-4 * diag));
         p.hmin = Some(hmin);
         p.band = Some(p.band.unwrap_or(4.0 * hmin));
         p.gradation = Some(p.gradation.unwrap_or(0.6));
@@ -737,6 +753,7 @@ impl Analysis {
                     points: pl.points.iter().map(|&p| at.to_local(p)).collect(),
                 })
                 .collect(),
+            refine: self.refine,
         }
     }
 }
