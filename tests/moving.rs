@@ -1,19 +1,17 @@
 //! Streams from moving sensors through the daemon, warm against cold on the same frames:
 //! a warm start must never leave a frame worse than a cold start would.
 
+mod common;
+
 use std::path::{Path, PathBuf};
-use std::process::Command;
+
+use common::{ok, p};
 
 use serde_json::Value;
 
+/// Runs `isoline` with `args`; its stderr.
 fn isoline(args: &[&str]) -> String {
-    let out = Command::new(env!("CARGO_BIN_EXE_isoline"))
-        .args(args)
-        .output()
-        .expect("run isoline");
-    let stderr = String::from_utf8_lossy(&out.stderr).to_string();
-    assert!(out.status.success(), "isoline {args:?}: {stderr}");
-    stderr
+    String::from_utf8_lossy(&ok(args).stderr).to_string()
 }
 
 /// Replays `frames` through the daemon as fast as it goes, warm or cold; the records.
@@ -205,20 +203,8 @@ fn accuracy(dir: &Path, name: &str, frames: &Path, truth: &Path) -> (f64, u64) {
 
 /// `isoline eval` of the run `name`, frame by frame.
 fn evaluate(dir: &Path, name: &str, frames: &Path, truth: &Path) -> Vec<Value> {
-    let out = Command::new(env!("CARGO_BIN_EXE_isoline"))
-        .args(["eval"])
-        .arg(dir.join(format!("{name}.ndjson")))
-        .arg("--truth")
-        .arg(truth)
-        .arg("--frames")
-        .arg(frames)
-        .output()
-        .expect("run isoline eval");
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    let run = dir.join(format!("{name}.ndjson"));
+    let out = ok(&["eval", p(&run), "--truth", p(truth), "--frames", p(frames)]);
     let report: Value = serde_json::from_slice(&out.stdout).unwrap();
     report["frames"].as_array().unwrap().clone()
 }

@@ -1,8 +1,11 @@
 //! `isoline reconstruct` end to end, through the real binary.
 
+mod common;
+
 use std::path::Path;
 use std::process::Command;
 
+use common::{ok, p};
 use serde_json::Value;
 
 fn isoline(args: &[&str]) -> std::process::Output {
@@ -10,20 +13,6 @@ fn isoline(args: &[&str]) -> std::process::Output {
         .args(args)
         .output()
         .expect("run isoline")
-}
-
-fn ok(args: &[&str]) -> std::process::Output {
-    let out = isoline(args);
-    assert!(
-        out.status.success(),
-        "{args:?}: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    out
-}
-
-fn p(path: &Path) -> &str {
-    path.to_str().unwrap()
 }
 
 fn fixture(name: &str) -> String {

@@ -1,27 +1,12 @@
 //! Scanner frames end to end, through the real binary: the simulator's scans of a room
 //! and a corridor, reconstructed and scored by `isoline eval`.
 
+mod common;
+
 use std::path::Path;
-use std::process::Command;
 
+use common::{ok, p};
 use serde_json::Value;
-
-fn ok(args: &[&str]) -> std::process::Output {
-    let out = Command::new(env!("CARGO_BIN_EXE_isoline"))
-        .args(args)
-        .output()
-        .expect("run isoline");
-    assert!(
-        out.status.success(),
-        "{args:?}: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    out
-}
-
-fn p(path: &Path) -> &str {
-    path.to_str().unwrap()
-}
 
 fn json_file(path: &Path) -> Value {
     serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
