@@ -358,18 +358,18 @@ pub fn export_refined(
         return export(prepared, adapted, solved);
     };
     let at = prepared.placement;
-    let scale = at.len_to_data(1.0);
     let world = |p: Point| to_world(pose, at.to_data(p));
     let mut mesh = adapted.mesh.clone();
     mesh.coords.iter_mut().for_each(|c| *c = world(*c));
     let mut u: Vec<f64> = solved.u.iter().map(|&x| at.len_to_data(x)).collect();
-    let analysis = scan.transformed(&world, pose[2], scale);
+    let analysis = scan.transformed(&world, pose[2], &|x| at.len_to_data(x));
     let tol = at.len_to_data(2.0 * scan.scales.noise + adapted.params.hmin);
     window.push(
-        crate::accumulate::View::new(frame, t, mesh.clone(), u.clone(), analysis, tol),
+        crate::accumulate::View::new(frame, t, mesh, u.clone(), analysis, tol),
         limits,
     );
-    window.fuse(&mesh.coords, &mut u);
+    let newest = window.views().last().expect("the frame just pushed");
+    window.fuse(&newest.mesh.coords, &mut u);
     solved.u = u.iter().map(|&x| at.len_to_local(x)).collect();
     // A curve ends where its run's last return is; each frame's is off by its own
     // noise, and the median over the window much less.

@@ -635,10 +635,14 @@ impl Analysis {
     }
 
     /// The analysis in other coordinates: points mapped by `f`, a similarity that turns
-    /// by `turn` and scales lengths by `scale`.
-    pub fn transformed(&self, f: &impl Fn(Point) -> Point, turn: f64, scale: f64) -> Analysis {
+    /// by `turn` and maps lengths by `len`.
+    pub fn transformed(
+        &self,
+        f: &impl Fn(Point) -> Point,
+        turn: f64,
+        len: &impl Fn(f64) -> f64,
+    ) -> Analysis {
         let turned = |angles: &[f64]| angles.iter().map(|a| a + turn).collect::<Vec<_>>();
-        let len = |x: f64| x * scale;
         Analysis {
             scan: Scan {
                 origin: f(self.scan.origin),
@@ -731,30 +735,7 @@ impl Analysis {
 
     /// The same analysis in the local coordinates of `at` (lengths scaled with them).
     pub fn placed(&self, at: &Placement) -> Analysis {
-        let len = |x: f64| at.len_to_local(x);
-        Analysis {
-            scan: self.scan.placed(at),
-            runs: self.runs.clone(),
-            scales: Scales {
-                noise: len(self.scales.noise),
-                noise_estimate: self.scales.noise_estimate.map(len),
-                spacing: len(self.scales.spacing),
-            },
-            free: FreeSpace {
-                origin: at.to_local(self.free.origin),
-                reach: self.free.reach.iter().map(|&r| len(r)).collect(),
-                ..self.free.clone()
-            },
-            support: self
-                .support
-                .iter()
-                .map(|pl| Polyline {
-                    closed: pl.closed,
-                    points: pl.points.iter().map(|&p| at.to_local(p)).collect(),
-                })
-                .collect(),
-            refine: self.refine,
-        }
+        self.transformed(&|p| at.to_local(p), 0.0, &|x| at.len_to_local(x))
     }
 }
 
