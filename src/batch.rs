@@ -530,7 +530,7 @@ impl Job {
             s.ms = t0.elapsed().as_secs_f64() * 1e3;
             s
         };
-        let frames = match crate::ingest::read_input(&task.input) {
+        let frames = match crate::ingest::read_items(&task.input, &Default::default()) {
             Ok(f) => f,
             Err(e) => return fail(s, e.to_string()),
         };
@@ -539,7 +539,19 @@ impl Job {
         }
         let mut recs = Vec::with_capacity(frames.len());
         let mut drawings = Vec::new();
-        for f in &frames {
+        for item in &frames {
+            let f = match item {
+                Ok(f) => f,
+                Err(b) => {
+                    recs.push(crate::format::ResultRecord {
+                        stream: b.stream.clone(),
+                        frame: b.frame,
+                        error: Some(b.message.clone()),
+                        ..Default::default()
+                    });
+                    continue;
+                }
+            };
             let (rec, r) = reconstruct_frame(f, &task.params);
             if let Some(r) = r {
                 if self.formats.contains(&Format::Svg) {

@@ -82,6 +82,15 @@ pub enum Error {
         /// Every problem found, each naming its key path.
         problems: Vec<String>,
     },
+    /// A recording (an MCAP bag, a CARMEN log) cannot be read as a whole: not the
+    /// format, or none of the chosen topics in it.
+    #[error("{path}: {message}")]
+    Recording {
+        /// The file.
+        path: PathBuf,
+        /// What is wrong.
+        message: String,
+    },
     /// An internal invariant failed: a bug in isoline, not in the input.
     #[error("internal error: {0}")]
     Internal(String),

@@ -307,6 +307,13 @@ pub struct ResultRecord {
     /// that the record answers.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub line: Option<u64>,
+    /// The frame's time stamp, as in the input (a bag's header stamp, a log's time).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub t: Option<f64>,
+    /// The frame's pose in the world, as in the input (or found in a bag's odometry or
+    /// transforms): the curves are in the frame's coordinates, and this places them.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub pose: Option<[f64; 3]>,
     /// The curves.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub polylines: Option<Vec<PolylineJson>>,

@@ -21,8 +21,11 @@ enum Command {
     Synth(cli::synth::Args),
     /// Accuracy of a reconstruction against a truth file, as JSON.
     Eval(cli::eval::Args),
-    /// Reconstruct curves from a point file or from each frame of an NDJSON stream.
+    /// Reconstruct curves from a point file or from each frame of an NDJSON stream, a
+    /// ROS 2 bag or a CARMEN log.
     Reconstruct(cli::reconstruct::Args),
+    /// Convert frames between ROS 2 bags (MCAP), CARMEN logs and NDJSON.
+    Convert(cli::convert::Args),
     /// Reconstruct many files in parallel, as a TOML job file says.
     Batch(cli::batch::Args),
     /// The streaming daemon: frames from a file, stdin or TCP through the staged
@@ -42,6 +45,7 @@ fn main() {
             Command::Eval(a) => cli::eval::run(a),
             Command::Reconstruct(a) => cli::reconstruct::run(a),
             Command::Batch(a) => cli::batch::run(a),
+            Command::Convert(a) => cli::convert::run(a),
             Command::Mesh(a) => cli::mesh::run(a),
             Command::Run(_) => unreachable!("matched above"),
         }),

@@ -530,13 +530,19 @@ pub fn reconstruct_frame(
     let _e = span.enter();
     match reconstruct_with(&frame.points, frame.scan.as_ref(), params, None) {
         Ok(r) => (
-            ResultRecord::of(frame.stream.clone(), frame.frame, &r),
+            ResultRecord {
+                t: frame.t,
+                pose: frame.pose,
+                ..ResultRecord::of(frame.stream.clone(), frame.frame, &r)
+            },
             Some(r),
         ),
         Err(e) => (
             ResultRecord {
                 stream: frame.stream.clone(),
                 frame: Some(frame.frame),
+                t: frame.t,
+                pose: frame.pose,
                 error: Some(e.to_string()),
                 ..Default::default()
             },

@@ -1,6 +1,7 @@
 //! The subcommands, one module each, and what they share: logging and file helpers.
 
 pub mod batch;
+pub mod convert;
 pub mod eval;
 pub mod mesh;
 pub mod reconstruct;

@@ -4,19 +4,22 @@ use std::path::PathBuf;
 
 use anyhow::{bail, Context, Result};
 
+use isoline::export::foxglove::{FrameView, McapOut};
 use isoline::export::svg;
-use isoline::ingest::Frame;
+use isoline::format::ResultRecord;
+use isoline::ingest::Item;
 
 /// `isoline reconstruct` options.
 #[derive(clap::Args)]
 pub struct Args {
-    /// Point file (`x y` per line) or NDJSON frame stream (.ndjson/.jsonl).
+    /// Point file (`x y` per line), NDJSON frame stream (.ndjson/.jsonl), ROS 2 bag
+    /// (.mcap) or CARMEN log (.clf/.carmen).
     input: PathBuf,
     /// TOML configuration ([mesh], [solver], [export] tables).
     #[arg(short, long)]
     config: Option<PathBuf>,
-    /// Output; the extension picks the format: .ndjson .json .geojson .csv .svg.
-    /// Default: NDJSON on stdout.
+    /// Output; the extension picks the format: .ndjson .json .geojson .csv .svg, or
+    /// .mcap (curves, points and records for Foxglove). Default: NDJSON on stdout.
     #[arg(short, long)]
     output: Option<PathBuf>,
     /// Per-frame statistics as JSON (an object, or an array for several frames).
@@ -34,6 +37,15 @@ pub struct Args {
     /// Draw the mesh in SVG output.
     #[arg(long)]
     mesh: bool,
+    /// MCAP input: read this LaserScan topic (repeat for several; default: all).
+    #[arg(long = "topic")]
+    topics: Vec<String>,
+    /// MCAP input: the nav_msgs/Odometry topic that gives the scans' poses.
+    #[arg(long)]
+    odometry: Option<String>,
+    /// MCAP input: the frame the poses are in, through /tf (default: the odometry's).
+    #[arg(long)]
+    world_frame: Option<String>,
 }
 
 /// Reconstructs every frame (or `--frame`) and writes one record per frame in the
@@ -58,19 +70,36 @@ pub fn run(a: Args) -> Result<()> {
         a.mesh,
     );
 
+    let mcap = output.is_some_and(isoline::ingest::is_bag);
     let format = match output {
         None => Format::Ndjson,
+        Some(_) if mcap => Format::Ndjson,
         Some(p) => Format::from_path(p).with_context(|| {
             format!(
-                "{}: unknown output extension (use .ndjson, .json, .geojson, .csv or .svg)",
+                "{}: unknown output extension (use .ndjson, .json, .geojson, .csv, .svg or \
+                 .mcap)",
                 p.display()
             )
         })?,
     };
     super::refuse_overwrite(input, &[output, stats])?;
-    let all = isoline::ingest::read_input(input)?;
-    let frames: Vec<Frame> = match frame {
-        Some(f) => all.into_iter().filter(|r| r.frame == f).collect(),
+    let bag = isoline::ingest::bag::BagOptions {
+        topics: a.topics,
+        odometry: a.odometry,
+        world_frame: a.world_frame,
+    };
+    if bag != Default::default() && !isoline::ingest::is_bag(input) {
+        bail!("--topic, --odometry and --world-frame apply to an MCAP input (.mcap)");
+    }
+    let all = isoline::ingest::read_items(input, &bag)?;
+    let frames: Vec<Item> = match frame {
+        Some(f) => all
+            .into_iter()
+            .filter(|r| match r {
+                Ok(r) => r.frame == f,
+                Err(b) => b.frame == Some(f),
+            })
+            .collect(),
         None => all,
     };
     if frames.is_empty() {
@@ -90,39 +119,75 @@ pub fn run(a: Args) -> Result<()> {
     let mut records = Vec::with_capacity(frames.len());
     let mut last = None;
     let mut failed = 0;
-    for f in &frames {
-        let (rec, r) = isoline::reconstruct::reconstruct_frame(f, params);
+    let mut out_mcap = match output {
+        Some(p) if mcap => Some(McapOut::create(p)?),
+        _ => None,
+    };
+    for item in &frames {
+        let (rec, r) = match item {
+            Ok(f) => isoline::reconstruct::reconstruct_frame(f, params),
+            Err(b) => (
+                ResultRecord {
+                    stream: b.stream.clone(),
+                    frame: b.frame,
+                    error: Some(b.message.clone()),
+                    ..Default::default()
+                },
+                None,
+            ),
+        };
         if let Some(e) = &rec.error {
             failed += 1;
-            let what = if frames.len() > 1 || f.stream.is_some() {
-                format!("{}, frame {}: {e}", input.display(), f.frame)
-            } else {
-                format!("{}: {e}", input.display())
+            let what = match item {
+                Err(_) => e.clone(),
+                Ok(f) if frames.len() > 1 || f.stream.is_some() => {
+                    format!("{}, frame {}: {e}", input.display(), f.frame)
+                }
+                Ok(_) => format!("{}: {e}", input.display()),
             };
-            if frames.len() == 1 {
+            // One frame of points: the error is the answer. A recording's frames all
+            // get records, whatever their number.
+            if frames.len() == 1 && !isoline::ingest::is_recording(input) {
                 bail!(what);
             }
             eprintln!("isoline: {what}");
+        }
+        if let Some(m) = &mut out_mcap {
+            let f = item.as_ref().ok();
+            m.write(&FrameView {
+                record: rec.clone(),
+                points: f.map(|f| f.points.clone()).unwrap_or_default(),
+                t: f.and_then(|f| f.t),
+                pose: f.and_then(|f| f.pose),
+            })?;
         }
         if r.is_some() {
             last = r;
         }
         records.push(rec);
     }
-    let text = match format {
-        Format::Svg => {
-            let r = last.as_ref().expect("one frame, reconstructed");
-            let features: Vec<_> = r.features.iter().map(|f| f.center).collect();
-            svg::render(
-                &svg::of_reconstruction(&frames[0].points, r, &features, &[], draw_mesh),
-                1200.0,
-            )
+    if let Some(m) = out_mcap {
+        m.finish()?;
+    } else {
+        let text = match format {
+            Format::Svg => {
+                let r = last.as_ref().expect("one frame, reconstructed");
+                let features: Vec<_> = r.features.iter().map(|f| f.center).collect();
+                let points = frames[0]
+                    .as_ref()
+                    .map(|f| f.points.as_slice())
+                    .unwrap_or(&[]);
+                svg::render(
+                    &svg::of_reconstruction(points, r, &features, &[], draw_mesh),
+                    1200.0,
+                )
+            }
+            other => writers::render(other, &records),
+        };
+        match output {
+            Some(p) => super::write(p, text)?,
+            None => super::print(&text)?,
         }
-        other => writers::render(other, &records),
-    };
-    match output {
-        Some(p) => super::write(p, text)?,
-        None => super::print(&text)?,
     }
     if let Some(path) = stats {
         let all: Vec<_> = records.iter().map(|r| &r.stats).collect();

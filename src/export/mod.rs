@@ -1,8 +1,9 @@
 //! Export (paper section 1.1, the last stage): the zero isoline as polylines, and writers
-//! for results (NDJSON, JSON, GeoJSON, CSV, SVG).
+//! for results (NDJSON, JSON, GeoJSON, CSV, SVG, and MCAP or a live view for Foxglove).
 
 pub mod contour;
 pub mod fit;
+pub mod foxglove;
 pub mod support;
 pub mod svg;
 pub mod writers;

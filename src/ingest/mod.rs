@@ -1,6 +1,10 @@
-//! The ingest stage: readers for the input formats (point files and NDJSON frame
-//! streams) and the validated [`Frame`] every later stage takes. Every error names the
-//! source and the 1-based line.
+//! The ingest stage: readers for the input formats (point files, NDJSON frame streams,
+//! ROS 2 bags in MCAP and CARMEN logs) and the validated [`Frame`] every later stage
+//! takes. Every error names the source and the 1-based line, or the topic and message.
+
+pub mod bag;
+pub mod carmen;
+pub mod ros;
 
 use std::io::BufRead;
 use std::path::Path;
@@ -109,6 +113,51 @@ impl Frame {
     }
 }
 
+/// A frame of a recording that could not be read: what its record says instead.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct BadFrame {
+    /// The stream it would have been in, when known.
+    pub stream: Option<String>,
+    /// Its frame number, when known.
+    pub frame: Option<u64>,
+    /// What is wrong, naming the file and the line or topic and message.
+    pub message: String,
+}
+
+/// One frame of a recording, or why a message could not become one.
+pub type Item = std::result::Result<Frame, BadFrame>;
+
+/// Whether `path` names a recording (an MCAP bag or a CARMEN log) by its extension.
+pub fn is_recording(path: &Path) -> bool {
+    is_bag(path) || carmen::is_carmen(path)
+}
+
+/// Whether `path` names an MCAP file (`.mcap`).
+pub fn is_bag(path: &Path) -> bool {
+    path.extension().and_then(|e| e.to_str()) == Some("mcap")
+}
+
+/// Reads every frame of `path` in order: a recording's messages that cannot be frames
+/// are [`BadFrame`]s in their place (the others go on); a point file or NDJSON stream is
+/// read as by [`read_input`], whose first bad line fails the whole.
+pub fn read_items(path: &Path, bag: &bag::BagOptions) -> Result<Vec<Item>> {
+    let mut items = Vec::new();
+    if is_bag(path) {
+        bag::read_bag(path, bag, |i| {
+            items.push(i);
+            true
+        })?;
+    } else if carmen::is_carmen(path) {
+        carmen::read_carmen(path, |i| {
+            items.push(i);
+            true
+        })?;
+    } else {
+        items = read_input(path)?.into_iter().map(Ok).collect();
+    }
+    Ok(items)
+}
+
 /// Parses a point file: one point a line, `x y` or `x,y` (further columns ignored),
 /// `#` starts a comment, blank lines are skipped. `name` labels errors.
 ///
@@ -195,9 +244,25 @@ pub fn is_frame_stream(path: &Path) -> bool {
     )
 }
 
-/// Reads an input as frames: every frame of an NDJSON stream, or a point file as frame 0.
+/// The frames of a recording, failing at the first that cannot be read.
+fn read_recording(path: &Path) -> Result<Vec<Frame>> {
+    read_items(path, &bag::BagOptions::default())?
+        .into_iter()
+        .map(|i| {
+            i.map_err(|b| Error::Recording {
+                path: path.to_path_buf(),
+                message: b.message,
+            })
+        })
+        .collect()
+}
+
+/// Reads an input as frames: every frame of an NDJSON stream or a recording (the first
+/// bad one fails the whole), or a point file as frame 0.
 pub fn read_input(path: &Path) -> Result<Vec<Frame>> {
-    if is_frame_stream(path) {
+    if is_recording(path) {
+        read_recording(path)
+    } else if is_frame_stream(path) {
         read_frames(path)
     } else {
         let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
@@ -209,10 +274,10 @@ pub fn read_input(path: &Path) -> Result<Vec<Frame>> {
 }
 
 /// Reads the points of `path`: a point file, or frame `frame` (default: the first) of an
-/// NDJSON stream.
+/// NDJSON stream or a recording.
 pub fn read_points(path: &Path, frame: Option<u64>) -> Result<Vec<Point>> {
-    if is_frame_stream(path) {
-        let frames = read_frames(path)?;
+    if is_frame_stream(path) || is_recording(path) {
+        let frames = read_input(path)?;
         let chosen = match frame {
             Some(k) => frames.into_iter().find(|f| f.frame == k),
             None => frames.into_iter().next(),

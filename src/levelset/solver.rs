@@ -570,7 +570,7 @@ impl Solver {
         progress: &mut Progress,
         report: &mut SolveReport,
     ) -> Verdict {
-        if it % s.check_every.max(1) != 0 && it != s.max_iterations {
+        if !it.is_multiple_of(s.check_every.max(1)) && it != s.max_iterations {
             return Verdict::Go;
         }
         let (res, mean) = residual(mesh, data, u);

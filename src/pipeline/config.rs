@@ -88,6 +88,10 @@ pub struct DaemonConfig {
     /// Refinement over frames: each scan frame with a pose has its level set averaged
     /// with its stream's last frames' ([`crate::accumulate`]).
     pub accumulate: Option<WindowLimits>,
+    /// What to read from an MCAP input.
+    pub bag: crate::ingest::bag::BagOptions,
+    /// Serve a live view (Foxglove WebSocket) on this address.
+    pub live: Option<SocketAddr>,
     /// Reconstruction parameters.
     pub params: Params,
 }
@@ -108,6 +112,21 @@ struct InputTable {
     max_clients: Option<i64>,
     /// The longest line, in bytes.
     max_line_bytes: Option<i64>,
+    /// MCAP input: LaserScan topics (default: all).
+    topics: Option<Vec<String>>,
+    /// MCAP input: the Odometry topic giving poses.
+    odometry: Option<String>,
+    /// MCAP input: the frame the poses are in, through `/tf`.
+    world_frame: Option<String>,
+}
+
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct LiveTable {
+    /// Address of the Foxglove WebSocket server. Default `127.0.0.1:8765`.
+    bind: Option<String>,
+    /// A bind address other than loopback must be asked for.
+    allow_remote: Option<bool>,
 }
 
 #[derive(Debug, Default, Deserialize)]
@@ -142,6 +161,9 @@ struct TracingTable {
 /// The default TCP address: loopback only, so a daemon is not reachable from the network
 /// unless its configuration says so.
 pub const DEFAULT_BIND: &str = "127.0.0.1:7878";
+
+/// The live view's default address (Foxglove's usual port, on loopback).
+pub const DEFAULT_LIVE_BIND: &str = "127.0.0.1:8765";
 
 /// The slowest and fastest fixed replay rates, frames per second.
 pub const MIN_RATE: f64 = 1e-3;
@@ -245,6 +267,7 @@ impl DaemonConfig {
         let output: OutputTable = take(&mut table, "output", &mut problems);
         let pipeline: PipelineTable = take(&mut table, "pipeline", &mut problems);
         let tracing_t: TracingTable = take(&mut table, "tracing", &mut problems);
+        let live_t: Option<LiveTable> = take(&mut table, "live", &mut problems);
         let params = match Config::from_table(table, name, "") {
             Ok(c) => Some(c.params()),
             Err(Error::Config { problems: p, .. }) => {
@@ -338,6 +361,38 @@ impl DaemonConfig {
                  not {kind:?}"
             ));
         }
+        let bag = crate::ingest::bag::BagOptions {
+            topics: input.topics.clone().unwrap_or_default(),
+            odometry: input.odometry.clone(),
+            world_frame: input.world_frame.clone(),
+        };
+        let is_bag = input.path.as_deref().is_some_and(crate::ingest::is_bag);
+        if bag != Default::default() && !(kind == "file" && is_bag) {
+            problems.push(
+                "input.topics, input.odometry and input.world_frame apply to an MCAP input \
+                 (input.path = \"....mcap\")"
+                    .into(),
+            );
+        }
+        let live = live_t.and_then(|l| {
+            let bind = l.bind.unwrap_or_else(|| DEFAULT_LIVE_BIND.into());
+            match bind.parse::<SocketAddr>() {
+                Ok(b) if !b.ip().is_loopback() && l.allow_remote != Some(true) => {
+                    problems.push(format!(
+                        "live.bind = {bind:?}: not a loopback address, so anyone on the \
+                         network could watch; set live.allow_remote = true to mean it"
+                    ));
+                    None
+                }
+                Ok(b) => Some(b),
+                Err(e) => {
+                    problems.push(format!(
+                        "live.bind = {bind:?}: {e} (expected e.g. \"{DEFAULT_LIVE_BIND}\")"
+                    ));
+                    None
+                }
+            }
+        });
         let defaults = Limits::default();
         let mut bounded = |key: &str, v: Option<i64>, default: usize, lo: usize, hi: usize| match v
         {
@@ -434,6 +489,8 @@ impl DaemonConfig {
                 max_streams,
                 stream_idle,
                 accumulate,
+                bag,
+                live,
                 params,
             }),
             _ => Err(fail(problems)),

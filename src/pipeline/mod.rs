@@ -69,6 +69,9 @@ pub struct RunSummary {
     pub iterations_warm: Option<f64>,
     /// Median solver iterations of cold-started frames.
     pub iterations_cold: Option<f64>,
+    /// Frames the live view did not show because it was behind (its viewers lose
+    /// frames, the output none).
+    pub live_dropped: u64,
 }
 
 impl std::fmt::Display for RunSummary {
@@ -98,7 +101,11 @@ impl std::fmt::Display for RunSummary {
             its(self.iterations_warm),
             its(self.iterations_cold),
             self.state_bytes_max as f64 / 1024.0
-        )
+        )?;
+        if self.live_dropped > 0 {
+            write!(f, "; live view behind for {} frames", self.live_dropped)?;
+        }
+        Ok(())
     }
 }
 
@@ -110,6 +117,8 @@ pub struct Daemon {
     export: std::thread::JoinHandle<Result<RunSummary>>,
     /// The TCP address listened on, when the source is TCP.
     pub tcp_addr: Option<std::net::SocketAddr>,
+    /// The live view's address, when it is on.
+    pub live_addr: Option<std::net::SocketAddr>,
 }
 
 impl Daemon {
@@ -129,6 +138,9 @@ impl Daemon {
         let mut tcp_addr = None;
         let limits = cfg.limits;
         let source = match &cfg.source {
+            Source::File { path, replay } if crate::ingest::is_recording(path) => {
+                source::spawn_recording(path, *replay, cfg.bag.clone(), line_tx, stop.clone())?
+            }
             Source::File { path, replay } => {
                 source::spawn_file(path, *replay, limits, line_tx, stop.clone())?
             }
@@ -173,10 +185,18 @@ impl Daemon {
             "renormalize",
             stages::spawn_renormalize(renorm_rx, to_export, warm.then_some(feedback_tx))?,
         ));
+        let live = match cfg.live {
+            Some(bind) => Some(crate::export::foxglove::LiveView::start(bind)?),
+            None => None,
+        };
+        let live_addr = live.as_ref().map(|l| l.addr());
         let export = stages::spawn_export(
             export_rx,
-            sink,
-            cfg.svg_dir.clone(),
+            stages::Outputs {
+                sink,
+                live,
+                svg_dir: cfg.svg_dir.clone(),
+            },
             stop,
             warm,
             cfg.accumulate,
@@ -188,6 +208,7 @@ impl Daemon {
             threads,
             export,
             tcp_addr,
+            live_addr,
         })
     }
 

@@ -1,12 +1,15 @@
-//! The NDJSON sink: whole records or nothing. A record is serialized first and written
+//! The sinks. NDJSON: whole records or nothing. A record is serialized first and written
 //! with one call; if that fails (a full disk), the file is cut back to its last whole
-//! record, so that a reader never meets half a line.
+//! record, so that a reader never meets half a line. MCAP (an output path ending in
+//! `.mcap`): the records with curves, points and poses for Foxglove
+//! ([`crate::export::foxglove`]), complete once the run ends.
 
 use std::fs::File;
 use std::io::{Seek, SeekFrom, Write};
 use std::path::{Path, PathBuf};
 
 use crate::error::{Error, Result};
+use crate::export::foxglove::{FrameView, McapOut};
 use crate::format::ResultRecord;
 
 /// A writer that can be cut back to a length.
@@ -32,6 +35,8 @@ pub(crate) enum Sink {
     },
     /// Standard output: a pipe cannot be cut back, so a failed write ends the run.
     Stdout(std::io::Stdout),
+    /// An MCAP file for Foxglove.
+    Mcap(Box<McapOut>),
 }
 
 impl Sink {
@@ -43,6 +48,9 @@ impl Sink {
         if let Some(dir) = p.parent().filter(|d| !d.as_os_str().is_empty()) {
             std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
         }
+        if crate::ingest::is_bag(p) {
+            return Ok(Sink::Mcap(Box::new(McapOut::create(p)?)));
+        }
         let file = File::create(p).map_err(|e| Error::io(p, e))?;
         Ok(Sink::File {
             out: Box::new(file),
@@ -51,11 +59,36 @@ impl Sink {
         })
     }
 
+    /// Whether the sink wants each frame's points and pose beside its record.
+    pub(crate) fn wants_frames(&self) -> bool {
+        matches!(self, Sink::Mcap(_))
+    }
+
+    /// Writes one frame: its record (NDJSON), or its record, curves and points (MCAP).
+    pub(crate) fn write_frame(&mut self, view: &FrameView) -> Result<()> {
+        match self {
+            Sink::Mcap(m) => m.write(view),
+            _ => self.write_record(&view.record),
+        }
+    }
+
+    /// Completes the output (an MCAP file's summary).
+    pub(crate) fn finish(self) -> Result<()> {
+        match self {
+            Sink::Mcap(m) => m.finish(),
+            _ => Ok(()),
+        }
+    }
+
     /// Writes one record as one line and flushes it.
     pub(crate) fn write_record(&mut self, rec: &ResultRecord) -> Result<()> {
         let mut line = serde_json::to_vec(rec).map_err(|e| Error::Internal(e.to_string()))?;
         line.push(b'\n');
         match self {
+            Sink::Mcap(m) => m.write(&FrameView {
+                record: rec.clone(),
+                ..Default::default()
+            }),
             Sink::Stdout(out) => {
                 let mut out = out.lock();
                 out.write_all(&line)

@@ -32,6 +32,9 @@ pub struct Line {
     pub line: u64,
     /// The text, or why it could not be read (invalid UTF-8, too long).
     pub text: std::result::Result<String, String>,
+    /// A recording's frame, decoded by its reader (an MCAP bag, a CARMEN log): then
+    /// `text` is empty and this is the frame or why its message is not one.
+    pub decoded: Option<Box<crate::ingest::Item>>,
     /// When it was read.
     pub arrived: Instant,
 }
@@ -171,6 +174,7 @@ fn pump(
             default_stream: default_stream.clone(),
             line,
             text,
+            decoded: None,
             arrived: Instant::now(),
         });
         if sent.is_err() {
@@ -285,6 +289,52 @@ pub fn spawn_file(
             pace,
         )
         .map_err(|e| Error::io(&owned, e))
+    })
+}
+
+/// Replays a recording (an MCAP bag's scans, a CARMEN log's laser lines) at `replay`'s
+/// pace, each frame decoded by the recording's reader; a message that is not a frame is
+/// passed on as such, to become an error record in its place. A file that cannot be
+/// read as a whole (no chosen topic in it) ends the source with that error.
+pub fn spawn_recording(
+    path: &Path,
+    replay: Replay,
+    bag: crate::ingest::bag::BagOptions,
+    tx: Sender<Line>,
+    stop: Arc<AtomicBool>,
+) -> Result<JoinHandle<Result<()>>> {
+    // Opened here so that a missing file fails the start, as for NDJSON.
+    std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
+    let origin: Arc<str> = path.display().to_string().into();
+    let owned = path.to_path_buf();
+    spawn("source-recording", move || {
+        let mut pacer = Pacer::new(replay);
+        let mut n = 0u64;
+        let mut send = |item: crate::ingest::Item| -> bool {
+            if stop.load(Ordering::Relaxed) {
+                return false;
+            }
+            if let Ok(f) = &item {
+                if let Some(due) = pacer.deadline(f.t, Instant::now()) {
+                    sleep_until(due, &stop);
+                }
+            }
+            n += 1;
+            tx.send(Line {
+                origin: origin.clone(),
+                default_stream: None,
+                line: n,
+                text: Ok(String::new()),
+                decoded: Some(Box::new(item)),
+                arrived: Instant::now(),
+            })
+            .is_ok()
+        };
+        if crate::ingest::is_bag(&owned) {
+            crate::ingest::bag::read_bag(&owned, &bag, &mut send).map(drop)
+        } else {
+            crate::ingest::carmen::read_carmen(&owned, &mut send).map(drop)
+        }
     })
 }
 

@@ -318,14 +318,15 @@ pub(crate) fn spawn_ingest(
 /// A line as a frame, or as a failed frame. A failed frame's stream and number are
 /// read from the line if it is JSON with them; none is made up, so an error record never
 /// claims a frame number that another record has. Its record names the line instead.
-fn parse_line(line: Line) -> Msg {
+fn parse_line(mut line: Line) -> Msg {
     let default_stream = line.default_stream.as_deref().map(str::to_string);
-    let parsed = match &line.text {
-        Err(e) => Err((
+    let parsed = match (line.decoded.take(), &line.text) {
+        (Some(item), _) => (*item).map_err(|b| (b.message, (b.stream, b.frame))),
+        (None, Err(e)) => Err((
             format!("{}, line {}: {e}", line.origin, line.line),
             (None, None),
         )),
-        Ok(text) => {
+        (None, Ok(text)) => {
             let n = usize::try_from(line.line).unwrap_or(usize::MAX);
             crate::ingest::parse_frame(text, &line.origin, n)
                 .map_err(|e| (e.to_string(), guess_ids(text)))
@@ -611,24 +612,40 @@ pub(crate) fn spawn_renormalize(
     })
 }
 
-/// Export: the curves and statistics of each frame as an NDJSON record (flushed per
-/// frame) and optionally an SVG drawing; failed and skipped frames get their record too.
-/// A sink that cannot be written ends the run with an error and sets `stop`.
+/// Where the export stage puts what it makes.
+pub(crate) struct Outputs {
+    /// The records (NDJSON or MCAP).
+    pub(crate) sink: Sink,
+    /// The live view, if on.
+    pub(crate) live: Option<crate::export::foxglove::LiveView>,
+    /// A folder for one drawing per frame.
+    pub(crate) svg_dir: Option<PathBuf>,
+}
+
+/// Export: the curves and statistics of each frame as a record (an NDJSON line flushed
+/// per frame, or MCAP messages for Foxglove), shown in the live view if on, and
+/// optionally an SVG drawing; failed and skipped frames get their record too. A sink
+/// that cannot be written ends the run with an error and sets `stop`.
 pub(crate) fn spawn_export(
     rx: Receiver<Msg>,
-    mut sink: Sink,
-    svg_dir: Option<PathBuf>,
+    outputs: Outputs,
     stop: Arc<AtomicBool>,
     warm: bool,
     accumulate: Option<WindowLimits>,
     streams: (usize, Duration),
 ) -> Result<JoinHandle<Result<RunSummary>>> {
+    let Outputs {
+        mut sink,
+        live,
+        svg_dir,
+    } = outputs;
     spawn("export", move || {
         let mut summary = RunSummary::default();
         let mut tally = Tally::new();
         let mut windows: Streams<Window> = Streams::new(streams.0, streams.1);
         let mut first: Option<Instant> = None;
         let mut result = Ok(());
+        let wants_frames = sink.wants_frames() || live.is_some();
         while let Ok(m) = rx.recv() {
             let s = stage_span!("export", m, rx.len());
             let _e = s.enter();
@@ -636,15 +653,18 @@ pub(crate) fn spawn_export(
             let mut rec = ResultRecord {
                 stream: m.stream.clone(),
                 frame: m.frame,
+                t: m.t,
+                pose: m.pose,
                 ..Default::default()
             };
             let frame = m.number();
             let mut drawing = None;
+            let mut shown = Vec::new();
             // A panic while extracting the curves (a bug) fails this frame only.
             let work = match m.work {
                 Work::Solved(b) => {
                     let (p, adapted, solved) = *b;
-                    let points: Vec<Point> = if svg_dir.is_some() {
+                    let points: Vec<Point> = if svg_dir.is_some() || wants_frames {
                         p.local.iter().map(|&q| p.placement.to_data(q)).collect()
                     } else {
                         Vec::new()
@@ -668,7 +688,11 @@ pub(crate) fn spawn_export(
             };
             match work {
                 Work::Exported(r, points) => {
-                    rec = ResultRecord::of(m.stream.clone(), frame, &r);
+                    rec = ResultRecord {
+                        t: m.t,
+                        pose: m.pose,
+                        ..ResultRecord::of(m.stream.clone(), frame, &r)
+                    };
                     let stats = rec.stats.as_mut().expect("a reconstruction has stats");
                     let latency = m.arrived.elapsed();
                     stats.ms.latency = Some(latency.as_secs_f64() * 1e3);
@@ -686,6 +710,9 @@ pub(crate) fn spawn_export(
                     }
                     tally.iterations(stats.warm_start, stats.iterations);
                     summary.reconstructed += 1;
+                    if wants_frames {
+                        shown.clone_from(&points);
+                    }
                     if svg_dir.is_some() {
                         drawing = Some((points, r));
                     }
@@ -707,12 +734,21 @@ pub(crate) fn spawn_export(
                     unreachable!("export takes frames that went through every stage")
                 }
             }
-            if let Err(e) = sink.write_record(&rec) {
+            let view = crate::export::foxglove::FrameView {
+                record: rec,
+                points: shown,
+                t: m.t,
+                pose: m.pose,
+            };
+            if let Err(e) = sink.write_frame(&view) {
                 result = Err(e);
                 stop.store(true, Ordering::Relaxed);
                 break;
             }
             summary.records += 1;
+            if let Some(l) = &live {
+                l.show(view);
+            }
             if let (Some(dir), Some((points, r))) = (&svg_dir, drawing) {
                 let features: Vec<Point> = r.features.iter().map(|f| f.center).collect();
                 let doc = crate::export::svg::render(
@@ -727,6 +763,10 @@ pub(crate) fn spawn_export(
         }
         // Whatever is still queued behind a failed sink is dropped with the pipeline.
         result?;
+        sink.finish()?;
+        if let Some(l) = live {
+            summary.live_dropped = l.dropped();
+        }
         summary.seconds = first.map_or(0.0, |f| f.elapsed().as_secs_f64());
         if summary.seconds > 0.0 {
             summary.frames_per_second = summary.records as f64 / summary.seconds;
@@ -849,6 +889,7 @@ mod tests {
             default_stream: None,
             line: n,
             text: Ok(text.into()),
+            decoded: None,
             arrived: Instant::now(),
         };
         let ok = parse_line(line(r#"{"stream":"s","frame":7,"points":[[0,0]]}"#, 1));

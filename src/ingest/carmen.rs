@@ -1,0 +1,283 @@
+//! CARMEN log input (the format of the classic public SLAM datasets): `FLASER`,
+//! `RLASER` and `ROBOTLASER1` lines as beam frames, each with the laser's pose the line
+//! carries. Other messages (`ODOM`, `PARAM`, `SYNC`, ...) and `#` comments are skipped;
+//! the lasers' lines carry the odometry-integrated pose already.
+//!
+//! Old-style `FLASER`/`RLASER` lines do not say their beams' geometry: as CARMEN's own
+//! reader, 180 or 181 beams are 1 degree apart, 360 or 361 half a degree, 400 or 401 a
+//! quarter, and any other count spans 180 degrees; the sweep starts at -90 degrees and
+//! returns reach at most [`FLASER_RANGE_MAX`] (SICK scanners report 81.9 m for none).
+
+use std::io::{BufRead, Read};
+use std::path::Path;
+
+use super::{BadFrame, Frame, Item};
+use crate::error::{Error, Result};
+use crate::format::FrameRecord;
+
+/// Old-style laser lines: ranges at or beyond this are no returns, metres.
+pub const FLASER_RANGE_MAX: f64 = 80.0;
+
+/// The longest line read; a longer one is an error record, not memory.
+pub const MAX_LINE_BYTES: usize = 1 << 20;
+
+/// Whether `path` names a CARMEN log (`.clf`, `.carmen`).
+pub fn is_carmen(path: &Path) -> bool {
+    matches!(
+        path.extension().and_then(|e| e.to_str()),
+        Some("clf" | "carmen")
+    )
+}
+
+/// The angle between beams of an old-style line of `n` beams.
+fn old_increment(n: usize) -> f64 {
+    use std::f64::consts::PI;
+    match n {
+        180 | 181 => PI / 180.0,
+        360 | 361 => PI / 360.0,
+        400 | 401 => PI / 720.0,
+        _ => PI / (n.max(2) - 1) as f64,
+    }
+}
+
+/// Parses one laser line (its fields after the keyword) into a frame record; `None`
+/// for lines that are not laser messages.
+pub fn parse_line(line: &str) -> Option<std::result::Result<FrameRecord, String>> {
+    let mut words = line.split_whitespace();
+    let key = words.next()?;
+    let stream = match key {
+        "FLASER" => "flaser",
+        "RLASER" => "rlaser",
+        "ROBOTLASER1" => "robotlaser1",
+        _ => return None,
+    };
+    let fields: Vec<&str> = words.collect();
+    let mut at = 0usize;
+    let mut num = |what: &str| -> std::result::Result<f64, String> {
+        let f = fields
+            .get(at)
+            .ok_or_else(|| format!("{key}: the line ends before {what}"))?;
+        at += 1;
+        f.parse::<f64>()
+            .ok()
+            .filter(|v| v.is_finite())
+            .ok_or_else(|| format!("{key}: {what} '{f}' is not a finite number"))
+    };
+    let count = |v: f64, what: &str| -> std::result::Result<usize, String> {
+        if v >= 0.0 && v.fract() == 0.0 && v <= fields.len() as f64 {
+            Ok(v as usize)
+        } else {
+            Err(format!(
+                "{key}: {what} {v} is not a count the line can hold"
+            ))
+        }
+    };
+    let result = (|| {
+        let (angle_min, increment, range_max, ranges, pose);
+        if key == "ROBOTLASER1" {
+            let _laser_type = num("laser_type")?;
+            angle_min = num("start_angle")?;
+            let _fov = num("field_of_view")?;
+            increment = num("angular_resolution")?;
+            range_max = num("maximum_range")?;
+            let _accuracy = num("accuracy")?;
+            let _remission_mode = num("remission_mode")?;
+            let n = count(num("num_readings")?, "num_readings")?;
+            ranges = (0..n)
+                .map(|_| num("a range"))
+                .collect::<std::result::Result<Vec<f64>, String>>()?;
+            let m = count(num("num_remissions")?, "num_remissions")?;
+            for _ in 0..m {
+                num("a remission")?;
+            }
+            pose = [
+                num("laser_pose_x")?,
+                num("laser_pose_y")?,
+                num("laser_pose_theta")?,
+            ];
+            for what in ["robot_pose_x", "robot_pose_y", "robot_pose_theta"] {
+                num(what)?;
+            }
+            for what in [
+                "tv",
+                "rv",
+                "forward_safety_dist",
+                "side_safety_dist",
+                "turn_axis",
+            ] {
+                num(what)?;
+            }
+        } else {
+            let n = count(num("num_readings")?, "num_readings")?;
+            ranges = (0..n)
+                .map(|_| num("a range"))
+                .collect::<std::result::Result<Vec<f64>, String>>()?;
+            angle_min = -std::f64::consts::FRAC_PI_2;
+            increment = old_increment(n);
+            range_max = FLASER_RANGE_MAX;
+            pose = [num("x")?, num("y")?, num("theta")?];
+            for what in ["odom_x", "odom_y", "odom_theta"] {
+                num(what)?;
+            }
+        }
+        let t = num("ipc_timestamp")?;
+        Ok(FrameRecord {
+            stream: Some(stream.into()),
+            t: Some(t),
+            pose: Some(pose),
+            ranges: Some(
+                ranges
+                    .into_iter()
+                    .map(|r| (r > 0.0 && r < range_max).then_some(r))
+                    .collect(),
+            ),
+            angle_min: Some(angle_min),
+            angle_increment: Some(increment),
+            range_min: Some(0.0),
+            range_max: Some(range_max),
+            ..Default::default()
+        })
+    })();
+    Some(result)
+}
+
+/// Reads the laser frames of the CARMEN log `path` in file order, numbered per stream
+/// (`flaser`, `rlaser`, `robotlaser1`), calling `each` with every frame or a
+/// [`BadFrame`] naming the file and line; `each` returns `false` to stop. Fails when the
+/// file cannot be read, or holds no laser line.
+pub fn read_carmen(path: &Path, each: impl FnMut(Item) -> bool) -> Result<u64> {
+    read_carmen_with(
+        path,
+        |rec| Frame::from_record(rec).map_err(|e| e.to_string()),
+        each,
+    )
+}
+
+/// [`read_carmen`] with each laser line's record made into a `T` by `make`.
+pub fn read_carmen_with<T>(
+    path: &Path,
+    make: impl Fn(FrameRecord) -> std::result::Result<T, String>,
+    mut each: impl FnMut(std::result::Result<T, BadFrame>) -> bool,
+) -> Result<u64> {
+    let file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
+    let mut reader = std::io::BufReader::new(file);
+    let name = path.display().to_string();
+    let mut next = std::collections::HashMap::<&'static str, u64>::new();
+    let mut frames = 0u64;
+    let mut buf = Vec::new();
+    let mut line_no = 0u64;
+    loop {
+        buf.clear();
+        let n = Read::take(&mut reader, MAX_LINE_BYTES as u64 + 1)
+            .read_until(b'\n', &mut buf)
+            .map_err(|e| Error::io(path, e))?;
+        if n == 0 {
+            break;
+        }
+        line_no += 1;
+        let bad = |message: String| BadFrame {
+            stream: None,
+            frame: None,
+            message: format!("{name}, line {line_no}: {message}"),
+        };
+        if buf.len() > MAX_LINE_BYTES && !buf.ends_with(b"\n") {
+            // Skip the rest of the over-long line.
+            let mut sink = Vec::new();
+            loop {
+                sink.clear();
+                let k = Read::take(&mut reader, MAX_LINE_BYTES as u64)
+                    .read_until(b'\n', &mut sink)
+                    .map_err(|e| Error::io(path, e))?;
+                if k == 0 || sink.ends_with(b"\n") {
+                    break;
+                }
+            }
+            if !each(Err(bad(format!(
+                "the line is longer than {MAX_LINE_BYTES} bytes; skipped"
+            )))) {
+                return Ok(frames);
+            }
+            continue;
+        }
+        let Ok(text) = std::str::from_utf8(&buf) else {
+            if !each(Err(bad("the line is not valid UTF-8".into()))) {
+                return Ok(frames);
+            }
+            continue;
+        };
+        let text = text.trim();
+        if text.starts_with('#') {
+            continue;
+        }
+        let Some(parsed) = parse_line(text) else {
+            continue;
+        };
+        let stream: &'static str = match text.split_whitespace().next() {
+            Some("FLASER") => "flaser",
+            Some("RLASER") => "rlaser",
+            _ => "robotlaser1",
+        };
+        let k = next.entry(stream).or_insert(0);
+        let frame = *k;
+        *k += 1;
+        frames += 1;
+        let item = parsed
+            .and_then(|mut rec| {
+                rec.frame = frame;
+                make(rec)
+            })
+            .map_err(|e| BadFrame {
+                stream: Some(stream.into()),
+                frame: Some(frame),
+                ..bad(e)
+            });
+        if !each(item) {
+            return Ok(frames);
+        }
+    }
+    if frames == 0 {
+        return Err(Error::Recording {
+            path: path.to_path_buf(),
+            message: "no FLASER, RLASER or ROBOTLASER1 line".into(),
+        });
+    }
+    Ok(frames)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn laser_lines_become_frames_and_bad_ones_are_named() {
+        let rec = parse_line("FLASER 3 1.0 81.9 2.5 1 2 0.5 1 2 0.5 12.5 host 0.1")
+            .unwrap()
+            .unwrap();
+        assert_eq!(rec.ranges, Some(vec![Some(1.0), None, Some(2.5)]));
+        assert_eq!(rec.pose, Some([1.0, 2.0, 0.5]));
+        assert_eq!(rec.t, Some(12.5));
+        assert!((rec.angle_increment.unwrap() - std::f64::consts::FRAC_PI_2).abs() < 1e-12);
+        let rec = parse_line(
+            "ROBOTLASER1 0 -1.5 3.0 0.75 30 0.01 0 5 1 2 3 4 5 0 0.1 0.2 0.3 0 0 0 0 0 0 0 0 \
+             7.25 host 7.3",
+        )
+        .unwrap()
+        .unwrap();
+        assert_eq!(rec.ranges.as_ref().unwrap().len(), 5);
+        assert_eq!(
+            (rec.angle_min, rec.angle_increment, rec.range_max),
+            (Some(-1.5), Some(0.75), Some(30.0))
+        );
+        assert_eq!((rec.pose, rec.t), (Some([0.1, 0.2, 0.3]), Some(7.25)));
+        assert!(parse_line("ODOM 1 2 3 0 0 0 5 host 5").is_none());
+        for (bad, what) in [
+            ("FLASER 3 1.0 2.0", "ends before"),
+            ("FLASER 2 1.0 x 0 0 0 0 0 0 1 h 1", "'x'"),
+            ("FLASER 1e12 1", "num_readings"),
+            ("FLASER -1 1", "num_readings"),
+        ] {
+            let e = parse_line(bad).unwrap().unwrap_err();
+            assert!(e.contains(what), "{bad}: {e}");
+        }
+    }
+}
