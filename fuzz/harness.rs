@@ -42,6 +42,28 @@ pub fn config(data: &[u8]) {
     let _ = isoline::pipeline::DaemonConfig::parse(&text, "fuzz", Path::new("/nonexistent"));
 }
 
+/// The recording readers: the first byte picks a ROS 2 bag (even) or a CARMEN log (odd),
+/// the rest is the file, read with poses asked for. Any bytes are frames, bad frames or
+/// an error naming the file.
+pub fn recording(data: &[u8]) {
+    let Some((&kind, rest)) = data.split_first() else {
+        return;
+    };
+    let dir = std::env::temp_dir().join(format!("isoline-fuzz-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).expect("a temporary folder");
+    let path = dir.join(if kind % 2 == 0 { "in.mcap" } else { "in.clf" });
+    std::fs::write(&path, rest).expect("a temporary file");
+    let opts = isoline::ingest::bag::BagOptions {
+        odometry: Some("/odom".into()),
+        ..Default::default()
+    };
+    if let Ok(items) = isoline::ingest::read_items(&path, &opts) {
+        for f in items.iter().flatten() {
+            assert!(f.points.iter().flatten().all(|c| c.is_finite()));
+        }
+    }
+}
+
 /// The whole reconstruction on up to 128 points decoded from the bytes: the first byte
 /// picks a scale from 1e-150 to 1e150, then each 4 bytes are two 16-bit coordinates,
 /// so duplicates, lines, clusters and extreme extents all occur.

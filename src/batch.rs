@@ -6,10 +6,12 @@
 //!
 //! ```toml
 //! [batch]
-//! inputs = ["scans/*.xy", "streams/*.ndjson"]   # globs, relative to the job file
+//! inputs = ["scans/*.xy", "streams/*.ndjson", "bags/*.mcap"]  # relative to the job file
 //! output = "out"                                 # relative to the job file
 //! formats = ["ndjson", "svg"]                    # ndjson json geojson csv svg
 //! workers = 2                                    # default: every core
+//! topics = ["/scan"]                             # bags: LaserScan topics (default all)
+//! odometry = "/odom"                             # bags: the poses' Odometry topic
 //!
 //! [solver]
 //! alpha = 12.0
@@ -50,6 +52,12 @@ struct BatchTable {
     formats: Option<Vec<String>>,
     #[serde(default)]
     workers: Option<usize>,
+    #[serde(default)]
+    topics: Vec<String>,
+    #[serde(default)]
+    odometry: Option<String>,
+    #[serde(default)]
+    world_frame: Option<String>,
 }
 
 /// One input of a job, with its parameters and outputs.
@@ -76,6 +84,8 @@ pub struct Job {
     pub formats: Vec<Format>,
     /// Worker threads.
     pub workers: usize,
+    /// What to read from bags (`topics`, `odometry`, `world_frame` in `[batch]`).
+    pub bag: crate::ingest::bag::BagOptions,
 }
 
 /// What became of one input.
@@ -315,6 +325,11 @@ impl Job {
             output,
             formats,
             workers,
+            bag: crate::ingest::bag::BagOptions {
+                topics: batch.topics.clone(),
+                odometry: batch.odometry.clone(),
+                world_frame: batch.world_frame.clone(),
+            },
         };
         problems.extend(job.collisions());
         if !problems.is_empty() {
@@ -530,7 +545,7 @@ impl Job {
             s.ms = t0.elapsed().as_secs_f64() * 1e3;
             s
         };
-        let frames = match crate::ingest::read_items(&task.input, &Default::default()) {
+        let frames = match crate::ingest::read_items(&task.input, &self.bag) {
             Ok(f) => f,
             Err(e) => return fail(s, e.to_string()),
         };

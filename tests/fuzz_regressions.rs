@@ -28,6 +28,11 @@ fn replay(target: &str, run: fn(&[u8])) -> usize {
 }
 
 #[test]
+fn recordings() {
+    assert!(replay("recording", harness::recording) >= 2);
+}
+
+#[test]
 fn point_files() {
     assert!(replay("points", harness::points) > 0);
     harness::points(b"1e999 0\n0 0\n");

@@ -692,3 +692,20 @@ fn the_live_view_serves_the_curves_to_a_foxglove_client() {
     // The client connects while the first frames are made: most of them, not all.
     assert!(frames_with_curves.len() >= 16 && scenes >= 16, "{got:?}");
 }
+
+#[test]
+fn a_batch_job_reads_bags_with_their_poses() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let sim = simulate(d, 5, 0.1);
+    write_bag(&d.join("robot.mcap"), &sim, |_, b| b);
+    let job = d.join("job.toml");
+    std::fs::write(
+        &job,
+        "[batch]\ninputs = [\"*.mcap\"]\noutput = \"out\"\nformats = [\"ndjson\"]\n\
+         odometry = \"/odom\"\n",
+    )
+    .unwrap();
+    ok(&["batch", "-c", p(&job)]);
+    check_records(&records(&d.join("out/robot.ndjson")), &sim, "laser");
+}
