@@ -11,7 +11,7 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Arc;
 use std::thread::JoinHandle;
 
-use crossbeam_channel::{Receiver, Sender, TrySendError};
+use crossbeam_channel::{Receiver, Sender};
 use foxglove::messages::{
     line_primitive, packed_element_field, Color, FrameTransform, FrameTransforms, LinePrimitive,
     PackedElementField, Point3, PointCloud, Quaternion, SceneEntity, SceneUpdate, Timestamp,
@@ -188,20 +188,9 @@ pub fn frame_messages(view: &FrameView) -> Vec<(Topic, Vec<u8>)> {
         fields: vec![field("x", 0), field("y", 4), field("z", 8)],
         data: data.into(),
     };
-    let encode = |m: &dyn Fn(&mut Vec<u8>)| {
-        let mut buf = Vec::new();
-        m(&mut buf);
-        buf
-    };
     let mut out = vec![
-        (
-            Topic::Curves,
-            encode(&|b| scene.encode(b).expect("encoding into a Vec")),
-        ),
-        (
-            Topic::Points,
-            encode(&|b| cloud.encode(b).expect("encoding into a Vec")),
-        ),
+        (Topic::Curves, encoded(&scene)),
+        (Topic::Points, encoded(&cloud)),
         (
             Topic::Records,
             serde_json::to_vec(&view.record).expect("records serialize"),
@@ -227,12 +216,17 @@ pub fn frame_messages(view: &FrameView) -> Vec<(Topic, Vec<u8>)> {
                 }),
             }],
         };
-        out.push((
-            Topic::Transforms,
-            encode(&|b| tf.encode(b).expect("encoding into a Vec")),
-        ));
+        out.push((Topic::Transforms, encoded(&tf)));
     }
     out
+}
+
+/// A message's protobuf bytes.
+fn encoded<T: Encode>(msg: &T) -> Vec<u8> {
+    let mut buf = Vec::new();
+    // Encoding into a growable buffer cannot run out of room.
+    msg.encode(&mut buf).expect("encoding into a Vec");
+    buf
 }
 
 /// An MCAP file of results, zstd-compressed, readable while written up to its last
@@ -391,7 +385,7 @@ impl LiveView {
     /// Hands a frame to the viewers, or drops it if the view is behind.
     pub fn show(&self, view: FrameView) {
         if let Some(tx) = &self.tx {
-            if let Err(TrySendError::Full(_) | TrySendError::Disconnected(_)) = tx.try_send(view) {
+            if tx.try_send(view).is_err() {
                 self.dropped.fetch_add(1, Ordering::Relaxed);
             }
         }

@@ -2,6 +2,7 @@
 //! for results (NDJSON, JSON, GeoJSON, CSV, SVG, and MCAP or a live view for Foxglove).
 
 pub mod contour;
+pub mod corners;
 pub mod fit;
 pub mod foxglove;
 pub mod support;
@@ -69,6 +70,10 @@ pub fn curves(
     let mut features = Vec::new();
     if let Some((a, tol)) = scan {
         polylines = support::cut_to_support(&polylines, &a.support, tol, hmin, 0.5 * tol, hmin);
+        // Refined curves are precise enough for their walls' lines to be trusted.
+        if a.refine {
+            corners::sharpen(&mut polylines, tol);
+        }
         features = support::unexplained(&a.run_points(), &polylines, tol);
         for f in &mut features {
             f.center = at.to_data(f.center);
