@@ -296,6 +296,7 @@ fn the_daemon_replays_a_bag_warm_and_writes_curves_for_foxglove() {
     // beside its points, its record and its pose.
     let out = d.join("curves.mcap");
     run(&out);
+    assert!(!d.join("curves.mcap.part").exists());
     let bytes = std::fs::read(&out).unwrap();
     let mut per_topic: BTreeMap<String, usize> = BTreeMap::new();
     let mut scenes = Vec::new();

@@ -229,19 +229,25 @@ fn encoded<T: Encode>(msg: &T) -> Vec<u8> {
     buf
 }
 
-/// An MCAP file of results, zstd-compressed, readable while written up to its last
-/// chunk and complete once [`McapOut::finish`]ed.
+/// An MCAP file of results, zstd-compressed. It is written beside its path (`PATH.part`)
+/// and takes its name once [`McapOut::finish`]ed: a run that fails or is killed leaves
+/// no half file under the name, and an earlier file there stays whole until then.
 pub struct McapOut {
     writer: mcap::Writer<std::io::BufWriter<std::fs::File>>,
     channels: BTreeMap<Topic, u16>,
     sequence: u32,
     path: PathBuf,
+    part: PathBuf,
+    finished: bool,
 }
 
 impl McapOut {
-    /// Creates (truncates) `path`.
+    /// Starts the file `path`.
     pub fn create(path: &Path) -> Result<McapOut> {
-        let file = std::fs::File::create(path).map_err(|e| Error::io(path, e))?;
+        let mut part = path.as_os_str().to_owned();
+        part.push(".part");
+        let part = PathBuf::from(part);
+        let file = std::fs::File::create(&part).map_err(|e| Error::io(&part, e))?;
         let mcap_err = |e: mcap::McapError| Error::Recording {
             path: path.to_path_buf(),
             message: e.to_string(),
@@ -267,6 +273,8 @@ impl McapOut {
             channels,
             sequence: 0,
             path: path.to_path_buf(),
+            part,
+            finished: false,
         })
     }
 
@@ -295,10 +303,20 @@ impl McapOut {
         Ok(())
     }
 
-    /// Writes the summary and flushes the file.
+    /// Writes the summary, flushes the file and gives it its name.
     pub fn finish(mut self) -> Result<()> {
         self.writer.finish().map_err(|e| self.error(e))?;
+        std::fs::rename(&self.part, &self.path).map_err(|e| Error::io(&self.path, e))?;
+        self.finished = true;
         Ok(())
+    }
+}
+
+impl Drop for McapOut {
+    fn drop(&mut self) {
+        if !self.finished {
+            let _ = std::fs::remove_file(&self.part);
+        }
     }
 }
 
