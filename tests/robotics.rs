@@ -71,6 +71,12 @@ fn compose(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
 /// odometry on `/odom` (written after each scan, so a scan's pose comes later in the
 /// file), the laser's mount on `/tf_static`. `spoil` may replace a scan's bytes.
 fn write_bag(path: &Path, sim: &Sim, spoil: impl Fn(usize, Vec<u8>) -> Vec<u8>) {
+    write_bag_with(path, sim, false, spoil);
+}
+
+/// [`write_bag`], with the base's pose on `/tf` (`odom` to `base_link`) instead of
+/// `/odom` when `tf` is set.
+fn write_bag_with(path: &Path, sim: &Sim, tf: bool, spoil: impl Fn(usize, Vec<u8>) -> Vec<u8>) {
     let file = std::io::BufWriter::new(std::fs::File::create(path).unwrap());
     // Small chunks, so that a file cut short keeps the chunks before the cut.
     let mut w = mcap::WriteOptions::new()
@@ -91,6 +97,7 @@ fn write_bag(path: &Path, sim: &Sim, spoil: impl Fn(usize, Vec<u8>) -> Vec<u8>) 
     let scan_ch = w.add_channel(s_scan, "/scan", "cdr", &none).unwrap();
     let odom_ch = w.add_channel(s_odom, "/odom", "cdr", &none).unwrap();
     let tf_ch = w.add_channel(s_tf, "/tf_static", "cdr", &none).unwrap();
+    let tf_dyn = w.add_channel(s_tf, "/tf", "cdr", &none).unwrap();
     let mut seq = 0;
     let mut put = |w: &mut mcap::Writer<_>, ch, t: f64, data: &[u8]| {
         seq += 1;
@@ -171,7 +178,21 @@ fn write_bag(path: &Path, sim: &Sim, spoil: impl Fn(usize, Vec<u8>) -> Vec<u8>) 
             },
             ..Default::default()
         };
-        put(&mut w, odom_ch, t, &ros::encode(&odom));
+        if tf {
+            let moving = ros::TfMessage {
+                transforms: vec![ros::TransformStamped {
+                    header: odom.header.clone(),
+                    child_frame_id: "base_link".into(),
+                    transform: ros::Transform {
+                        translation: odom.pose.pose.position,
+                        rotation: odom.pose.pose.orientation,
+                    },
+                }],
+            };
+            put(&mut w, tf_dyn, t, &ros::encode(&moving));
+        } else {
+            put(&mut w, odom_ch, t, &ros::encode(&odom));
+        }
     }
     w.finish().unwrap();
 }
@@ -248,6 +269,19 @@ fn a_bag_is_reconstructed_with_its_stamps_and_poses_and_fits_the_truth() {
         p(&from_bag),
     ]);
     check_records(&records(&from_bag), &sim, "laser");
+    // The poses through /tf alone, to a frame named on the command line.
+    let tf_bag = d.join("robot-tf.mcap");
+    write_bag_with(&tf_bag, &sim, true, |_, b| b);
+    let from_tf = d.join("tf.ndjson");
+    ok(&[
+        "reconstruct",
+        p(&tf_bag),
+        "--world-frame",
+        "odom",
+        "-o",
+        p(&from_tf),
+    ]);
+    check_records(&records(&from_tf), &sim, "laser");
     // The same scans as NDJSON: the bag's f32 ranges change nothing that matters.
     let from_ndjson = d.join("ndjson.ndjson");
     ok(&["reconstruct", p(&sim.path), "-o", p(&from_ndjson)]);
