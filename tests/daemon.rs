@@ -503,3 +503,122 @@ fn configurations_that_would_destroy_data_or_hang_are_refused() {
     assert!(t0.elapsed() < Duration::from_secs(20));
     assert_eq!(records(&d.join("out.ndjson")).len(), 3);
 }
+
+/// `GET path` from the HTTP server at `addr`: (status code, body).
+fn http_get(addr: &str, path: &str) -> (u16, String) {
+    use std::io::Read;
+    let mut s = TcpStream::connect(addr).unwrap();
+    write!(s, "GET {path} HTTP/1.0\r\nHost: {addr}\r\n\r\n").unwrap();
+    let mut text = String::new();
+    s.read_to_string(&mut text).unwrap();
+    let code = text.split_whitespace().nth(1).unwrap().parse().unwrap();
+    let body = text.split_once("\r\n\r\n").map_or("", |b| b.1).to_string();
+    (code, body)
+}
+
+/// The value of the Prometheus sample `name` (with its labels) in `text`.
+fn sample(text: &str, name: &str) -> f64 {
+    text.lines()
+        .find_map(|l| l.strip_prefix(name).and_then(|v| v.strip_prefix(' ')))
+        .unwrap_or_else(|| panic!("{name} not in\n{text}"))
+        .trim()
+        .parse()
+        .unwrap()
+}
+
+/// The metrics endpoint, scraped during a TCP stream and once every record is written:
+/// frames in, records by outcome, warm starts and the latency histogram's count add up
+/// to the records written; the health check says the daemon keeps up.
+#[test]
+fn the_metrics_add_up_to_the_records_written() {
+    let dir = tempfile::tempdir().unwrap();
+    let cfg = config(
+        dir.path(),
+        "[input]\nkind = \"tcp\"\nbind = \"127.0.0.1:0\"\n[output]\npath = \"out.ndjson\"\n\
+         [metrics]\nbind = \"127.0.0.1:0\"\n[mesh]\nhmin = 0.002\n",
+    );
+    let (mut child, stderr) = spawn(&cfg);
+    let (mut tcp, mut metrics) = (None, None);
+    while tcp.is_none() || metrics.is_none() {
+        let line = stderr
+            .recv_timeout(Duration::from_secs(30))
+            .expect("the daemon says where it listens");
+        if let Some(a) = line.strip_prefix("isoline run: listening on ") {
+            tcp = Some(a.to_string());
+        }
+        if let Some(a) = line.strip_prefix("isoline run: metrics on http://") {
+            metrics = Some(a.split('/').next().unwrap().to_string());
+        }
+    }
+    let (tcp, metrics) = (tcp.unwrap(), metrics.unwrap());
+    let frames: Vec<String> = std::fs::read_to_string(fixture("ellipse-stream-20.ndjson"))
+        .unwrap()
+        .lines()
+        .take(12)
+        .map(str::to_string)
+        .collect();
+    let mut s = TcpStream::connect(&tcp).unwrap();
+    for (k, f) in frames.iter().enumerate() {
+        writeln!(s, "{f}").unwrap();
+        if k == 5 {
+            writeln!(s, "{{\"frame\":99,\"points\":[[0,\"x\"]]}}").unwrap();
+        }
+    }
+    drop(s);
+    let out = dir.path().join("out.ndjson");
+    let written = |text: &str| -> f64 {
+        ["reconstructed", "error", "skipped"]
+            .iter()
+            .map(|o| sample(text, &format!("isoline_records_total{{outcome=\"{o}\"}}")))
+            .sum()
+    };
+    // Scraped while the frames go through: never more out than in, and never a record
+    // counted before it is in the file (a record is counted once written).
+    let t0 = Instant::now();
+    let text = loop {
+        assert!(
+            t0.elapsed() < Duration::from_secs(60),
+            "records did not arrive"
+        );
+        let (code, text) = http_get(&metrics, "/metrics");
+        assert_eq!(code, 200);
+        let n = written(&text);
+        assert!(n <= sample(&text, "isoline_frames_in_total"));
+        // Whole lines only: the newest may be half read while it is written.
+        let lines = std::fs::read(&out).map_or(0, |b| b.iter().filter(|&&c| c == b'\n').count());
+        assert!(n <= lines as f64);
+        if n == 13.0 {
+            break text;
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    };
+    let recs = records(&out);
+    assert_eq!(recs.len(), 13);
+    let count = |f: &dyn Fn(&Value) -> bool| recs.iter().filter(|r| f(r)).count() as f64;
+    assert_eq!(sample(&text, "isoline_frames_in_total"), 13.0);
+    assert_eq!(
+        sample(&text, "isoline_records_total{outcome=\"reconstructed\"}"),
+        count(&|r| r.get("polylines").is_some())
+    );
+    assert_eq!(
+        sample(&text, "isoline_records_total{outcome=\"error\"}"),
+        count(&|r| r.get("error").is_some())
+    );
+    assert_eq!(
+        sample(&text, "isoline_records_total{outcome=\"error\"}"),
+        1.0
+    );
+    assert_eq!(
+        sample(&text, "isoline_warm_starts_total"),
+        count(&|r| r["stats"]["warm_start"] == true)
+    );
+    assert_eq!(sample(&text, "isoline_frame_latency_seconds_count"), 12.0);
+    assert_eq!(
+        sample(&text, "isoline_stage_seconds_count{stage=\"solve\"}"),
+        12.0
+    );
+    assert_eq!(http_get(&metrics, "/health"), (200, "ok\n".to_string()));
+    assert_eq!(http_get(&metrics, "/nothing").0, 404);
+    signal(&child, "-TERM");
+    assert!(wait(&mut child, Duration::from_secs(30)).success());
+}

@@ -9,8 +9,8 @@ use anyhow::{Context, Result};
 /// `isoline run` options.
 #[derive(clap::Args)]
 pub struct Args {
-    /// Daemon configuration: [input] [output] [pipeline] [live] [tracing], and [mesh]
-    /// [solver] [export].
+    /// Daemon configuration: [input] [output] [pipeline] [live] [metrics] [tracing],
+    /// and [mesh] [solver] [export].
     #[arg(short, long)]
     config: PathBuf,
 }
@@ -30,6 +30,9 @@ pub fn run(a: Args) -> Result<()> {
     let daemon = isoline::pipeline::Daemon::start(&cfg, stop)?;
     if let Some(addr) = daemon.tcp_addr {
         eprintln!("isoline run: listening on {addr}");
+    }
+    if let Some(addr) = daemon.metrics_addr {
+        eprintln!("isoline run: metrics on http://{addr}/metrics, health on /health");
     }
     if let Some(addr) = daemon.live_addr {
         eprintln!("isoline run: live view on ws://{addr} (Foxglove: Open connection)");

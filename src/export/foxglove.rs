@@ -400,13 +400,14 @@ impl LiveView {
         self.addr
     }
 
-    /// Hands a frame to the viewers, or drops it if the view is behind.
-    pub fn show(&self, view: FrameView) {
-        if let Some(tx) = &self.tx {
-            if tx.try_send(view).is_err() {
-                self.dropped.fetch_add(1, Ordering::Relaxed);
-            }
+    /// Hands a frame to the viewers, or drops it if the view is behind; whether it was
+    /// handed over.
+    pub fn show(&self, view: FrameView) -> bool {
+        let shown = self.tx.as_ref().is_some_and(|tx| tx.try_send(view).is_ok());
+        if !shown {
+            self.dropped.fetch_add(1, Ordering::Relaxed);
         }
+        shown
     }
 
     /// Frames not shown because the view was behind.

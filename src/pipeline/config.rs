@@ -92,6 +92,8 @@ pub struct DaemonConfig {
     pub bag: crate::ingest::bag::BagOptions,
     /// Serve a live view (Foxglove WebSocket) on this address.
     pub live: Option<SocketAddr>,
+    /// Serve Prometheus metrics and a health check on this address.
+    pub metrics: Option<SocketAddr>,
     /// Reconstruction parameters.
     pub params: Params,
 }
@@ -118,6 +120,15 @@ struct InputTable {
     odometry: Option<String>,
     /// MCAP input: the frame the poses are in, through `/tf`.
     world_frame: Option<String>,
+}
+
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct MetricsTable {
+    /// Address of the Prometheus endpoint. Default `127.0.0.1:9898`.
+    bind: Option<String>,
+    /// A bind address other than loopback must be asked for.
+    allow_remote: Option<bool>,
 }
 
 #[derive(Debug, Default, Deserialize)]
@@ -164,6 +175,9 @@ pub const DEFAULT_BIND: &str = "127.0.0.1:7878";
 
 /// The live view's default address (Foxglove's usual port, on loopback).
 pub const DEFAULT_LIVE_BIND: &str = "127.0.0.1:8765";
+
+/// The metrics endpoint's default address.
+pub const DEFAULT_METRICS_BIND: &str = "127.0.0.1:9898";
 
 /// The slowest and fastest fixed replay rates, frames per second.
 pub const MIN_RATE: f64 = 1e-3;
@@ -268,6 +282,7 @@ impl DaemonConfig {
         let pipeline: PipelineTable = take(&mut table, "pipeline", &mut problems);
         let tracing_t: TracingTable = take(&mut table, "tracing", &mut problems);
         let live_t: Option<LiveTable> = take(&mut table, "live", &mut problems);
+        let metrics_t: Option<MetricsTable> = take(&mut table, "metrics", &mut problems);
         let params = match Config::from_table(table, name, "") {
             Ok(c) => Some(c.params()),
             Err(Error::Config { problems: p, .. }) => {
@@ -374,25 +389,29 @@ impl DaemonConfig {
                     .into(),
             );
         }
-        let live = live_t.and_then(|l| {
-            let bind = l.bind.unwrap_or_else(|| DEFAULT_LIVE_BIND.into());
-            match bind.parse::<SocketAddr>() {
-                Ok(b) if !b.ip().is_loopback() && l.allow_remote != Some(true) => {
-                    problems.push(format!(
-                        "live.bind = {bind:?}: not a loopback address, so anyone on the \
-                         network could watch; set live.allow_remote = true to mean it"
-                    ));
-                    None
+        let mut server =
+            |table: &str, bind: Option<String>, remote: Option<bool>, default: &str| {
+                let bind = bind.unwrap_or_else(|| default.into());
+                match bind.parse::<SocketAddr>() {
+                    Ok(b) if !b.ip().is_loopback() && remote != Some(true) => {
+                        problems.push(format!(
+                            "{table}.bind = {bind:?}: not a loopback address, so anyone on the \
+                         network could connect; set {table}.allow_remote = true to mean it"
+                        ));
+                        None
+                    }
+                    Ok(b) => Some(b),
+                    Err(e) => {
+                        problems.push(format!(
+                            "{table}.bind = {bind:?}: {e} (expected e.g. \"{default}\")"
+                        ));
+                        None
+                    }
                 }
-                Ok(b) => Some(b),
-                Err(e) => {
-                    problems.push(format!(
-                        "live.bind = {bind:?}: {e} (expected e.g. \"{DEFAULT_LIVE_BIND}\")"
-                    ));
-                    None
-                }
-            }
-        });
+            };
+        let live = live_t.and_then(|l| server("live", l.bind, l.allow_remote, DEFAULT_LIVE_BIND));
+        let metrics =
+            metrics_t.and_then(|m| server("metrics", m.bind, m.allow_remote, DEFAULT_METRICS_BIND));
         let defaults = Limits::default();
         let mut bounded = |key: &str, v: Option<i64>, default: usize, lo: usize, hi: usize| match v
         {
@@ -491,6 +510,7 @@ impl DaemonConfig {
                 accumulate,
                 bag,
                 live,
+                metrics,
                 params,
             }),
             _ => Err(fail(problems)),

@@ -17,6 +17,7 @@
 //! waits for it before solving the stream's next frame.
 
 pub mod config;
+pub mod metrics;
 mod sink;
 pub mod source;
 mod stages;
@@ -119,6 +120,12 @@ pub struct Daemon {
     pub tcp_addr: Option<std::net::SocketAddr>,
     /// The live view's address, when it is on.
     pub live_addr: Option<std::net::SocketAddr>,
+    /// The metrics endpoint's address, when it is on.
+    pub metrics_addr: Option<std::net::SocketAddr>,
+    /// Served until the run has ended.
+    metrics_server: Option<metrics::MetricsServer>,
+    /// The run's metrics.
+    pub metrics: Arc<metrics::Metrics>,
 }
 
 impl Daemon {
@@ -131,6 +138,7 @@ impl Daemon {
             std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
         }
         let q = cfg.queue;
+        let metrics = Arc::new(metrics::Metrics::new(q));
         // Read lines wait here for ingest; on shutdown each still gets its record, so
         // this queue is no longer than the others.
         let (line_tx, line_rx) = bounded(q);
@@ -167,35 +175,65 @@ impl Daemon {
         let policy = cfg.policy;
         threads.push((
             "ingest",
-            stages::spawn_ingest(line_rx, to_distance, stop.clone(), cfg.poll)?,
+            stages::spawn_ingest(
+                line_rx,
+                to_distance,
+                stop.clone(),
+                cfg.poll,
+                metrics.clone(),
+            )?,
         ));
         threads.push((
             "distance",
-            stages::spawn_distance(distance_rx, to_adapt, policy, params.clone())?,
+            stages::spawn_distance(
+                distance_rx,
+                to_adapt,
+                policy,
+                params.clone(),
+                metrics.clone(),
+            )?,
         ));
         threads.push((
             "adapt",
-            stages::spawn_adapt(adapt_rx, to_solve, policy, warm, streams)?,
+            stages::spawn_adapt(adapt_rx, to_solve, policy, warm, streams, metrics.clone())?,
         ));
         threads.push((
             "solve",
-            stages::spawn_solve(solve_rx, to_renorm, feedback_rx, policy, warm, streams)?,
+            stages::spawn_solve(
+                solve_rx,
+                to_renorm,
+                feedback_rx,
+                policy,
+                warm,
+                streams,
+                metrics.clone(),
+            )?,
         ));
         threads.push((
             "renormalize",
-            stages::spawn_renormalize(renorm_rx, to_export, warm.then_some(feedback_tx))?,
+            stages::spawn_renormalize(
+                renorm_rx,
+                to_export,
+                warm.then_some(feedback_tx),
+                metrics.clone(),
+            )?,
         ));
         let live = match cfg.live {
             Some(bind) => Some(crate::export::foxglove::LiveView::start(bind)?),
             None => None,
         };
         let live_addr = live.as_ref().map(|l| l.addr());
+        let metrics_server = match cfg.metrics {
+            Some(bind) => Some(metrics::MetricsServer::start(bind, metrics.clone())?),
+            None => None,
+        };
         let export = stages::spawn_export(
             export_rx,
             stages::Outputs {
                 sink,
                 live,
                 svg_dir: cfg.svg_dir.clone(),
+                metrics: metrics.clone(),
             },
             stop,
             warm,
@@ -209,6 +247,9 @@ impl Daemon {
             export,
             tcp_addr,
             live_addr,
+            metrics_addr: metrics_server.as_ref().map(|m| m.addr()),
+            metrics_server,
+            metrics,
         })
     }
 
@@ -240,6 +281,8 @@ impl Daemon {
                 }
             }
         }
+        // Scrapes see the final counts until every stage has ended.
+        drop(self.metrics_server);
         let summary = summary?;
         match failure {
             Some(e) => {

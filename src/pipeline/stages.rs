@@ -14,6 +14,7 @@ use crossbeam_channel::{Receiver, RecvTimeoutError, Sender};
 use hdrhistogram::Histogram;
 
 use super::config::Policy;
+use super::metrics::Metrics;
 use super::sink::Sink;
 use super::source::Line;
 use super::RunSummary;
@@ -239,18 +240,24 @@ fn run_stage(
     rx: Receiver<Msg>,
     tx: Sender<Msg>,
     policy: Policy,
+    metrics: &Metrics,
     span: impl Fn(&Msg, usize) -> tracing::Span,
     mut f: impl FnMut(&mut Msg),
 ) {
     own_pool();
+    let depth = metrics.queue_depth.with_label_values(&[name]);
+    let seconds = metrics.stage_seconds.with_label_values(&[name]);
     while let Ok(first) = rx.recv() {
+        depth.set(rx.len() as i64 + 1);
         for mut m in take_batch(first, &rx, policy) {
             if m.live() {
                 let s = span(&m, rx.len());
                 let _e = s.enter();
+                let t0 = Instant::now();
                 if let Err(panic) = catch_unwind(AssertUnwindSafe(|| f(&mut m))) {
                     m.work = Work::Failed(internal_error(name, panic.as_ref()));
                 }
+                seconds.observe(t0.elapsed().as_secs_f64());
             }
             if tx.send(m).is_err() {
                 return;
@@ -278,9 +285,13 @@ pub(crate) fn spawn_ingest(
     tx: Sender<Msg>,
     stop: Arc<AtomicBool>,
     poll: Duration,
+    metrics: Arc<Metrics>,
 ) -> Result<JoinHandle<()>> {
     spawn("ingest", move || {
+        let depth = metrics.queue_depth.with_label_values(&["ingest"]);
         let handle = |line: Line| -> bool {
+            metrics.frames_in.inc();
+            depth.set(rx.len() as i64 + 1);
             // The span covers the parsing, not the wait for room downstream.
             let m = tracing::info_span!(
                 "ingest",
@@ -404,6 +415,7 @@ pub(crate) fn spawn_distance(
     tx: Sender<Msg>,
     policy: Policy,
     params: Arc<Params>,
+    metrics: Arc<Metrics>,
 ) -> Result<JoinHandle<()>> {
     spawn("distance", move || {
         run_stage(
@@ -411,6 +423,7 @@ pub(crate) fn spawn_distance(
             rx,
             tx,
             policy,
+            &metrics,
             |m, d| stage_span!("distance", m, d),
             |m| {
                 let Work::Input(f) = std::mem::replace(&mut m.work, Work::Skipped) else {
@@ -433,6 +446,7 @@ pub(crate) fn spawn_adapt(
     policy: Policy,
     warm: bool,
     streams: (usize, Duration),
+    metrics: Arc<Metrics>,
 ) -> Result<JoinHandle<()>> {
     spawn("adapt", move || {
         let mut last: Streams<Option<(u64, Mesh, Option<Pose>)>> =
@@ -442,6 +456,7 @@ pub(crate) fn spawn_adapt(
             rx,
             tx,
             policy,
+            &metrics,
             |m, d| stage_span!("adapt", m, d),
             |m| {
                 let Work::Prepared(p) = std::mem::replace(&mut m.work, Work::Skipped) else {
@@ -488,6 +503,7 @@ pub(crate) fn spawn_solve(
     policy: Policy,
     warm: bool,
     streams: (usize, Duration),
+    metrics: Arc<Metrics>,
 ) -> Result<JoinHandle<()>> {
     spawn("solve", move || {
         let mut state: Streams<SolveState> = Streams::new(streams.0, streams.1);
@@ -505,6 +521,7 @@ pub(crate) fn spawn_solve(
             rx,
             tx,
             policy,
+            &metrics,
             |m, d| stage_span!("solve", m, d),
             |m| {
                 let Work::Adapted(b) = std::mem::replace(&mut m.work, Work::Skipped) else {
@@ -559,6 +576,7 @@ pub(crate) fn spawn_renormalize(
     rx: Receiver<Msg>,
     tx: Sender<Msg>,
     feedback: Option<Sender<Feedback>>,
+    metrics: Arc<Metrics>,
 ) -> Result<JoinHandle<()>> {
     spawn("renormalize", move || {
         run_stage(
@@ -566,6 +584,7 @@ pub(crate) fn spawn_renormalize(
             rx,
             tx,
             Policy::Block,
+            &metrics,
             |m, d| stage_span!("renormalize", m, d),
             |m| {
                 let key = m.key().to_string();
@@ -620,6 +639,8 @@ pub(crate) struct Outputs {
     pub(crate) live: Option<crate::export::foxglove::LiveView>,
     /// A folder for one drawing per frame.
     pub(crate) svg_dir: Option<PathBuf>,
+    /// The counters of what is written.
+    pub(crate) metrics: Arc<Metrics>,
 }
 
 /// Export: the curves and statistics of each frame as a record (an NDJSON line flushed
@@ -638,6 +659,7 @@ pub(crate) fn spawn_export(
         mut sink,
         live,
         svg_dir,
+        metrics,
     } = outputs;
     spawn("export", move || {
         let mut summary = RunSummary::default();
@@ -646,9 +668,13 @@ pub(crate) fn spawn_export(
         let mut first: Option<Instant> = None;
         let mut result = Ok(());
         let wants_frames = sink.wants_frames() || live.is_some();
+        let export_depth = metrics.queue_depth.with_label_values(&["export"]);
+        let export_seconds = metrics.stage_seconds.with_label_values(&["export"]);
         while let Ok(m) = rx.recv() {
             let s = stage_span!("export", m, rx.len());
             let _e = s.enter();
+            let t0 = Instant::now();
+            export_depth.set(rx.len() as i64 + 1);
             first = Some(first.map_or(m.arrived, |f| f.min(m.arrived)));
             let mut rec = ResultRecord {
                 stream: m.stream.clone(),
@@ -746,8 +772,12 @@ pub(crate) fn spawn_export(
                 break;
             }
             summary.records += 1;
+            count(&metrics, &view.record, m.arrived);
+            export_seconds.observe(t0.elapsed().as_secs_f64());
             if let Some(l) = &live {
-                l.show(view);
+                if !l.show(view) {
+                    metrics.live_dropped.inc();
+                }
             }
             if let (Some(dir), Some((points, r))) = (&svg_dir, drawing) {
                 let features: Vec<Point> = r.features.iter().map(|f| f.center).collect();
@@ -774,6 +804,35 @@ pub(crate) fn spawn_export(
         tally.summarize(&mut summary);
         Ok(summary)
     })
+}
+
+/// Counts a written record in the metrics.
+fn count(metrics: &Metrics, rec: &ResultRecord, arrived: Instant) {
+    let outcome = if rec.skipped == Some(true) {
+        "skipped"
+    } else if rec.error.is_some() {
+        "error"
+    } else {
+        "reconstructed"
+    };
+    metrics.records.with_label_values(&[outcome]).inc();
+    if let Some(st) = &rec.stats {
+        metrics
+            .latency_seconds
+            .observe(arrived.elapsed().as_secs_f64());
+        if st.warm_start {
+            metrics.warm.inc();
+        }
+        if st.cold_fallback {
+            metrics.cold_fallbacks.inc();
+        }
+        if rec.polylines.as_ref().is_some_and(Vec::is_empty) {
+            metrics.empty.inc();
+        }
+    }
+    if rec.warnings.is_some() {
+        metrics.warnings.inc();
+    }
 }
 
 /// Run statistics in constant memory: histograms with three significant digits, so a
@@ -938,6 +997,7 @@ mod tests {
             in_rx,
             out_tx,
             Policy::Block,
+            &Metrics::new(4),
             |_, _| tracing::Span::none(),
             |m| assert!(m.frame != Some(1), "frame one is cursed"),
         );
