@@ -248,7 +248,7 @@ fn run_stage(
     let depth = metrics.queue_depth.with_label_values(&[name]);
     let seconds = metrics.stage_seconds.with_label_values(&[name]);
     while let Ok(first) = rx.recv() {
-        depth.set(rx.len() as i64 + 1);
+        depth.set(rx.len() as i64);
         for mut m in take_batch(first, &rx, policy) {
             if m.live() {
                 let s = span(&m, rx.len());
@@ -291,7 +291,7 @@ pub(crate) fn spawn_ingest(
         let depth = metrics.queue_depth.with_label_values(&["ingest"]);
         let handle = |line: Line| -> bool {
             metrics.frames_in.inc();
-            depth.set(rx.len() as i64 + 1);
+            depth.set(rx.len() as i64);
             // The span covers the parsing, not the wait for room downstream.
             let m = tracing::info_span!(
                 "ingest",
@@ -674,7 +674,7 @@ pub(crate) fn spawn_export(
             let s = stage_span!("export", m, rx.len());
             let _e = s.enter();
             let t0 = Instant::now();
-            export_depth.set(rx.len() as i64 + 1);
+            export_depth.set(rx.len() as i64);
             first = Some(first.map_or(m.arrived, |f| f.min(m.arrived)));
             let mut rec = ResultRecord {
                 stream: m.stream.clone(),
