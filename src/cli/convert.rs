@@ -19,15 +19,8 @@ pub struct Args {
     /// NDJSON frames (.ndjson/.jsonl) or a ROS 2 bag (.mcap: LaserScan and Odometry).
     #[arg(short, long)]
     output: PathBuf,
-    /// Bag input: read this LaserScan topic (repeat for several; default: all).
-    #[arg(long = "topic")]
-    topics: Vec<String>,
-    /// Bag input: the nav_msgs/Odometry topic that gives the scans' poses.
-    #[arg(long)]
-    odometry: Option<String>,
-    /// Bag input: the frame the poses are in, through /tf (default: the odometry's).
-    #[arg(long)]
-    world_frame: Option<String>,
+    #[command(flatten)]
+    bag: super::BagArgs,
     /// Bag output: the LaserScan topic.
     #[arg(long, default_value = "/scan")]
     scan_topic: String,
@@ -58,14 +51,7 @@ pub fn run(a: Args) -> Result<()> {
             output.display()
         );
     }
-    let opts = BagOptions {
-        topics: a.topics,
-        odometry: a.odometry,
-        world_frame: a.world_frame,
-    };
-    if opts != BagOptions::default() && !isoline::ingest::is_bag(input) {
-        bail!("--topic, --odometry and --world-frame apply to a bag input (.mcap)");
-    }
+    let opts = a.bag.options(input)?;
     let mut part = output.as_os_str().to_owned();
     part.push(".part");
     let part = PathBuf::from(part);

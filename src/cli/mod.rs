@@ -86,6 +86,35 @@ pub fn write(path: &Path, text: impl AsRef<[u8]>) -> Result<()> {
     std::fs::write(path, text).with_context(|| format!("writing {}", path.display()))
 }
 
+/// What to read from a ROS 2 bag, on the command lines that read one.
+#[derive(clap::Args)]
+pub struct BagArgs {
+    /// Bag input: read this LaserScan topic (repeat for several; default: all).
+    #[arg(long = "topic")]
+    topics: Vec<String>,
+    /// Bag input: the nav_msgs/Odometry topic that gives the scans' poses.
+    #[arg(long)]
+    odometry: Option<String>,
+    /// Bag input: the frame the poses are in, through /tf (default: the odometry's).
+    #[arg(long)]
+    world_frame: Option<String>,
+}
+
+impl BagArgs {
+    /// The options, refused unless `input` is a bag when any is given.
+    pub fn options(self, input: &Path) -> Result<isoline::ingest::bag::BagOptions> {
+        let opts = isoline::ingest::bag::BagOptions {
+            topics: self.topics,
+            odometry: self.odometry,
+            world_frame: self.world_frame,
+        };
+        if opts != Default::default() && !isoline::ingest::is_bag(input) {
+            anyhow::bail!("--topic, --odometry and --world-frame apply to a bag input (.mcap)");
+        }
+        Ok(opts)
+    }
+}
+
 /// The configuration file, or the defaults.
 pub fn load_config(path: Option<&Path>) -> Result<isoline::config::Config> {
     Ok(match path {

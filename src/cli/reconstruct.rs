@@ -37,15 +37,8 @@ pub struct Args {
     /// Draw the mesh in SVG output.
     #[arg(long)]
     mesh: bool,
-    /// MCAP input: read this LaserScan topic (repeat for several; default: all).
-    #[arg(long = "topic")]
-    topics: Vec<String>,
-    /// MCAP input: the nav_msgs/Odometry topic that gives the scans' poses.
-    #[arg(long)]
-    odometry: Option<String>,
-    /// MCAP input: the frame the poses are in, through /tf (default: the odometry's).
-    #[arg(long)]
-    world_frame: Option<String>,
+    #[command(flatten)]
+    bag: super::BagArgs,
 }
 
 /// Reconstructs every frame (or `--frame`) and writes one record per frame in the
@@ -83,14 +76,7 @@ pub fn run(a: Args) -> Result<()> {
         })?,
     };
     super::refuse_overwrite(input, &[output, stats])?;
-    let bag = isoline::ingest::bag::BagOptions {
-        topics: a.topics,
-        odometry: a.odometry,
-        world_frame: a.world_frame,
-    };
-    if bag != Default::default() && !isoline::ingest::is_bag(input) {
-        bail!("--topic, --odometry and --world-frame apply to an MCAP input (.mcap)");
-    }
+    let bag = a.bag.options(input)?;
     let all = isoline::ingest::read_items(input, &bag)?;
     let frames: Vec<Item> = match frame {
         Some(f) => all

@@ -7,8 +7,6 @@
 use std::collections::BTreeMap;
 use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicU64, Ordering};
-use std::sync::Arc;
 use std::thread::JoinHandle;
 
 use crossbeam_channel::{Receiver, Sender};
@@ -197,7 +195,7 @@ pub fn frame_messages(view: &FrameView) -> Vec<(Topic, Vec<u8>)> {
         ),
     ];
     if let Some(p) = view.pose {
-        let (s, c) = (0.5 * p[2]).sin_cos();
+        let q = crate::ingest::ros::Quaternion::of_yaw(p[2]);
         let tf = FrameTransforms {
             transforms: vec![FrameTransform {
                 timestamp: stamp,
@@ -209,10 +207,10 @@ pub fn frame_messages(view: &FrameView) -> Vec<(Topic, Vec<u8>)> {
                     z: 0.0,
                 }),
                 rotation: Some(Quaternion {
-                    x: 0.0,
-                    y: 0.0,
-                    z: s,
-                    w: c,
+                    x: q.x,
+                    y: q.y,
+                    z: q.z,
+                    w: q.w,
                 }),
             }],
         };
@@ -333,7 +331,6 @@ pub const LIVE_BACKLOG: usize = 256;
 pub struct LiveView {
     tx: Option<Sender<FrameView>>,
     thread: Option<JoinHandle<()>>,
-    dropped: Arc<AtomicU64>,
     addr: SocketAddr,
 }
 
@@ -390,7 +387,6 @@ impl LiveView {
         Ok(LiveView {
             tx: Some(tx),
             thread: Some(thread),
-            dropped: Arc::default(),
             addr,
         })
     }
@@ -403,16 +399,7 @@ impl LiveView {
     /// Hands a frame to the viewers, or drops it if the view is behind; whether it was
     /// handed over.
     pub fn show(&self, view: FrameView) -> bool {
-        let shown = self.tx.as_ref().is_some_and(|tx| tx.try_send(view).is_ok());
-        if !shown {
-            self.dropped.fetch_add(1, Ordering::Relaxed);
-        }
-        shown
-    }
-
-    /// Frames not shown because the view was behind.
-    pub fn dropped(&self) -> u64 {
-        self.dropped.load(Ordering::Relaxed)
+        self.tx.as_ref().is_some_and(|tx| tx.try_send(view).is_ok())
     }
 }
 

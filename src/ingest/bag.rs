@@ -221,12 +221,8 @@ impl Transforms {
 
 /// The pose `inner` (in `outer`'s frame) in the frame `outer` is in.
 fn compose(outer: Pose, inner: Pose) -> Pose {
-    let (s, c) = outer[2].sin_cos();
-    [
-        outer[0] + c * inner[0] - s * inner[1],
-        outer[1] + s * inner[0] + c * inner[1],
-        outer[2] + inner[2],
-    ]
+    let [x, y] = crate::geom::to_world(outer, [inner[0], inner[1]]);
+    [x, y, outer[2] + inner[2]]
 }
 
 fn time_of(stamp: ros::Time, log_time: u64) -> f64 {

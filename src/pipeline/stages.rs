@@ -776,6 +776,7 @@ pub(crate) fn spawn_export(
             export_seconds.observe(t0.elapsed().as_secs_f64());
             if let Some(l) = &live {
                 if !l.show(view) {
+                    summary.live_dropped += 1;
                     metrics.live_dropped.inc();
                 }
             }
@@ -794,9 +795,6 @@ pub(crate) fn spawn_export(
         // Whatever is still queued behind a failed sink is dropped with the pipeline.
         result?;
         sink.finish()?;
-        if let Some(l) = live {
-            summary.live_dropped = l.dropped();
-        }
         summary.seconds = first.map_or(0.0, |f| f.elapsed().as_secs_f64());
         if summary.seconds > 0.0 {
             summary.frames_per_second = summary.records as f64 / summary.seconds;
