@@ -91,6 +91,10 @@ pub enum Error {
         /// What is wrong.
         message: String,
     },
+    /// A Kafka client failed: it could not be created, or a message could not be
+    /// delivered.
+    #[error("Kafka: {0}")]
+    Kafka(String),
     /// An internal invariant failed: a bug in isoline, not in the input.
     #[error("internal error: {0}")]
     Internal(String),

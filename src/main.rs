@@ -28,7 +28,10 @@ enum Command {
     Convert(cli::convert::Args),
     /// Reconstruct many files in parallel, as a TOML job file says.
     Batch(cli::batch::Args),
-    /// The streaming daemon: frames from a file, stdin or TCP through the staged
+    /// Publish a recording's frames to a Kafka topic, keyed by stream, at the recorded
+    /// pace.
+    Publish(cli::publish::Args),
+    /// The streaming daemon: frames from a file, stdin, TCP or Kafka through the staged
     /// pipeline, each warm-started from the previous frame of its stream.
     Run(cli::run::Args),
     /// Adapt an anisotropic mesh to a point set and draw it.
@@ -47,6 +50,7 @@ fn main() {
             Command::Batch(a) => cli::batch::run(a),
             Command::Convert(a) => cli::convert::run(a),
             Command::Mesh(a) => cli::mesh::run(a),
+            Command::Publish(a) => cli::publish::run(a),
             Command::Run(_) => unreachable!("matched above"),
         }),
     };

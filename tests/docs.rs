@@ -5,7 +5,8 @@
 //! temporary folder per page (with `fixtures/` and `scripts/` linked in, `config/` copied):
 //! `isoline ...` and `cargo run --release -- ...` run the binary under test; scripts run
 //! with `QUICK=1` (a small version of their run) and that binary. `cargo test`, `cargo
-//! bench`, `cargo build` and `.ci/run` are the suite and its build, not run here. Any
+//! bench`, `cargo build`, `scripts/test.sh` and `.ci/run` are the suite and its build,
+//! not run here. Any
 //! other command fails the test, so a page cannot show one that nothing checks. `toml`
 //! blocks are parsed as the configuration they are (daemon, batch job, or the shared
 //! tables), `json` blocks as the frame, result or truth they show.
@@ -120,7 +121,9 @@ fn run(dir: &Path, page: &Path, command: &str) {
     }
     let what = format!("{}: `{command}`", page.display());
     let mut cmd = match w.iter().map(String::as_str).collect::<Vec<_>>().as_slice() {
-        ["cargo", "test" | "bench" | "build" | "clippy" | "fmt", ..] | [".ci/run"] => return,
+        ["cargo", "test" | "bench" | "build" | "clippy" | "fmt", ..]
+        | [".ci/run"]
+        | ["scripts/test.sh"] => return,
         ["cargo", "run", "--release", "--", rest @ ..] | ["isoline", rest @ ..] => {
             let mut c = Command::new(bin);
             c.args(rest);

@@ -140,6 +140,21 @@ fn convert(input: &Path, part: &Path, opts: &BagOptions, out: &mut Out) -> Resul
             }
         }
     };
+    read_frames(input, opts, &mut each)?;
+    if let Some(e) = write_error {
+        return Err(e);
+    }
+    Ok((written, failed))
+}
+
+/// Reads every frame of `input` (a bag, a CARMEN log or NDJSON frames) in order into
+/// `each`, until it returns false. Each frame is checked as the pipeline would read it;
+/// one that fails is a [`BadFrame`] in its place.
+pub fn read_frames(
+    input: &Path,
+    opts: &BagOptions,
+    each: &mut dyn FnMut(std::result::Result<FrameRecord, BadFrame>) -> bool,
+) -> Result<()> {
     // Each frame is checked as the pipeline would read it; the record is what is kept.
     let check = |rec: FrameRecord| {
         isoline::ingest::Frame::from_record(rec.clone())
@@ -147,9 +162,9 @@ fn convert(input: &Path, part: &Path, opts: &BagOptions, out: &mut Out) -> Resul
             .map_err(|e| e.to_string())
     };
     if isoline::ingest::is_bag(input) {
-        bag::read_bag_with(input, opts, check, &mut each)?;
+        bag::read_bag_with(input, opts, check, &mut *each)?;
     } else if carmen::is_carmen(input) {
-        carmen::read_carmen_with(input, check, &mut each)?;
+        carmen::read_carmen_with(input, check, &mut *each)?;
     } else if isoline::ingest::is_frame_stream(input) {
         let text = super::read(input)?;
         let name = input.display().to_string();
@@ -175,8 +190,5 @@ fn convert(input: &Path, part: &Path, opts: &BagOptions, out: &mut Out) -> Resul
             input.display()
         );
     }
-    if let Some(e) = write_error {
-        return Err(e);
-    }
-    Ok((written, failed))
+    Ok(())
 }

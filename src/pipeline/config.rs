@@ -9,6 +9,7 @@ use std::time::Duration;
 
 use serde::Deserialize;
 
+use super::kafka::{KafkaInput, KafkaTopic};
 use super::source::Limits;
 use crate::accumulate::WindowLimits;
 use crate::config::{value_problem, Config};
@@ -32,6 +33,8 @@ pub enum Source {
         /// The address to listen on.
         bind: SocketAddr,
     },
+    /// A Kafka topic, one NDJSON frame a message, read as a member of a consumer group.
+    Kafka(KafkaInput),
 }
 
 /// The pace of a file replay.
@@ -62,8 +65,10 @@ pub enum Policy {
 pub struct DaemonConfig {
     /// The source of frames.
     pub source: Source,
-    /// NDJSON results: a file, or standard output when `None`.
+    /// NDJSON results: a file, or standard output when `None` (and not Kafka).
     pub output: Option<PathBuf>,
+    /// Results to a Kafka topic, keyed by stream, instead.
+    pub output_kafka: Option<KafkaTopic>,
     /// A folder for one SVG drawing per frame.
     pub svg_dir: Option<PathBuf>,
     /// Capacity of every queue between stages.
@@ -120,6 +125,14 @@ struct InputTable {
     odometry: Option<String>,
     /// MCAP input: the frame the poses are in, through `/tf`.
     world_frame: Option<String>,
+    /// Kafka: `host:port[,host:port]`.
+    brokers: Option<String>,
+    /// Kafka: the topic.
+    topic: Option<String>,
+    /// Kafka: the consumer group. Default `"isoline"`.
+    group: Option<String>,
+    /// Kafka: librdkafka properties, passed through.
+    kafka: Option<toml::Table>,
 }
 
 #[derive(Debug, Default, Deserialize)]
@@ -143,9 +156,17 @@ struct LiveTable {
 #[derive(Debug, Default, Deserialize)]
 #[serde(deny_unknown_fields)]
 struct OutputTable {
+    /// `"file"` (the default) or `"kafka"`.
+    kind: Option<String>,
     /// NDJSON results; `"-"` or unset: standard output.
     path: Option<PathBuf>,
     svg_dir: Option<PathBuf>,
+    /// Kafka: `host:port[,host:port]`.
+    brokers: Option<String>,
+    /// Kafka: the topic.
+    topic: Option<String>,
+    /// Kafka: librdkafka properties, passed through.
+    kafka: Option<toml::Table>,
 }
 
 #[derive(Debug, Default, Deserialize)]
@@ -167,6 +188,48 @@ struct PipelineTable {
 struct TracingTable {
     level: Option<String>,
     chrome_trace: Option<PathBuf>,
+}
+
+/// A Kafka table's topic: `brokers` and `topic` required, the passed-through
+/// properties as text (a TOML number or boolean as librdkafka spells it).
+fn kafka_topic(
+    table: &str,
+    brokers: Option<String>,
+    topic: Option<String>,
+    settings: Option<toml::Table>,
+    problems: &mut Vec<String>,
+) -> Option<KafkaTopic> {
+    let mut need = |key: &str, v: Option<String>| match v.filter(|s| !s.trim().is_empty()) {
+        Some(v) => Some(v),
+        None => {
+            problems.push(format!(
+                "{table}.{key}: required when {table}.kind = \"kafka\""
+            ));
+            None
+        }
+    };
+    let (brokers, topic) = (need("brokers", brokers), need("topic", topic));
+    let mut kafka = std::collections::BTreeMap::new();
+    for (k, v) in settings.unwrap_or_default() {
+        let text = match v {
+            toml::Value::String(s) => s,
+            toml::Value::Integer(i) => i.to_string(),
+            toml::Value::Float(f) => f.to_string(),
+            toml::Value::Boolean(b) => b.to_string(),
+            other => {
+                problems.push(format!(
+                    "{table}.kafka.{k} = {other}: expected a string, number or boolean"
+                ));
+                continue;
+            }
+        };
+        kafka.insert(k, text);
+    }
+    Some(KafkaTopic {
+        brokers: brokers?,
+        topic: topic?,
+        settings: kafka,
+    })
 }
 
 /// The default TCP address: loopback only, so a daemon is not reachable from the network
@@ -356,9 +419,62 @@ impl DaemonConfig {
                     }
                 }
             }
+            "kafka" => kafka_topic(
+                "input",
+                input.brokers.clone(),
+                input.topic.clone(),
+                input.kafka.clone(),
+                &mut problems,
+            )
+            .map(|topic| {
+                Source::Kafka(KafkaInput {
+                    topic,
+                    group: input.group.clone().unwrap_or_else(|| "isoline".into()),
+                })
+            }),
             other => {
                 problems.push(format!(
-                    "input.kind = {other:?}: expected \"file\", \"stdin\" or \"tcp\""
+                    "input.kind = {other:?}: expected \"file\", \"stdin\", \"tcp\" or \"kafka\""
+                ));
+                None
+            }
+        };
+        if kind != "kafka"
+            && (input.brokers.is_some()
+                || input.topic.is_some()
+                || input.group.is_some()
+                || input.kafka.is_some())
+        {
+            problems.push(format!(
+                "input.brokers, input.topic, input.group and input.kafka apply to kind = \"kafka\", \
+                 not {kind:?}"
+            ));
+        }
+        let output_kafka = match output.kind.as_deref() {
+            None | Some("file") => {
+                if output.brokers.is_some() || output.topic.is_some() || output.kafka.is_some() {
+                    problems.push(
+                        "output.brokers, output.topic and output.kafka apply to kind = \"kafka\""
+                            .into(),
+                    );
+                }
+                None
+            }
+            Some("kafka") => {
+                if output.path.is_some() {
+                    problems.push("output.path applies to kind = \"file\", not \"kafka\"".into());
+                }
+                kafka_topic(
+                    "output",
+                    output.brokers.clone(),
+                    output.topic.clone(),
+                    output.kafka.clone(),
+                    &mut problems,
+                )
+            }
+            Some(other) => {
+                problems.push(format!(
+                    "output.kind = {other:?}: expected \"file\" or \"kafka\""
                 ));
                 None
             }
@@ -497,6 +613,7 @@ impl DaemonConfig {
                     .path
                     .filter(|p| p.as_os_str() != "-")
                     .map(|p| resolve(&p)),
+                output_kafka,
                 svg_dir: output.svg_dir.map(|p| resolve(&p)),
                 queue,
                 policy,
@@ -609,6 +726,54 @@ mod tests {
             e.contains("pipeline.queue = 0") && e.contains("pipeline.policy"),
             "{e}"
         );
+    }
+
+    #[test]
+    fn kafka_input_and_output_pass_their_client_settings_through() {
+        let c = DaemonConfig::parse(
+            "[input]\nkind = \"kafka\"\nbrokers = \"k1:9092,k2:9092\"\ntopic = \"scans\"\n\
+             [input.kafka]\n\"session.timeout.ms\" = 2000\n\"enable.partition.eof\" = false\n\
+             [output]\nkind = \"kafka\"\nbrokers = \"k1:9092\"\ntopic = \"curves\"\n\
+             [output.kafka]\n\"linger.ms\" = \"0\"\n",
+            "d.toml",
+            Path::new("."),
+        )
+        .unwrap();
+        let Source::Kafka(input) = &c.source else {
+            panic!("{:?}", c.source)
+        };
+        assert_eq!(input.group, "isoline");
+        assert_eq!(input.topic.brokers, "k1:9092,k2:9092");
+        assert_eq!(input.topic.settings["session.timeout.ms"], "2000");
+        assert_eq!(input.topic.settings["enable.partition.eof"], "false");
+        let out = c.output_kafka.as_ref().unwrap();
+        assert_eq!(
+            (out.topic.as_str(), out.settings["linger.ms"].as_str()),
+            ("curves", "0")
+        );
+        assert_eq!(c.output, None);
+
+        let e = DaemonConfig::parse(
+            "[input]\nkind = \"kafka\"\ngroup = \"g\"\n[input.kafka]\nx = [1]\n\
+             [output]\nkind = \"kafka\"\npath = \"o.ndjson\"\ntopic = \"t\"\n",
+            "d.toml",
+            Path::new("."),
+        )
+        .unwrap_err()
+        .to_string();
+        for needle in [
+            "input.brokers: required",
+            "input.topic: required",
+            "input.kafka.x = [1]",
+            "output.brokers: required",
+            "output.path applies to kind = \"file\"",
+        ] {
+            assert!(e.contains(needle), "{needle} not in {e}");
+        }
+        let e = DaemonConfig::parse("[input]\ntopic = \"t\"\n", "d.toml", Path::new("."))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("apply to kind = \"kafka\""), "{e}");
     }
 
     #[test]

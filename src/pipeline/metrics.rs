@@ -54,6 +54,8 @@ pub struct Metrics {
     pub(crate) latency_seconds: Histogram,
     /// Frames waiting in each queue, by the stage that reads it (as last seen by it).
     pub(crate) queue_depth: IntGaugeVec,
+    /// Kafka input: messages behind the committed offset, by assigned partition.
+    pub(crate) consumer_lag: IntGaugeVec,
     /// Each queue's capacity.
     capacity: usize,
 }
@@ -112,8 +114,17 @@ impl Metrics {
             &["stage"],
         )
         .expect("a valid metric");
+        let consumer_lag = IntGaugeVec::new(
+            Opts::new(
+                "isoline_kafka_consumer_lag",
+                "Kafka input: messages after the committed offset, by assigned partition.",
+            ),
+            &["partition"],
+        )
+        .expect("a valid metric");
         for m in [
             Box::new(records.clone()) as Box<dyn prometheus::core::Collector>,
+            Box::new(consumer_lag.clone()),
             Box::new(stage_seconds.clone()),
             Box::new(latency_seconds.clone()),
             Box::new(queue_depth.clone()),
@@ -138,6 +149,7 @@ impl Metrics {
             stage_seconds,
             latency_seconds,
             queue_depth,
+            consumer_lag,
             capacity: capacity.max(1),
         }
     }

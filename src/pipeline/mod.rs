@@ -17,6 +17,7 @@
 //! waits for it before solving the stream's next frame.
 
 pub mod config;
+pub mod kafka;
 pub mod metrics;
 mod sink;
 pub mod source;
@@ -114,6 +115,8 @@ impl std::fmt::Display for RunSummary {
 pub struct Daemon {
     source: std::thread::JoinHandle<Result<()>>,
     stdin: bool,
+    /// Set once the export stage has ended: a Kafka source then makes its last commit.
+    drained: Arc<AtomicBool>,
     threads: Vec<(&'static str, std::thread::JoinHandle<()>)>,
     export: std::thread::JoinHandle<Result<RunSummary>>,
     /// The TCP address listened on, when the source is TCP.
@@ -133,7 +136,7 @@ impl Daemon {
     /// ingest stops, frames in flight finish and the sinks flush.
     pub fn start(cfg: &DaemonConfig, stop: Arc<AtomicBool>) -> Result<Daemon> {
         cfg.check_paths()?;
-        let sink = sink::Sink::open(cfg.output.as_deref())?;
+        let sink = sink::Sink::open(cfg.output.as_deref(), cfg.output_kafka.as_ref())?;
         if let Some(dir) = &cfg.svg_dir {
             std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
         }
@@ -144,6 +147,8 @@ impl Daemon {
         let (line_tx, line_rx) = bounded(q);
         let mut threads = Vec::new();
         let mut tcp_addr = None;
+        let mut leases = None;
+        let drained = Arc::new(AtomicBool::new(false));
         let limits = cfg.limits;
         let source = match &cfg.source {
             Source::File { path, replay } if crate::ingest::is_recording(path) => {
@@ -158,8 +163,25 @@ impl Daemon {
                 tcp_addr = Some(addr);
                 h
             }
+            Source::Kafka(input) => {
+                let (h, l) = kafka::spawn_kafka(
+                    input,
+                    limits,
+                    line_tx,
+                    stop.clone(),
+                    drained.clone(),
+                    metrics.clone(),
+                    cfg.poll,
+                )?;
+                leases = Some(l);
+                h
+            }
         };
-        let streams = (cfg.max_streams, cfg.stream_idle);
+        let streams = stages::StreamBounds {
+            max: cfg.max_streams,
+            idle: cfg.stream_idle,
+            leases,
+        };
         let (to_distance, distance_rx) = bounded(q);
         let (to_adapt, adapt_rx) = bounded(q);
         let (to_solve, solve_rx) = bounded(q);
@@ -195,7 +217,14 @@ impl Daemon {
         ));
         threads.push((
             "adapt",
-            stages::spawn_adapt(adapt_rx, to_solve, policy, warm, streams, metrics.clone())?,
+            stages::spawn_adapt(
+                adapt_rx,
+                to_solve,
+                policy,
+                warm,
+                streams.clone(),
+                metrics.clone(),
+            )?,
         ));
         threads.push((
             "solve",
@@ -205,7 +234,7 @@ impl Daemon {
                 feedback_rx,
                 policy,
                 warm,
-                streams,
+                streams.clone(),
                 metrics.clone(),
             )?,
         ));
@@ -243,6 +272,7 @@ impl Daemon {
         Ok(Daemon {
             source,
             stdin: cfg.source == Source::Stdin,
+            drained,
             threads,
             export,
             tcp_addr,
@@ -262,6 +292,7 @@ impl Daemon {
             .join()
             .map_err(|_| Error::Internal("the export stage panicked".into()))
             .and_then(|s| s);
+        self.drained.store(true, Ordering::Relaxed);
         let mut failure = None;
         for (name, t) in self.threads {
             if t.join().is_err() {

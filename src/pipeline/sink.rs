@@ -2,12 +2,17 @@
 //! with one call; if that fails (a full disk), the file is cut back to its last whole
 //! record, so that a reader never meets half a line. MCAP (an output path ending in
 //! `.mcap`): the records with curves, points and poses for Foxglove
-//! ([`crate::export::foxglove`]), complete once the run ends.
+//! ([`crate::export::foxglove`]), complete once the run ends. Kafka: each record as a
+//! message keyed by its stream, in order per stream ([`super::kafka`]).
+//!
+//! A Kafka frame's offset may be committed once its record is written: at once for a
+//! file, on the broker's acknowledgement for Kafka.
 
 use std::fs::File;
 use std::io::{Seek, SeekFrom, Write};
 use std::path::{Path, PathBuf};
 
+use super::kafka::{KafkaTopic, KafkaWriter, Receipt};
 use crate::error::{Error, Result};
 use crate::export::foxglove::{FrameView, McapOut};
 use crate::format::ResultRecord;
@@ -37,11 +42,17 @@ pub(crate) enum Sink {
     Stdout(std::io::Stdout),
     /// An MCAP file for Foxglove.
     Mcap(Box<McapOut>),
+    /// A Kafka topic.
+    Kafka(Box<KafkaWriter>),
 }
 
 impl Sink {
-    /// Opens the output: `path`, its folder created, or standard output.
-    pub(crate) fn open(path: Option<&Path>) -> Result<Sink> {
+    /// Opens the output: a Kafka topic, or `path`, its folder created, or standard
+    /// output.
+    pub(crate) fn open(path: Option<&Path>, kafka: Option<&KafkaTopic>) -> Result<Sink> {
+        if let Some(topic) = kafka {
+            return Ok(Sink::Kafka(Box::new(KafkaWriter::open(topic)?)));
+        }
         let Some(p) = path else {
             return Ok(Sink::Stdout(std::io::stdout()));
         };
@@ -64,18 +75,30 @@ impl Sink {
         matches!(self, Sink::Mcap(_))
     }
 
-    /// Writes one frame: its record (NDJSON), or its record, curves and points (MCAP).
-    pub(crate) fn write_frame(&mut self, view: &FrameView) -> Result<()> {
+    /// Writes one frame: its record (NDJSON, Kafka), or its record, curves and points
+    /// (MCAP); `receipt` is handed in once the record is written.
+    pub(crate) fn write_frame(&mut self, view: &FrameView, receipt: Option<Receipt>) -> Result<()> {
         match self {
-            Sink::Mcap(m) => m.write(view),
-            _ => self.write_record(&view.record),
+            Sink::Kafka(k) => {
+                let payload =
+                    serde_json::to_vec(&view.record).map_err(|e| Error::Internal(e.to_string()))?;
+                let key = view.record.stream.as_deref().unwrap_or("");
+                return k.send(key, &payload, receipt);
+            }
+            Sink::Mcap(m) => m.write(view)?,
+            _ => self.write_record(&view.record)?,
         }
+        if let Some(r) = receipt {
+            r.done();
+        }
+        Ok(())
     }
 
-    /// Completes the output (an MCAP file's summary).
+    /// Completes the output: an MCAP file's summary, Kafka's last acknowledgements.
     pub(crate) fn finish(self) -> Result<()> {
         match self {
             Sink::Mcap(m) => m.finish(),
+            Sink::Kafka(k) => k.finish(),
             _ => Ok(()),
         }
     }
@@ -85,10 +108,13 @@ impl Sink {
         let mut line = serde_json::to_vec(rec).map_err(|e| Error::Internal(e.to_string()))?;
         line.push(b'\n');
         match self {
-            Sink::Mcap(m) => m.write(&FrameView {
-                record: rec.clone(),
-                ..Default::default()
-            }),
+            Sink::Kafka(_) | Sink::Mcap(_) => self.write_frame(
+                &FrameView {
+                    record: rec.clone(),
+                    ..Default::default()
+                },
+                None,
+            ),
             Sink::Stdout(out) => {
                 let mut out = out.lock();
                 out.write_all(&line)
@@ -186,7 +212,7 @@ mod tests {
     #[cfg(target_os = "linux")]
     #[test]
     fn dev_full_is_an_error_not_a_silent_loss() {
-        let mut sink = Sink::open(Some(Path::new("/dev/full"))).unwrap();
+        let mut sink = Sink::open(Some(Path::new("/dev/full")), None).unwrap();
         let e = sink.write_record(&ResultRecord::default()).unwrap_err();
         assert!(e.to_string().contains("/dev/full"), "{e}");
     }

@@ -37,6 +37,8 @@ pub struct Line {
     pub decoded: Option<Box<crate::ingest::Item>>,
     /// When it was read.
     pub arrived: Instant,
+    /// A Kafka message's claim on its offset, handed in when its record is written.
+    pub receipt: Option<super::kafka::Receipt>,
 }
 
 /// The bounds every source keeps.
@@ -176,6 +178,7 @@ fn pump(
             text,
             decoded: None,
             arrived: Instant::now(),
+            receipt: None,
         });
         if sent.is_err() {
             break;
@@ -185,7 +188,7 @@ fn pump(
 }
 
 /// Sleeps until `deadline`, waking every 20 ms to look at `stop`.
-fn sleep_until(deadline: Instant, stop: &AtomicBool) {
+pub fn sleep_until(deadline: Instant, stop: &AtomicBool) {
     loop {
         let now = Instant::now();
         if now >= deadline || stop.load(Ordering::Relaxed) {
@@ -202,14 +205,15 @@ pub const MAX_REPLAY_GAP: Duration = Duration::from_secs(10);
 /// When each frame of a replay is due. Deadlines accumulate from the previous one, so
 /// neither a huge nor a backwards time stamp can overflow or stall the replay.
 #[derive(Debug)]
-struct Pacer {
+pub struct Pacer {
     replay: Replay,
     due: Option<Instant>,
     last_t: Option<f64>,
 }
 
 impl Pacer {
-    fn new(replay: Replay) -> Self {
+    /// A replay at `replay`'s pace, starting with the first frame.
+    pub fn new(replay: Replay) -> Self {
         Pacer {
             replay,
             due: None,
@@ -218,7 +222,7 @@ impl Pacer {
     }
 
     /// The deadline of the frame with time stamp `t`, read at `now`; `None`: at once.
-    fn deadline(&mut self, t: Option<f64>, now: Instant) -> Option<Instant> {
+    pub fn deadline(&mut self, t: Option<f64>, now: Instant) -> Option<Instant> {
         let step = match self.replay {
             Replay::Fast => return None,
             Replay::Rate(fps) => Duration::try_from_secs_f64(1.0 / fps).unwrap_or(MAX_REPLAY_GAP),
@@ -327,6 +331,7 @@ pub fn spawn_recording(
                 text: Ok(String::new()),
                 decoded: Some(Box::new(item)),
                 arrived: Instant::now(),
+                receipt: None,
             })
             .is_ok()
         };

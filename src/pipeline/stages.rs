@@ -2,6 +2,7 @@
 //! [`mod@crate::reconstruct`] under a span named after the stage (with the stream, frame and
 //! queue depth), and sends the frame on.
 
+use std::collections::hash_map::Entry;
 use std::collections::HashMap;
 use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::path::PathBuf;
@@ -14,6 +15,7 @@ use crossbeam_channel::{Receiver, RecvTimeoutError, Sender};
 use hdrhistogram::Histogram;
 
 use super::config::Policy;
+use super::kafka::{Leases, Receipt};
 use super::metrics::Metrics;
 use super::sink::Sink;
 use super::source::Line;
@@ -41,6 +43,8 @@ pub(crate) struct Msg {
     /// The frame's time stamp, when it has one.
     t: Option<f64>,
     arrived: Instant,
+    /// A Kafka frame's claim on its offset, handed in once its record is written.
+    receipt: Option<Receipt>,
     work: Work,
 }
 
@@ -56,25 +60,44 @@ impl Msg {
     fn number(&self) -> u64 {
         self.frame.unwrap_or(0)
     }
+    /// The lease of the Kafka partition the frame came from.
+    fn lease(&self) -> Option<u64> {
+        self.receipt.as_ref().map(Receipt::lease)
+    }
+}
+
+/// The bounds of the per-stream state every stage keeps.
+#[derive(Clone, Debug)]
+pub(crate) struct StreamBounds {
+    /// Streams kept at most.
+    pub(crate) max: usize,
+    /// A stream not seen for this long is forgotten.
+    pub(crate) idle: Duration,
+    /// Kafka input: the partitions held. The state of a stream whose partition has
+    /// been given up is forgotten.
+    pub(crate) leases: Option<Arc<Leases>>,
 }
 
 /// Per-stream state of a stage, bounded in number and age: a stream not seen for
 /// `idle` is forgotten, and so is the least recently seen one when a new stream would
-/// make more than `max`. A forgotten stream's next frame starts cold.
+/// make more than `max`. With Kafka input, each state is kept under the lease of its
+/// partition: it is forgotten once that partition is given up, and not used for a
+/// frame under another lease. A forgotten stream's next frame starts cold.
 pub(crate) struct Streams<V> {
-    map: HashMap<String, (Instant, V)>,
-    max: usize,
-    idle: Duration,
+    map: HashMap<String, (Instant, Option<u64>, V)>,
+    bounds: StreamBounds,
     /// Streams forgotten so far.
     pub(crate) forgotten: u64,
 }
 
 impl<V> Streams<V> {
-    pub(crate) fn new(max: usize, idle: Duration) -> Self {
+    pub(crate) fn new(bounds: &StreamBounds) -> Self {
         Streams {
             map: HashMap::new(),
-            max: max.max(1),
-            idle,
+            bounds: StreamBounds {
+                max: bounds.max.max(1),
+                ..bounds.clone()
+            },
             forgotten: 0,
         }
     }
@@ -85,35 +108,47 @@ impl<V> Streams<V> {
     }
 
     pub(crate) fn get(&self, key: &str) -> Option<&V> {
-        self.map.get(key).map(|(_, v)| v)
+        self.map.get(key).map(|(_, _, v)| v)
     }
 
     /// The state without marking the stream as seen.
     pub(crate) fn peek_mut(&mut self, key: &str) -> Option<&mut V> {
-        self.map.get_mut(key).map(|(_, v)| v)
+        self.map.get_mut(key).map(|(_, _, v)| v)
     }
 
-    /// The state of `key`, seen at `now`: created with `make` if absent. First forgets
-    /// idle streams and, if the table is full, the least recently seen one; only states
+    /// The state of `key` under `lease`, seen at `now`: created with `make` if absent
+    /// or kept under another lease. First forgets idle streams, those of partitions
+    /// given up and, if the table is full, the least recently seen one; only states
     /// that `may_forget` allows (the solve stage keeps streams with level sets in flight).
     pub(crate) fn seen(
         &mut self,
         key: &str,
+        lease: Option<u64>,
         now: Instant,
         may_forget: impl Fn(&V) -> bool,
         make: impl FnOnce() -> V,
     ) -> &mut V {
         let before = self.map.len();
-        let idle = self.idle;
-        self.map.retain(|k, (t, v)| {
-            k == key || now.saturating_duration_since(*t) <= idle || !may_forget(v)
+        let idle = self.bounds.idle;
+        let leases = self.bounds.leases.as_deref();
+        let held = |l: &Option<u64>| match (l, leases) {
+            (Some(l), Some(leases)) => leases.is_live(*l),
+            _ => true,
+        };
+        self.map.retain(|k, (t, l, v)| {
+            let fresh = if k == key {
+                *l == lease
+            } else {
+                now.saturating_duration_since(*t) <= idle && held(l)
+            };
+            fresh || !may_forget(v)
         });
-        if !self.map.contains_key(key) && self.map.len() >= self.max {
+        if !self.map.contains_key(key) && self.map.len() >= self.bounds.max {
             let oldest = self
                 .map
                 .iter()
-                .filter(|(_, (_, v))| may_forget(v))
-                .min_by_key(|(_, (t, _))| *t)
+                .filter(|(_, (_, _, v))| may_forget(v))
+                .min_by_key(|(_, (t, _, _))| *t)
                 .map(|(k, _)| k.clone());
             if let Some(k) = oldest {
                 self.map.remove(&k);
@@ -124,12 +159,17 @@ impl<V> Streams<V> {
             self.forgotten += gone as u64;
             tracing::info!(forgotten = gone, kept = self.map.len(), "streams forgotten");
         }
-        let entry = self
-            .map
-            .entry(key.to_string())
-            .or_insert_with(|| (now, make()));
+        let entry = match self.map.entry(key.to_string()) {
+            // Kept under another lease only because `may_forget` refused: start afresh.
+            Entry::Occupied(mut o) if o.get().1 != lease => {
+                o.insert((now, lease, make()));
+                o.into_mut()
+            }
+            Entry::Occupied(o) => o.into_mut(),
+            Entry::Vacant(v) => v.insert((now, lease, make())),
+        };
         entry.0 = now;
-        &mut entry.1
+        &mut entry.2
     }
 }
 
@@ -369,6 +409,7 @@ fn parse_line(mut line: Line) -> Msg {
         pose,
         t,
         arrived: line.arrived,
+        receipt: line.receipt,
         work,
     }
 }
@@ -445,12 +486,11 @@ pub(crate) fn spawn_adapt(
     tx: Sender<Msg>,
     policy: Policy,
     warm: bool,
-    streams: (usize, Duration),
+    streams: StreamBounds,
     metrics: Arc<Metrics>,
 ) -> Result<JoinHandle<()>> {
     spawn("adapt", move || {
-        let mut last: Streams<Option<(u64, Mesh, Option<Pose>)>> =
-            Streams::new(streams.0, streams.1);
+        let mut last: Streams<Option<(u64, Mesh, Option<Pose>)>> = Streams::new(&streams);
         run_stage(
             "adapt",
             rx,
@@ -464,7 +504,7 @@ pub(crate) fn spawn_adapt(
                 };
                 let frame = m.number();
                 let adapted = if warm {
-                    let slot = last.seen(m.key(), Instant::now(), |_| true, || None);
+                    let slot = last.seen(m.key(), m.lease(), Instant::now(), |_| true, || None);
                     let previous = slot.as_ref().filter(|(f, _, _)| *f < frame);
                     let motion = previous.and_then(|(_, _, pose)| pose.zip(m.pose));
                     let adapted =
@@ -502,11 +542,11 @@ pub(crate) fn spawn_solve(
     feedback: Receiver<Feedback>,
     policy: Policy,
     warm: bool,
-    streams: (usize, Duration),
+    streams: StreamBounds,
     metrics: Arc<Metrics>,
 ) -> Result<JoinHandle<()>> {
     spawn("solve", move || {
-        let mut state: Streams<SolveState> = Streams::new(streams.0, streams.1);
+        let mut state: Streams<SolveState> = Streams::new(&streams);
         // A stream with a level set in flight is never forgotten, so its feedback finds it.
         let apply = |state: &mut Streams<SolveState>, fb: Feedback| {
             if let Some(s) = state.peek_mut(&fb.key) {
@@ -542,6 +582,7 @@ pub(crate) fn spawn_solve(
                 let frame = m.number();
                 let s = state.seen(
                     m.key(),
+                    m.lease(),
                     Instant::now(),
                     |s| s.pending == 0,
                     SolveState::default,
@@ -653,7 +694,7 @@ pub(crate) fn spawn_export(
     stop: Arc<AtomicBool>,
     warm: bool,
     accumulate: Option<WindowLimits>,
-    streams: (usize, Duration),
+    streams: StreamBounds,
 ) -> Result<JoinHandle<Result<RunSummary>>> {
     let Outputs {
         mut sink,
@@ -664,7 +705,7 @@ pub(crate) fn spawn_export(
     spawn("export", move || {
         let mut summary = RunSummary::default();
         let mut tally = Tally::new();
-        let mut windows: Streams<Window> = Streams::new(streams.0, streams.1);
+        let mut windows: Streams<Window> = Streams::new(&streams);
         let mut first: Option<Instant> = None;
         let mut result = Ok(());
         let wants_frames = sink.wants_frames() || live.is_some();
@@ -687,6 +728,7 @@ pub(crate) fn spawn_export(
             let mut drawing = None;
             let mut shown = Vec::new();
             // A panic while extracting the curves (a bug) fails this frame only.
+            let lease = m.lease();
             let work = match m.work {
                 Work::Solved(b) => {
                     let (p, adapted, solved) = *b;
@@ -700,7 +742,7 @@ pub(crate) fn spawn_export(
                     catch_unwind(AssertUnwindSafe(|| match refine {
                         Some((limits, pose)) => {
                             let window =
-                                windows.seen(key, Instant::now(), |_| true, Window::default);
+                                windows.seen(key, lease, Instant::now(), |_| true, Window::default);
                             reconstruct::export_refined(
                                 &p, adapted, solved, frame, t, pose, window, limits,
                             )
@@ -766,7 +808,7 @@ pub(crate) fn spawn_export(
                 t: m.t,
                 pose: m.pose,
             };
-            if let Err(e) = sink.write_frame(&view) {
+            if let Err(e) = sink.write_frame(&view, m.receipt) {
                 result = Err(e);
                 stop.store(true, Ordering::Relaxed);
                 break;
@@ -887,6 +929,7 @@ mod tests {
             pose: None,
             t: None,
             arrived: Instant::now(),
+            receipt: None,
             work: if live {
                 Work::Input(Default::default())
             } else {
@@ -948,6 +991,7 @@ mod tests {
             text: Ok(text.into()),
             decoded: None,
             arrived: Instant::now(),
+            receipt: None,
         };
         let ok = parse_line(line(r#"{"stream":"s","frame":7,"points":[[0,0]]}"#, 1));
         assert!(matches!(ok.work, Work::Input(_)) && ok.frame == Some(7));
@@ -1051,21 +1095,50 @@ mod tests {
     #[test]
     fn stream_state_is_bounded_in_number_and_age() {
         let t0 = Instant::now();
-        let mut s: Streams<u32> = Streams::new(3, Duration::from_secs(10));
+        let bounds = StreamBounds {
+            max: 3,
+            idle: Duration::from_secs(10),
+            leases: None,
+        };
+        let mut s: Streams<u32> = Streams::new(&bounds);
         for (i, k) in ["a", "b", "c"].iter().enumerate() {
-            *s.seen(k, t0 + Duration::from_secs(i as u64), |_| true, || 0) += 1;
+            *s.seen(k, None, t0 + Duration::from_secs(i as u64), |_| true, || 0) += 1;
         }
         // A fourth stream forgets the least recently seen, "a".
-        s.seen("d", t0 + Duration::from_secs(3), |_| true, || 0);
+        s.seen("d", None, t0 + Duration::from_secs(3), |_| true, || 0);
         assert_eq!(s.len(), 3);
         assert!(s.get("a").is_none() && s.get("b").is_some());
         // A busy stream is never forgotten: "b" stays, so the table goes over its size
         // rather than lose a level set in flight.
-        s.seen("e", t0 + Duration::from_secs(4), |v| *v == 0, || 0);
+        s.seen("e", None, t0 + Duration::from_secs(4), |v| *v == 0, || 0);
         assert!(s.get("b").is_some() && s.get("c").is_some());
         // Idle ones go, whatever the count.
-        s.seen("f", t0 + Duration::from_secs(60), |_| true, || 0);
+        s.seen("f", None, t0 + Duration::from_secs(60), |_| true, || 0);
         assert_eq!(s.len(), 1);
         assert_eq!(s.forgotten, 5);
+    }
+
+    #[test]
+    fn a_partition_given_up_takes_its_streams_state_with_it() {
+        let leases = Arc::new(Leases::default());
+        let (p0, p1) = (leases.grant(0), leases.grant(1));
+        let bounds = StreamBounds {
+            max: 10,
+            idle: Duration::from_secs(10),
+            leases: Some(leases.clone()),
+        };
+        let mut s: Streams<u32> = Streams::new(&bounds);
+        let now = Instant::now();
+        *s.seen("a", Some(p0), now, |_| true, || 0) = 1;
+        *s.seen("b", Some(p1), now, |_| true, || 0) = 1;
+        leases.revoke(1);
+        // Any frame drops the state of the partition given up; the other stays warm.
+        assert_eq!(*s.seen("a", Some(p0), now, |_| true, || 0), 1);
+        assert!(s.get("b").is_none());
+        // Partition 0 moves away and back: the stream's old state is not reused.
+        leases.revoke(0);
+        let again = leases.grant(0);
+        assert_eq!(*s.seen("a", Some(again), now, |_| true, || 0), 0);
+        assert_eq!(s.forgotten, 2);
     }
 }

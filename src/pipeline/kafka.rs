@@ -1,0 +1,697 @@
+//! Kafka: frames from a topic through a consumer group (a source), result records to a
+//! topic (a sink), and the writer `isoline publish` feeds a topic with.
+//!
+//! Frames are keyed by stream id, so a stream lives on one partition and a partition on
+//! one member of the group: that member keeps the stream's warm state. Delivery is at
+//! least once: a frame's offset is committed only once its record is written (for a
+//! Kafka sink, once the broker has acknowledged it), so a crash makes the next owner read
+//! again what was not committed; the repeated records carry the same stream and frame.
+//!
+//! Rebalancing is cooperative-sticky by default. Every partition a member is given gets
+//! a new *lease*; the stages keep each stream's state under the lease it was built in, so
+//! the streams of a partition that leaves drop their state, and those of one that
+//! arrives start cold, while every other stream stays warm.
+
+use std::collections::{BTreeMap, BTreeSet, HashMap};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::{Arc, Mutex, PoisonError, RwLock};
+use std::thread::JoinHandle;
+use std::time::{Duration, Instant};
+
+use crossbeam_channel::Sender;
+use rdkafka::config::{ClientConfig, RDKafkaLogLevel};
+use rdkafka::consumer::{BaseConsumer, CommitMode, Consumer, ConsumerContext, Rebalance};
+use rdkafka::error::{KafkaError, RDKafkaErrorCode};
+use rdkafka::message::DeliveryResult;
+use rdkafka::producer::{BaseRecord, Producer, ProducerContext, ThreadedProducer};
+use rdkafka::statistics::Statistics;
+use rdkafka::{ClientContext, Message, Offset, TopicPartitionList};
+
+use super::metrics::Metrics;
+use super::source::{Limits, Line};
+use crate::error::{Error, Result};
+
+/// A topic on a Kafka cluster (or a compatible broker such as Redpanda), with
+/// librdkafka settings passed through as given.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct KafkaTopic {
+    /// `bootstrap.servers`: `host:port[,host:port...]`.
+    pub brokers: String,
+    /// The topic.
+    pub topic: String,
+    /// librdkafka properties (`"session.timeout.ms" = "2000"`); they override isoline's
+    /// defaults.
+    pub settings: BTreeMap<String, String>,
+}
+
+/// Frames from a topic, read as a member of a consumer group.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct KafkaInput {
+    /// Where the frames are.
+    pub topic: KafkaTopic,
+    /// The consumer group (`group.id`): the daemons sharing a topic's streams.
+    pub group: String,
+}
+
+/// How often the offsets of written records are committed.
+const COMMIT_EVERY: Duration = Duration::from_millis(200);
+
+/// How long the last records may take to be acknowledged when a run ends.
+const FLUSH_TIMEOUT: Duration = Duration::from_secs(30);
+
+fn kafka_error(what: &str, e: impl std::fmt::Display) -> Error {
+    Error::Kafka(format!("{what}: {e}"))
+}
+
+fn lock<T>(m: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
+    m.lock().unwrap_or_else(PoisonError::into_inner)
+}
+
+/// The partitions this member holds, each under the lease it was given with. A lease
+/// is never reused, so state built under one assignment is never taken for another's.
+#[derive(Debug, Default)]
+pub struct Leases {
+    held: RwLock<HashMap<i32, u64>>,
+    last: AtomicU64,
+}
+
+impl Leases {
+    pub(crate) fn grant(&self, partition: i32) -> u64 {
+        let lease = self.last.fetch_add(1, Ordering::Relaxed) + 1;
+        self.held
+            .write()
+            .unwrap_or_else(PoisonError::into_inner)
+            .insert(partition, lease);
+        lease
+    }
+
+    pub(crate) fn revoke(&self, partition: i32) {
+        self.held
+            .write()
+            .unwrap_or_else(PoisonError::into_inner)
+            .remove(&partition);
+    }
+
+    fn of(&self, partition: i32) -> Option<u64> {
+        self.held
+            .read()
+            .unwrap_or_else(PoisonError::into_inner)
+            .get(&partition)
+            .copied()
+    }
+
+    /// Whether the partition given under `lease` is still held.
+    pub fn is_live(&self, lease: u64) -> bool {
+        self.held
+            .read()
+            .unwrap_or_else(PoisonError::into_inner)
+            .values()
+            .any(|&l| l == lease)
+    }
+}
+
+/// One held partition's offsets: those read and not yet written, and where the commits
+/// stand.
+#[derive(Debug)]
+struct Track {
+    lease: u64,
+    pending: BTreeSet<i64>,
+    /// One past the last offset read.
+    next: Option<i64>,
+    committed: Option<i64>,
+}
+
+impl Track {
+    /// The offset to commit: the first one not written yet, or past everything read.
+    fn position(&self) -> Option<i64> {
+        self.pending.first().copied().or(self.next)
+    }
+}
+
+/// The offsets of the frames in the pipeline, per held partition.
+#[derive(Debug, Default)]
+pub(crate) struct Ledger {
+    parts: Mutex<HashMap<i32, Track>>,
+}
+
+impl Ledger {
+    fn open(&self, partition: i32, lease: u64) {
+        lock(&self.parts).insert(
+            partition,
+            Track {
+                lease,
+                pending: BTreeSet::new(),
+                next: None,
+                committed: None,
+            },
+        );
+    }
+
+    /// Notes a frame read; false if the partition is not held under `lease`.
+    fn read(&self, partition: i32, lease: u64, offset: i64) -> bool {
+        match lock(&self.parts).get_mut(&partition) {
+            Some(t) if t.lease == lease => {
+                t.pending.insert(offset);
+                t.next = Some(t.next.map_or(offset + 1, |n| n.max(offset + 1)));
+                true
+            }
+            _ => false,
+        }
+    }
+
+    /// Notes a frame's record written. A frame of a partition given up meanwhile is
+    /// ignored: its new owner reads it again.
+    fn done(&self, partition: i32, lease: u64, offset: i64) {
+        if let Some(t) = lock(&self.parts).get_mut(&partition) {
+            if t.lease == lease {
+                t.pending.remove(&offset);
+            }
+        }
+    }
+
+    /// The partitions whose commit position moved, with that position.
+    fn due(&self) -> Vec<(i32, i64)> {
+        let parts = lock(&self.parts);
+        let mut due: Vec<(i32, i64)> = parts
+            .iter()
+            .filter_map(|(&p, t)| {
+                t.position()
+                    .filter(|&o| Some(o) != t.committed)
+                    .map(|o| (p, o))
+            })
+            .collect();
+        due.sort_unstable();
+        due
+    }
+
+    fn committed(&self, positions: &[(i32, i64)]) {
+        let mut parts = lock(&self.parts);
+        for (p, o) in positions {
+            if let Some(t) = parts.get_mut(p) {
+                t.committed = Some(*o);
+            }
+        }
+    }
+
+    /// Stops tracking a partition; its position if it moved since the last commit.
+    fn close(&self, partition: i32) -> Option<i64> {
+        let t = lock(&self.parts).remove(&partition)?;
+        t.position().filter(|&o| Some(o) != t.committed)
+    }
+
+    /// Frames read and not yet written.
+    pub(crate) fn in_flight(&self) -> usize {
+        lock(&self.parts).values().map(|t| t.pending.len()).sum()
+    }
+}
+
+/// A frame's claim on its input offset: handed in when the frame's record is written,
+/// after which the offset may be committed. Dropped unwritten, the offset stays
+/// uncommitted and the frame is read again after a restart or a hand-over.
+pub struct Receipt {
+    ledger: Arc<Ledger>,
+    partition: i32,
+    lease: u64,
+    offset: i64,
+}
+
+impl std::fmt::Debug for Receipt {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "Receipt(partition {} offset {} lease {})",
+            self.partition, self.offset, self.lease
+        )
+    }
+}
+
+impl Receipt {
+    /// The lease of the frame's partition.
+    pub fn lease(&self) -> u64 {
+        self.lease
+    }
+
+    /// The frame's record is written.
+    pub fn done(self) {
+        self.ledger.done(self.partition, self.lease, self.offset);
+    }
+}
+
+/// librdkafka's log, as tracing events.
+fn log(level: RDKafkaLogLevel, fac: &str, message: &str) {
+    match level {
+        RDKafkaLogLevel::Emerg
+        | RDKafkaLogLevel::Alert
+        | RDKafkaLogLevel::Critical
+        | RDKafkaLogLevel::Error => tracing::error!(target: "librdkafka", fac, "{message}"),
+        RDKafkaLogLevel::Warning => tracing::warn!(target: "librdkafka", fac, "{message}"),
+        RDKafkaLogLevel::Notice | RDKafkaLogLevel::Info => {
+            tracing::info!(target: "librdkafka", fac, "{message}")
+        }
+        RDKafkaLogLevel::Debug => tracing::debug!(target: "librdkafka", fac, "{message}"),
+    }
+}
+
+/// The consumer's callbacks: leases and commits at rebalances, lag from statistics.
+struct GroupContext {
+    topic: String,
+    leases: Arc<Leases>,
+    ledger: Arc<Ledger>,
+    metrics: Arc<Metrics>,
+}
+
+impl ClientContext for GroupContext {
+    fn log(&self, level: RDKafkaLogLevel, fac: &str, message: &str) {
+        log(level, fac, message);
+    }
+
+    fn error(&self, error: KafkaError, reason: &str) {
+        tracing::warn!(%error, "kafka consumer: {reason}");
+    }
+
+    fn stats(&self, statistics: Statistics) {
+        let Some(topic) = statistics.topics.get(&self.topic) else {
+            return;
+        };
+        for (p, part) in &topic.partitions {
+            if self.leases.of(*p).is_none() || part.hi_offset < 0 {
+                continue;
+            }
+            // Before the group's first commit everything from the log's start is unread.
+            let from = if part.committed_offset >= 0 {
+                part.committed_offset
+            } else {
+                part.lo_offset.max(0)
+            };
+            self.metrics
+                .consumer_lag
+                .with_label_values(&[&p.to_string()])
+                .set((part.hi_offset - from).max(0));
+        }
+    }
+}
+
+impl GroupContext {
+    fn partitions(&self, tpl: &TopicPartitionList) -> Vec<i32> {
+        tpl.elements()
+            .iter()
+            .filter(|e| e.topic() == self.topic)
+            .map(|e| e.partition())
+            .collect()
+    }
+}
+
+impl ConsumerContext for GroupContext {
+    fn pre_rebalance(&self, consumer: &BaseConsumer<Self>, rebalance: &Rebalance<'_>) {
+        let Rebalance::Revoke(tpl) = rebalance else {
+            return;
+        };
+        let parts = self.partitions(tpl);
+        let mut commit = TopicPartitionList::new();
+        for &p in &parts {
+            if let Some(o) = self.ledger.close(p) {
+                let _ = commit.add_partition_offset(&self.topic, p, Offset::Offset(o));
+            }
+            self.leases.revoke(p);
+            let _ = self
+                .metrics
+                .consumer_lag
+                .remove_label_values(&[&p.to_string()]);
+        }
+        // Written records count before the partitions go; a lost assignment (this member
+        // was taken for dead) has no right to commit any more.
+        if commit.count() > 0 && !consumer.assignment_lost() {
+            if let Err(e) = consumer.commit(&commit, CommitMode::Sync) {
+                tracing::warn!(error = %e, "commit at revocation failed: those frames will be read again");
+            }
+        }
+        tracing::info!(
+            partitions = ?parts,
+            "partitions revoked: their streams' state is dropped"
+        );
+    }
+
+    fn post_rebalance(&self, _: &BaseConsumer<Self>, rebalance: &Rebalance<'_>) {
+        match rebalance {
+            Rebalance::Assign(tpl) => {
+                let parts = self.partitions(tpl);
+                for &p in &parts {
+                    let lease = self.leases.grant(p);
+                    self.ledger.open(p, lease);
+                }
+                tracing::info!(partitions = ?parts, "partitions assigned: their streams start cold");
+            }
+            Rebalance::Error(e) => tracing::warn!(error = %e, "rebalance failed"),
+            Rebalance::Revoke(_) => {}
+        }
+    }
+}
+
+/// Commits the positions that moved.
+fn commit(consumer: &BaseConsumer<GroupContext>, ledger: &Ledger, topic: &str, mode: CommitMode) {
+    let due = ledger.due();
+    if due.is_empty() {
+        return;
+    }
+    let mut tpl = TopicPartitionList::new();
+    for &(p, o) in &due {
+        let _ = tpl.add_partition_offset(topic, p, Offset::Offset(o));
+    }
+    match consumer.commit(&tpl, mode) {
+        Ok(()) => ledger.committed(&due),
+        Err(e) => tracing::warn!(error = %e, "offset commit failed; retried with the next"),
+    }
+}
+
+/// A client configuration: isoline's defaults, then the user's settings over them.
+fn client_config(topic: &KafkaTopic, defaults: &[(&str, String)]) -> ClientConfig {
+    let mut c = ClientConfig::new();
+    c.set("bootstrap.servers", &topic.brokers);
+    for (k, v) in defaults {
+        c.set(*k, v);
+    }
+    for (k, v) in &topic.settings {
+        c.set(k, v);
+    }
+    c
+}
+
+/// The consumer group member: a source thread that reads frames from `input`'s topic
+/// into `tx` until `stop`, then commits the offsets of the frames in flight as their
+/// records are written, until `drained` says the pipeline has ended.
+///
+/// Memory stays bounded however far behind the member is: librdkafka prefetches at
+/// most `queued.max.messages.kbytes` (default here 4 MiB), and the thread waits for room
+/// in `tx` before reading on. A message longer than `limits.max_line_bytes` becomes an
+/// error record.
+pub(crate) fn spawn_kafka(
+    input: &KafkaInput,
+    limits: Limits,
+    tx: Sender<Line>,
+    stop: Arc<AtomicBool>,
+    drained: Arc<AtomicBool>,
+    metrics: Arc<Metrics>,
+    poll: Duration,
+) -> Result<(JoinHandle<Result<()>>, Arc<Leases>)> {
+    let leases = Arc::new(Leases::default());
+    let ledger = Arc::new(Ledger::default());
+    let topic = input.topic.topic.clone();
+    let context = GroupContext {
+        topic: topic.clone(),
+        leases: leases.clone(),
+        ledger: ledger.clone(),
+        metrics,
+    };
+    let consumer: BaseConsumer<GroupContext> = client_config(
+        &input.topic,
+        &[
+            ("group.id", input.group.clone()),
+            ("enable.auto.commit", "false".into()),
+            ("enable.auto.offset.store", "false".into()),
+            ("auto.offset.reset", "earliest".into()),
+            ("partition.assignment.strategy", "cooperative-sticky".into()),
+            ("queued.max.messages.kbytes", "4096".into()),
+            ("queued.min.messages", "64".into()),
+            ("statistics.interval.ms", "1000".into()),
+        ],
+    )
+    .create_with_context(context)
+    .map_err(|e| kafka_error("creating the consumer", e))?;
+    consumer
+        .subscribe(&[&topic])
+        .map_err(|e| kafka_error(&format!("subscribing to {topic}"), e))?;
+    let owned_leases = leases.clone();
+    let handle = std::thread::Builder::new()
+        .name("source-kafka".into())
+        .spawn(move || {
+            consume(
+                &consumer,
+                &ledger,
+                &owned_leases,
+                &topic,
+                limits,
+                &tx,
+                &stop,
+                poll,
+            );
+            drop(tx);
+            // The frames read get their records; their offsets are committed as they
+            // are written, and the member stays in the group until then.
+            if let Ok(a) = consumer.assignment() {
+                let _ = consumer.pause(&a);
+            }
+            let mut last = Instant::now();
+            while !drained.load(Ordering::Relaxed) {
+                // Polled for the group's callbacks; what it returns was not read.
+                let _ = consumer.poll(poll);
+                if last.elapsed() >= COMMIT_EVERY {
+                    commit(&consumer, &ledger, &topic, CommitMode::Async);
+                    last = Instant::now();
+                }
+            }
+            commit(&consumer, &ledger, &topic, CommitMode::Sync);
+            let left = ledger.in_flight();
+            if left > 0 {
+                tracing::warn!(
+                    frames = left,
+                    "frames without a written record: they will be read again"
+                );
+            }
+            Ok(())
+        })
+        .map_err(|e| Error::Internal(format!("cannot start thread source-kafka: {e}")))?;
+    Ok((handle, leases))
+}
+
+/// Reads messages into `tx` until `stop` or a closed pipeline, committing as it goes.
+#[allow(clippy::too_many_arguments)]
+fn consume(
+    consumer: &BaseConsumer<GroupContext>,
+    ledger: &Arc<Ledger>,
+    leases: &Leases,
+    topic: &str,
+    limits: Limits,
+    tx: &Sender<Line>,
+    stop: &AtomicBool,
+    poll: Duration,
+) {
+    let mut origins: HashMap<i32, Arc<str>> = HashMap::new();
+    let mut last = Instant::now();
+    while !stop.load(Ordering::Relaxed) {
+        if last.elapsed() >= COMMIT_EVERY {
+            commit(consumer, ledger, topic, CommitMode::Async);
+            last = Instant::now();
+        }
+        let msg = match consumer.poll(poll) {
+            None => continue,
+            Some(Err(e)) => {
+                tracing::warn!(error = %e, "kafka consumer");
+                continue;
+            }
+            Some(Ok(m)) => m,
+        };
+        let (partition, offset) = (msg.partition(), msg.offset());
+        let Some(lease) = leases.of(partition) else {
+            continue;
+        };
+        if !ledger.read(partition, lease, offset) {
+            continue;
+        }
+        let max = limits.max_line_bytes;
+        let text = match msg.payload() {
+            None => Err("an empty message, not a frame".to_string()),
+            Some(b) if b.len() > max => Err(format!(
+                "the message is longer than input.max_line_bytes = {max}; skipped"
+            )),
+            Some(b) => std::str::from_utf8(b)
+                .map(|s| s.trim_end().to_string())
+                .map_err(|_| "the message is not valid UTF-8".to_string()),
+        };
+        let default_stream = msg
+            .key()
+            .and_then(|k| std::str::from_utf8(k).ok())
+            .filter(|k| !k.is_empty())
+            .map(Arc::from);
+        let origin = origins
+            .entry(partition)
+            .or_insert_with(|| format!("kafka {topic}[{partition}]").into())
+            .clone();
+        let line = Line {
+            origin,
+            default_stream,
+            line: u64::try_from(offset).unwrap_or(0),
+            text,
+            decoded: None,
+            arrived: Instant::now(),
+            receipt: Some(Receipt {
+                ledger: ledger.clone(),
+                partition,
+                lease,
+                offset,
+            }),
+        };
+        drop(msg);
+        if tx.send(line).is_err() {
+            return;
+        }
+    }
+}
+
+/// Delivery reports: a delivered record hands in its frame's receipt; a record that
+/// could not be delivered fails the run.
+struct Delivery {
+    failed: Arc<Mutex<Option<String>>>,
+}
+
+impl ClientContext for Delivery {
+    fn log(&self, level: RDKafkaLogLevel, fac: &str, message: &str) {
+        log(level, fac, message);
+    }
+
+    fn error(&self, error: KafkaError, reason: &str) {
+        tracing::warn!(%error, "kafka producer: {reason}");
+    }
+}
+
+impl ProducerContext for Delivery {
+    type DeliveryOpaque = Box<Option<Receipt>>;
+
+    fn delivery(&self, result: &DeliveryResult<'_>, receipt: Self::DeliveryOpaque) {
+        match result {
+            Ok(_) => {
+                if let Some(r) = *receipt {
+                    r.done();
+                }
+            }
+            Err((e, _)) => {
+                lock(&self.failed).get_or_insert_with(|| e.to_string());
+            }
+        }
+    }
+}
+
+/// Writes keyed messages to a topic, in order per key: the daemon's Kafka sink, and
+/// `isoline publish`. At most `queue.buffering.max.messages` (default here 1,000) wait
+/// for the broker; `send` waits for room beyond that.
+pub struct KafkaWriter {
+    producer: ThreadedProducer<Delivery>,
+    topic: String,
+    failed: Arc<Mutex<Option<String>>>,
+}
+
+impl KafkaWriter {
+    /// Connects a producer to `topic`'s cluster.
+    pub fn open(topic: &KafkaTopic) -> Result<KafkaWriter> {
+        let failed = Arc::new(Mutex::new(None));
+        let producer = client_config(
+            topic,
+            &[
+                ("acks", "all".into()),
+                // One request in flight per broker keeps each key's messages in order
+                // through retries, with brokers that lack idempotent producers too.
+                ("max.in.flight.requests.per.connection", "1".into()),
+                ("queue.buffering.max.messages", "1000".into()),
+                ("linger.ms", "5".into()),
+                // Java clients' partitioner: a key lands where theirs would put it.
+                ("partitioner", "murmur2_random".into()),
+            ],
+        )
+        .create_with_context(Delivery {
+            failed: failed.clone(),
+        })
+        .map_err(|e| kafka_error("creating the producer", e))?;
+        Ok(KafkaWriter {
+            producer,
+            topic: topic.topic.clone(),
+            failed,
+        })
+    }
+
+    fn check(&self) -> Result<()> {
+        match lock(&self.failed).as_ref() {
+            Some(e) => Err(kafka_error(
+                &format!("a message to {} was not delivered", self.topic),
+                e,
+            )),
+            None => Ok(()),
+        }
+    }
+
+    /// Queues one message; `receipt` is handed in once the broker has it.
+    pub fn send(&self, key: &str, payload: &[u8], receipt: Option<Receipt>) -> Result<()> {
+        self.check()?;
+        let mut record = BaseRecord::with_opaque_to(&self.topic, Box::new(receipt))
+            .key(key)
+            .payload(payload);
+        loop {
+            match self.producer.send(record) {
+                Ok(()) => return Ok(()),
+                Err((KafkaError::MessageProduction(RDKafkaErrorCode::QueueFull), r)) => {
+                    record = r;
+                    std::thread::sleep(Duration::from_millis(5));
+                    self.check()?;
+                }
+                Err((e, _)) => return Err(kafka_error(&format!("writing to {}", self.topic), e)),
+            }
+        }
+    }
+
+    /// Waits until every message is delivered (or fails the run).
+    pub fn finish(self) -> Result<()> {
+        self.producer
+            .flush(FLUSH_TIMEOUT)
+            .map_err(|e| kafka_error(&format!("flushing to {}", self.topic), e))?;
+        self.check()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn commits_stop_at_the_first_frame_not_written() {
+        let ledger = Arc::new(Ledger::default());
+        ledger.open(0, 1);
+        for o in 10..14 {
+            assert!(ledger.read(0, 1, o));
+        }
+        assert!(!ledger.read(1, 1, 0), "a partition not held");
+        assert!(!ledger.read(0, 2, 14), "an older lease");
+        assert_eq!(ledger.due(), vec![(0, 10)]);
+        ledger.done(0, 1, 11);
+        ledger.done(0, 1, 12);
+        assert_eq!(
+            ledger.due(),
+            vec![(0, 10)],
+            "10 is not written: nothing past it"
+        );
+        ledger.committed(&[(0, 10)]);
+        assert_eq!(ledger.due(), vec![]);
+        ledger.done(0, 1, 10);
+        assert_eq!(ledger.due(), vec![(0, 13)]);
+        ledger.done(0, 2, 13);
+        assert_eq!(
+            ledger.in_flight(),
+            1,
+            "a receipt of another lease counts for nothing"
+        );
+        ledger.done(0, 1, 13);
+        assert_eq!(ledger.due(), vec![(0, 14)]);
+        assert_eq!(ledger.close(0), Some(14));
+        assert_eq!(ledger.due(), vec![]);
+    }
+
+    #[test]
+    fn every_assignment_gets_a_new_lease() {
+        let leases = Leases::default();
+        let a = leases.grant(3);
+        assert!(leases.is_live(a));
+        leases.revoke(3);
+        assert!(!leases.is_live(a));
+        let b = leases.grant(3);
+        assert_ne!(a, b);
+        assert!(leases.is_live(b) && !leases.is_live(a));
+        assert_eq!(leases.of(3), Some(b));
+    }
+}
