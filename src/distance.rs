@@ -114,6 +114,19 @@ impl DistanceField {
             .len()
     }
 
+    /// Indices of the data points within distance `r` of `q`, in no order, appended to
+    /// `out` after clearing it.
+    pub fn within(&self, q: Point, r: f64, out: &mut Vec<u32>) {
+        out.clear();
+        let found = self
+            .tree
+            .query(&q)
+            .within::<SquaredEuclidean<f64>>(r * r)
+            .unsorted()
+            .execute();
+        out.extend(found.iter().map(|n| n.item));
+    }
+
     /// Indices of the `k` nearest data points to `q`, nearest first (fewer when the set
     /// is smaller), appended to `out` after clearing it.
     pub fn nearest_k(&self, q: Point, k: usize, out: &mut Vec<u32>) {

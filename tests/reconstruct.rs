@@ -79,6 +79,59 @@ fn circle_accuracy_is_within_three_sigma_plus_two_hmin() {
     }
 }
 
+/// Denser data of the same noise give the same curve or a better one: the circle with
+/// σ = 0.005 at 10,000 and 100,000 points comes out as one loop, within half of the
+/// 1.3e-2 reported for CGAL's optimal-transport reconstruction at 100,000, its mean
+/// distance to the truth no larger at the higher density, and its noise measured the
+/// same (hmin is the noise estimate: within 10% of each other and of σ).
+#[test]
+fn more_points_of_the_same_noise_give_the_same_curve_or_better() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut results = Vec::new();
+    for n in [10_000, 100_000] {
+        let frames = dir.path().join(format!("c{n}.ndjson"));
+        let truth = dir.path().join(format!("c{n}.truth.json"));
+        let recon = dir.path().join(format!("r{n}.ndjson"));
+        let stats = dir.path().join(format!("s{n}.json"));
+        ok(&[
+            "synth",
+            "circle",
+            "--points",
+            &n.to_string(),
+            "--noise",
+            "0.005",
+            "--seed",
+            "1",
+            "-o",
+            p(&frames),
+            "--truth",
+            p(&truth),
+        ]);
+        ok(&[
+            "reconstruct",
+            p(&frames),
+            "-o",
+            p(&recon),
+            "--stats",
+            p(&stats),
+        ]);
+        let s = json_file(&stats);
+        let out = ok(&["eval", p(&recon), "--truth", p(&truth)]);
+        let acc: Value = serde_json::from_slice(&out.stdout).unwrap();
+        assert_eq!(acc["components_recon"], 1, "{n} points: {acc}");
+        let h = acc["hausdorff"].as_f64().unwrap();
+        assert!(h <= 0.5 * 1.3e-2, "{n} points: Hausdorff {h}");
+        let hmin = s["hmin"].as_f64().unwrap();
+        assert!((hmin / 0.005 - 1.0).abs() < 0.1, "{n} points: hmin {hmin}");
+        results.push((hmin, acc["mean_distance"].as_f64().unwrap()));
+    }
+    let [(h10k, m10k), (h100k, m100k)] = results[..] else {
+        unreachable!()
+    };
+    assert!((h100k / h10k - 1.0).abs() < 0.1, "hmin {h10k} -> {h100k}");
+    assert!(m100k <= m10k, "mean distance {m10k} -> {m100k}");
+}
+
 /// Two shapes whose topology the enclosing-circle start cannot find: two separate
 /// circles, and an annulus (its hole must come out as a clockwise loop).
 #[test]

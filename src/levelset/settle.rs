@@ -47,7 +47,11 @@ pub fn center_on_data(
 ) -> SettleReport {
     let field = &metric.field;
     // Enough neighbours to span the noise band: the median count of samples within
-    // `width` of a sample (checked on up to 64 of them), at least 32, at most 512.
+    // `width` of a sample (checked on up to 64 of them), at least 32. Beyond
+    // `MAX_MEDIAN` the nearest ones would span less than the band on dense data and
+    // pull each median towards its own sample's side: then an even subsample of all
+    // those within `width` is taken instead.
+    const MAX_MEDIAN: usize = 512;
     let pts = field.points();
     let step = (pts.len() / 64).max(1);
     let mut counts: Vec<usize> = pts
@@ -56,12 +60,9 @@ pub fn center_on_data(
         .map(|&p| field.count_within(p, width))
         .collect();
     counts.sort_unstable();
-    let k = counts
-        .get(counts.len() / 2)
-        .copied()
-        .unwrap_or(32)
-        .clamp(32, 512)
-        .min(pts.len());
+    let within = counts.get(counts.len() / 2).copied().unwrap_or(32);
+    let dense = within > MAX_MEDIAN;
+    let k = within.clamp(32, MAX_MEDIAN).min(pts.len());
     // Only the samples that are the nearest of a vertex near the curve need a median:
     // on dense data (200k samples, 512 neighbours each) the others would dominate.
     const NONE: u32 = u32::MAX;
@@ -75,17 +76,26 @@ pub fn center_on_data(
     }
     // The metric's fits found each sample's nearest neighbours already; the first `k` of
     // them will do when there are that many. Allocation is fine here: once per frame.
-    let found = if k <= metric.k {
+    let found: Vec<Vec<u32>> = if dense {
+        needed
+            .par_iter()
+            .map_init(Vec::new, |buf, &j| {
+                field.within(pts[j as usize], width, buf);
+                buf.sort_unstable();
+                let stride = buf.len().div_ceil(MAX_MEDIAN).max(1);
+                buf.iter().step_by(stride).copied().collect()
+            })
+            .collect()
+    } else if k <= metric.k {
         Vec::new()
     } else {
-        let mut nb = vec![0u32; needed.len() * k];
-        nb.par_chunks_mut(k)
-            .zip(needed.par_iter())
-            .for_each_init(Vec::new, |buf, (out, &j)| {
+        needed
+            .par_iter()
+            .map_init(Vec::new, |buf, &j| {
                 field.nearest_k(pts[j as usize], k, buf);
-                out.copy_from_slice(&buf[..k]);
-            });
-        nb
+                buf[..k.min(buf.len())].to_vec()
+            })
+            .collect()
     };
     let list = |s: usize| -> &[u32] {
         // A sample on a chain (a scan's run) takes its chain window: the same surface,
@@ -98,7 +108,7 @@ pub fn center_on_data(
             let at = needed[s] as usize * metric.k;
             &metric.neighbours[at..at + k]
         } else {
-            &found[s * k..(s + 1) * k]
+            &found[s]
         }
     };
     let mut at = vec![0.0; pts.len()];

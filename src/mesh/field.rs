@@ -369,7 +369,14 @@ impl MetricField {
         // The local fits do not depend on the sizes, so the noise they measure can set
         // them.
         let metric = CurveMetric::new(&field, metric_params);
-        let noise = metric.noise_estimate();
+        let (mut frames, neighbours, k) = metric.into_parts();
+        let noise_scale = crate::mesh::metric::consistent_noise(&field, &frames, &neighbours, k);
+        let noise = noise_scale.noise;
+        // On data dense enough that `k` neighbours span less than the noise band, their
+        // normals and curvatures are noise too: the frames come from fits at its scale.
+        if noise_scale.window > 2.0 * noise_scale.neighbours {
+            frames = crate::mesh::metric::frames_at_scale(&field, noise_scale)?;
+        }
         let hmin = params.hmin.unwrap_or((scale / 1000.0).max(noise));
         let hmax = params.hmax.unwrap_or(scale / 10.0).max(hmin);
         let eps = params.eps.unwrap_or(hmin);
@@ -379,7 +386,6 @@ impl MetricField {
         if params.band.is_none() {
             metric_params.band = (8.0 * hmin).max(4.0 * noise);
         }
-        let (frames, neighbours, k) = metric.into_parts();
         let ms = |d: std::time::Duration| d.as_secs_f64() * 1e3;
         Ok(MetricField {
             field,
