@@ -23,40 +23,49 @@ fn json_file(path: &Path) -> Value {
     serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
 }
 
+/// The circle with `points` samples and noise `sigma` (seed `seed`) simulated,
+/// reconstructed with the defaults and scored: (the reconstruction's stats, `eval`'s
+/// scores).
+fn circle_run(dir: &Path, points: usize, sigma: f64, seed: u64) -> (Value, Value) {
+    let name = format!("c{points}-{sigma}-{seed}");
+    let [frames, truth, recon, stats] = ["ndjson", "truth.json", "recon.ndjson", "stats.json"]
+        .map(|ext| dir.join(format!("{name}.{ext}")));
+    ok(&[
+        "synth",
+        "circle",
+        "--points",
+        &points.to_string(),
+        "--noise",
+        &sigma.to_string(),
+        "--seed",
+        &seed.to_string(),
+        "-o",
+        p(&frames),
+        "--truth",
+        p(&truth),
+    ]);
+    ok(&[
+        "reconstruct",
+        p(&frames),
+        "-o",
+        p(&recon),
+        "--stats",
+        p(&stats),
+    ]);
+    let out = ok(&["eval", p(&recon), "--truth", p(&truth)]);
+    (
+        json_file(&stats),
+        serde_json::from_slice(&out.stdout).unwrap(),
+    )
+}
+
 /// Issue acceptance: the circle of radius 0.4 with 2,000 points, Hausdorff distance to
 /// the truth at most 3 sigma + 2 hmin at each noise level.
 #[test]
 fn circle_accuracy_is_within_three_sigma_plus_two_hmin() {
     let dir = tempfile::tempdir().unwrap();
-    for (k, sigma) in [0.0, 0.002, 0.005].into_iter().enumerate() {
-        let frames = dir.path().join(format!("c{k}.ndjson"));
-        let truth = dir.path().join(format!("c{k}.truth.json"));
-        let recon = dir.path().join(format!("r{k}.ndjson"));
-        let stats = dir.path().join(format!("s{k}.json"));
-        let noise = sigma.to_string();
-        ok(&[
-            "synth",
-            "circle",
-            "--points",
-            "2000",
-            "--noise",
-            &noise,
-            "--seed",
-            "11",
-            "-o",
-            p(&frames),
-            "--truth",
-            p(&truth),
-        ]);
-        ok(&[
-            "reconstruct",
-            p(&frames),
-            "-o",
-            p(&recon),
-            "--stats",
-            p(&stats),
-        ]);
-        let s = json_file(&stats);
+    for sigma in [0.0, 0.002, 0.005] {
+        let (s, acc) = circle_run(dir.path(), 2000, sigma, 11);
         // The default hmin grows with the noise; the bound is held to the finer of the
         // two sizes it can take (D/1000: the circle's box has diagonal about 0.8 sqrt 2),
         // so the coarser mesh must not cost accuracy either.
@@ -64,8 +73,6 @@ fn circle_accuracy_is_within_three_sigma_plus_two_hmin() {
             .as_f64()
             .unwrap()
             .min(0.8 * 2f64.sqrt() / 1000.0 * 1.05);
-        let out = ok(&["eval", p(&recon), "--truth", p(&truth)]);
-        let acc: Value = serde_json::from_slice(&out.stdout).unwrap();
         let h = acc["hausdorff"].as_f64().unwrap();
         let bound = 3.0 * sigma + 2.0 * hmin;
         assert!(
@@ -89,35 +96,7 @@ fn more_points_of_the_same_noise_give_the_same_curve_or_better() {
     let dir = tempfile::tempdir().unwrap();
     let mut results = Vec::new();
     for n in [10_000, 100_000] {
-        let frames = dir.path().join(format!("c{n}.ndjson"));
-        let truth = dir.path().join(format!("c{n}.truth.json"));
-        let recon = dir.path().join(format!("r{n}.ndjson"));
-        let stats = dir.path().join(format!("s{n}.json"));
-        ok(&[
-            "synth",
-            "circle",
-            "--points",
-            &n.to_string(),
-            "--noise",
-            "0.005",
-            "--seed",
-            "1",
-            "-o",
-            p(&frames),
-            "--truth",
-            p(&truth),
-        ]);
-        ok(&[
-            "reconstruct",
-            p(&frames),
-            "-o",
-            p(&recon),
-            "--stats",
-            p(&stats),
-        ]);
-        let s = json_file(&stats);
-        let out = ok(&["eval", p(&recon), "--truth", p(&truth)]);
-        let acc: Value = serde_json::from_slice(&out.stdout).unwrap();
+        let (s, acc) = circle_run(dir.path(), n, 0.005, 1);
         assert_eq!(acc["components_recon"], 1, "{n} points: {acc}");
         let h = acc["hausdorff"].as_f64().unwrap();
         assert!(h <= 0.5 * 1.3e-2, "{n} points: Hausdorff {h}");

@@ -311,11 +311,6 @@ impl<'a> CurveMetric<'a> {
         &self.params
     }
 
-    /// Median fit residual over the samples: an estimate of the noise level.
-    pub fn noise_estimate(&self) -> f64 {
-        median_residual(&self.frames)
-    }
-
     /// Size across the data at distance `d`: `hmin` in the band, then graded to `hmax`.
     #[inline]
     pub fn normal_size(&self, d: f64) -> f64 {
@@ -511,8 +506,8 @@ mod tests {
                 .collect();
             let field = DistanceField::new(&pts).unwrap();
             let metric = CurveMetric::new(&field, unit_params(32));
-            let knn = metric.noise_estimate();
             let (frames, neighbours, k) = metric.into_parts();
+            let knn = median_residual(&frames);
             let scale = consistent_noise(&field, &frames, &neighbours, k);
             let ratio = scale.noise / sigma;
             assert!(
