@@ -14,8 +14,9 @@ use isoline::synth::{self, Shape, SynthParams};
 /// `isoline synth` options.
 #[derive(clap::Args)]
 pub struct Args {
-    /// A shape (circle, ellipse, square, star, c, two-circles, annulus: points around
-    /// closed curves) or a scene seen by a laser scanner (room, corridor, clutter).
+    /// A shape (circle, ellipse, square, star, c, two-circles, annulus, spiral, bays:
+    /// points around closed curves; strokes: points along open strokes that meet) or a
+    /// scene seen by a laser scanner (room, corridor, clutter).
     what: String,
     /// Shapes: points per frame.
     #[arg(long, default_value_t = 2000)]
@@ -41,6 +42,9 @@ pub struct Args {
     /// Scenes: the sensor's pose "x,y,theta" (metres, radians) instead of the scene's.
     #[arg(long, value_parser = parse_pose)]
     pose: Option<[f64; 3]>,
+    /// Shapes: the spiral's turn spacing and the bays' inlet width.
+    #[arg(long, default_value_t = 0.05)]
+    gap: f64,
     /// Number of frames.
     #[arg(long, default_value_t = 1)]
     frames: usize,
@@ -121,6 +125,7 @@ fn shape_frames(a: Args, shape: Shape) -> Result<()> {
     p.frames = a.frames;
     p.motion = a.motion;
     p.seed = a.seed;
+    p.gap = a.gap;
     let mut frames = synth::generate(&p).map_err(anyhow::Error::msg)?;
     for f in &mut frames {
         f.points.iter_mut().for_each(round7);

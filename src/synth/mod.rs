@@ -33,11 +33,21 @@ pub enum Shape {
     TwoCircles,
     /// An annulus: circles of radius 0.4 and 0.2 (a shape with a hole).
     Annulus,
+    /// A band wound as an Archimedean spiral, its centre line from radius 0.1 out to
+    /// 0.4 with round caps: the band and the corridor between its turns are both `gap`
+    /// wide, so every wall lies `gap` from the next.
+    Spiral,
+    /// A disc of radius 0.4 with three round bays of radius 0.09 inside it, each
+    /// reached from outside through a straight inlet `gap` wide.
+    Bays,
+    /// A line drawing of five open strokes: two T-junctions, one crossing, and a free
+    /// stroke touching nothing.
+    Strokes,
 }
 
 impl Shape {
     /// Every shape, for help texts and sweeps.
-    pub const ALL: [Shape; 7] = [
+    pub const ALL: [Shape; 10] = [
         Shape::Circle,
         Shape::Ellipse,
         Shape::Square,
@@ -45,6 +55,9 @@ impl Shape {
         Shape::CShape,
         Shape::TwoCircles,
         Shape::Annulus,
+        Shape::Spiral,
+        Shape::Bays,
+        Shape::Strokes,
     ];
 
     /// The command-line name.
@@ -57,12 +70,16 @@ impl Shape {
             Shape::CShape => "c",
             Shape::TwoCircles => "two-circles",
             Shape::Annulus => "annulus",
+            Shape::Spiral => "spiral",
+            Shape::Bays => "bays",
+            Shape::Strokes => "strokes",
         }
     }
 
     /// The exact curves (smooth ones as fine polygons), counter-clockwise outer loops and
-    /// clockwise holes.
-    pub fn truth(self) -> Vec<Polyline> {
+    /// clockwise holes; open polylines for the strokes. `gap` is the spiral's and the
+    /// inlets' width (see [`SynthParams::gap`]); the other shapes ignore it.
+    pub fn truth(self, gap: f64) -> Vec<Polyline> {
         let c = [0.5, 0.5];
         match self {
             Shape::Circle => vec![ellipse(c, 0.4, 0.4)],
@@ -82,7 +99,15 @@ impl Shape {
                 hole.points.reverse();
                 vec![ellipse(c, 0.4, 0.4), hole]
             }
+            Shape::Spiral => vec![spiral(c, gap)],
+            Shape::Bays => vec![bays(c, gap)],
+            Shape::Strokes => strokes(),
         }
+    }
+
+    /// Whether the shape is a drawing of open strokes rather than closed curves.
+    pub fn is_open(self) -> bool {
+        self == Shape::Strokes
     }
 }
 
@@ -158,6 +183,146 @@ fn c_shape(c: Point) -> Polyline {
     }
 }
 
+/// The spiral band: its centre line `r = 0.1 + (2 gap / 2 pi) t` for `t` from 0 to the
+/// turn reaching radius 0.4, walls `gap / 2` either side of it along the radius (the
+/// Archimedean spiral's normal is within `atan(2 gap / (2 pi r))`, a few degrees, of the
+/// radius), joined by half-circle caps; counter-clockwise round the band.
+fn spiral(c: Point, gap: f64) -> Polyline {
+    let pitch = 2.0 * gap;
+    let (r0, r1) = (0.1, 0.4 - 0.5 * gap);
+    let turns = (r1 - r0) / pitch;
+    let t1 = TAU * turns;
+    let n = (SMOOTH_SEGMENTS as f64 * turns).ceil() as usize;
+    let at = |t: f64, off: f64| {
+        let r = r0 + pitch * t / TAU + off;
+        add(c, [r * t.cos(), r * t.sin()])
+    };
+    let h = 0.5 * gap;
+    let mut pts: Vec<Point> = (0..=n).map(|i| at(t1 * i as f64 / n as f64, -h)).collect();
+    // The outer cap turns from the inner wall to the outer one around the centre line's
+    // end, on the far side of its tangent.
+    let cap = |t: f64, forward: bool, pts: &mut Vec<Point>| {
+        let m = at(t, 0.0);
+        let (s, co) = t.sin_cos();
+        let radial = [co, s];
+        let tangent = if forward { [-s, co] } else { [s, -co] };
+        for i in 1..SMOOTH_SEGMENTS / 16 {
+            let a = PI * i as f64 / (SMOOTH_SEGMENTS / 16) as f64;
+            let (sa, ca) = a.sin_cos();
+            let sign = if forward { 1.0 } else { -1.0 };
+            pts.push(add(
+                m,
+                [
+                    h * (-ca * radial[0] * sign + sa * tangent[0]),
+                    h * (-ca * radial[1] * sign + sa * tangent[1]),
+                ],
+            ));
+        }
+    };
+    cap(t1, true, &mut pts);
+    pts.extend((0..=n).rev().map(|i| at(t1 * i as f64 / n as f64, h)));
+    cap(0.0, false, &mut pts);
+    // Out along the inner wall with the centre on the left is clockwise round the band.
+    pts.reverse();
+    Polyline {
+        closed: true,
+        points: pts,
+    }
+}
+
+/// The disc with bays: outer circle radius 0.4; bays of radius 0.09 centred 0.2 from the
+/// centre at 90, 210 and 330 degrees, each joined to the outside by an inlet of width
+/// `gap` along its radius. Traced counter-clockwise: along the outer circle, in along
+/// an inlet's first wall, clockwise round the bay, out along the other wall.
+fn bays(c: Point, gap: f64) -> Polyline {
+    let (big, bay, at_r) = (0.4, 0.09, 0.2);
+    let o = 0.5 * gap.min(1.6 * bay);
+    let alpha = (o / big).asin();
+    let mut pts = Vec::new();
+    let arc_steps = |span: f64, r: f64| {
+        ((SMOOTH_SEGMENTS as f64 * span.abs() * r / (TAU * 0.4)).ceil() as usize).max(2)
+    };
+    let dirs: Vec<f64> = [90.0f64, 210.0, 330.0]
+        .iter()
+        .map(|d| d.to_radians())
+        .collect();
+    for (k, &phi) in dirs.iter().enumerate() {
+        let u = [phi.cos(), phi.sin()];
+        let v = [-phi.sin(), phi.cos()];
+        let at = |t: f64, off: f64| add(c, [t * u[0] + off * v[0], t * u[1] + off * v[1]]);
+        // The wall at offset -o, from the outer circle in to the bay.
+        let (t_out, t_in) = (
+            (big * big - o * o).sqrt(),
+            at_r + (bay * bay - o * o).sqrt(),
+        );
+        let wall = |pts: &mut Vec<Point>, off: f64, inwards: bool| {
+            let m = ((t_out - t_in) / 0.002).ceil().max(1.0) as usize;
+            for i in 0..m {
+                let f = i as f64 / m as f64;
+                let t = if inwards {
+                    t_out + (t_in - t_out) * f
+                } else {
+                    t_in + (t_out - t_in) * f
+                };
+                pts.push(at(t, off));
+            }
+        };
+        wall(&mut pts, -o, true);
+        // Clockwise round the bay from angle -gamma to gamma - 2 pi (in the u, v frame).
+        let gamma = (o / bay).asin();
+        let span = TAU - 2.0 * gamma;
+        let m = arc_steps(span, bay);
+        let centre = at(at_r, 0.0);
+        for i in 0..m {
+            let b = -gamma - span * i as f64 / m as f64;
+            let (sb, cb) = b.sin_cos();
+            pts.push(add(
+                centre,
+                [bay * (cb * u[0] + sb * v[0]), bay * (cb * u[1] + sb * v[1])],
+            ));
+        }
+        wall(&mut pts, o, false);
+        // The outer circle to the next inlet.
+        let next = dirs[(k + 1) % dirs.len()] + if k + 1 == dirs.len() { TAU } else { 0.0 };
+        let (a0, a1) = (phi + alpha, next - alpha);
+        let m = arc_steps(a1 - a0, big);
+        for i in 0..m {
+            let a = a0 + (a1 - a0) * i as f64 / m as f64;
+            pts.push(add(c, [big * a.cos(), big * a.sin()]));
+        }
+    }
+    Polyline {
+        closed: true,
+        points: pts,
+    }
+}
+
+/// The stroke drawing: a baseline; a stem standing on it (a T-junction); a wave crossing
+/// the stem; a hook standing on the baseline (a second T-junction) and ending free; and
+/// a free arc below.
+fn strokes() -> Vec<Polyline> {
+    let open = |points: Vec<Point>| Polyline {
+        closed: false,
+        points,
+    };
+    let curve = |f: &dyn Fn(f64) -> Point| -> Polyline {
+        open((0..=256).map(|i| f(i as f64 / 256.0)).collect())
+    };
+    vec![
+        open(vec![[0.08, 0.3], [0.92, 0.3]]),
+        open(vec![[0.45, 0.3], [0.45, 0.92]]),
+        curve(&|s| [0.1 + 0.8 * s, 0.62 + 0.08 * (TAU * s).sin()]),
+        curve(&|s| {
+            let a = PI * (1.0 - 0.5 * s);
+            [0.88 + 0.16 * a.cos(), 0.3 + 0.16 * a.sin()]
+        }),
+        curve(&|s| {
+            let a = PI * (0.15 + 0.7 * s);
+            [0.5 + 0.3 * a.cos(), 0.35 - 0.25 * a.sin()]
+        }),
+    ]
+}
+
 /// Simulator options.
 #[derive(Clone, Debug, PartialEq)]
 #[non_exhaustive]
@@ -182,6 +347,8 @@ pub struct SynthParams {
     pub seed: u64,
     /// Frame rate written in the `t` field.
     pub rate_hz: f64,
+    /// The spiral's turn spacing and the bays' inlet width. Default 0.05.
+    pub gap: f64,
 }
 
 impl SynthParams {
@@ -197,6 +364,7 @@ impl SynthParams {
             motion: 0.0,
             seed: 1,
             rate_hz: 20.0,
+            gap: 0.05,
         }
     }
 
@@ -222,6 +390,11 @@ impl SynthParams {
         }
         if self.frames == 0 {
             return Err("--frames must be at least 1".into());
+        }
+        // The spiral needs a turn between radius 0.1 and 0.4, and an inlet must fit in
+        // its bay.
+        if !(self.gap.is_finite() && (0.001..=0.12).contains(&self.gap)) {
+            return Err(format!("--gap {} must be in [0.001, 0.12]", self.gap));
         }
         Ok(())
     }
@@ -261,7 +434,7 @@ fn motion_of(k: usize, motion: f64, c: Point) -> impl Fn(Point) -> Point {
 /// Generates the frames.
 pub fn generate(params: &SynthParams) -> Result<Vec<SynthFrame>, String> {
     params.validate()?;
-    let base = params.shape.truth();
+    let base = params.shape.truth(params.gap);
     let center = [0.5, 0.5];
     // Cumulative arc length over all segments of all components.
     let segs: Vec<(Point, Point)> = base
@@ -360,9 +533,28 @@ mod tests {
 
     #[test]
     fn truth_orientation_and_motion_are_rigid() {
-        let ann = Shape::Annulus.truth();
+        let ann = Shape::Annulus.truth(0.05);
         assert!(ann[0].signed_area() > 0.0 && ann[1].signed_area() < 0.0);
-        assert!(Shape::CShape.truth()[0].signed_area() > 0.0);
+        assert!(Shape::CShape.truth(0.05)[0].signed_area() > 0.0);
+        // The spiral's walls and the bays' inlet walls lie `gap` apart, the band's area
+        // is its centre line's length times `gap`, and the bays cut their area (with
+        // the inlets') out of the disc.
+        for gap in [0.02, 0.05] {
+            let sp = &Shape::Spiral.truth(gap)[0];
+            let area = sp.signed_area();
+            let centre_line = 0.5 * sp.length() - gap;
+            assert!(
+                (area / (centre_line * gap) - 1.0).abs() < 0.02,
+                "{gap}: {area}"
+            );
+            let bays = &Shape::Bays.truth(gap)[0];
+            let cut = 3.0 * (PI * 0.09 * 0.09 + gap * (0.4 - 0.2 - 0.09));
+            let expected = PI * 0.16 - cut;
+            assert!((bays.signed_area() / expected - 1.0).abs() < 0.01, "{gap}");
+        }
+        let strokes = Shape::Strokes.truth(0.05);
+        assert!(Shape::Strokes.is_open() && strokes.iter().all(|s| !s.closed));
+        assert_eq!(strokes.len(), 5);
         let mut p = SynthParams::new(Shape::Square);
         p.frames = 5;
         p.motion = 0.02;
