@@ -6,7 +6,7 @@ use rayon::prelude::*;
 use crate::distance::DistanceField;
 use crate::eval::SegmentIndex;
 use crate::fem::P1Space;
-use crate::geom::{dist, BBox, Point, Polyline};
+use crate::geom::{dist, sub, BBox, Point, Polyline};
 use crate::mesh::{Mesh, VertexTag};
 use crate::redistance::Redistancer;
 use crate::scan::FreeSpace;
@@ -84,8 +84,10 @@ pub struct ColdStart {
 
 /// The level set `init` asks for on `mesh` (`dist`: the distance to the data `points`
 /// at each vertex), renormalized: the tube starts with the tube of radius
-/// `tube_radius`, falling back to the box when the tube encloses nothing; the
-/// enclosing starts `margin` from the data.
+/// `tube_radius`, or twice that when it encloses nothing, opened along `corridor` (see
+/// [`corridors`], computed up to `4 tube_radius`; empty for none), falling back to the
+/// box when neither tube encloses anything; the enclosing starts `margin` from the
+/// data.
 #[allow(clippy::too_many_arguments)]
 pub fn cold_start(
     init: Init,
@@ -94,12 +96,20 @@ pub fn cold_start(
     dist: &[f64],
     points: &[Point],
     tube_radius: f64,
+    corridor: &[Option<Strip>],
     margin: f64,
     fm: &mut Redistancer,
 ) -> ColdStart {
+    // A tube that leaks between sparse samples encloses nothing: one twice as wide closes
+    // gaps twice as long, and the corridors keep the inlets it would close open.
+    let tube_start = |fm: &mut Redistancer, delta: f64| match init {
+        Init::Medial => medial(mesh, space, dist, delta, corridor, fm),
+        _ => tube(mesh, |v| space.ring(v), dist, delta, corridor),
+    };
     let start = match init {
-        Init::Medial => medial(mesh, space, dist, tube_radius, fm),
-        Init::Tube => tube(mesh, |v| space.ring(v), dist, tube_radius),
+        Init::Medial | Init::Tube => {
+            tube_start(fm, tube_radius).or_else(|| tube_start(fm, 2.0 * tube_radius))
+        }
         Init::Box | Init::Circle => {
             return ColdStart {
                 u: enclosing(init, points, margin, &mesh.coords),
@@ -158,6 +168,125 @@ pub fn tube_radius(field: &DistanceField, floor: f64) -> f64 {
     (2.0 * *p95).max(floor)
 }
 
+/// The empty strip a corridor vertex lies in (see [`corridors`]), in the vertex's
+/// frame: `across` is the unit direction to the nearest sample, and no sample lies
+/// within the window at an offset `b` along it with `-far < b < near`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Strip {
+    /// Unit direction to the near wall.
+    pub across: Point,
+    /// Distance to the near wall (the vertex's distance to the data).
+    pub near: f64,
+    /// Distance to the far wall, the other way along `across`.
+    pub far: f64,
+}
+
+impl Strip {
+    /// Whether `w`, seen from the strip's vertex at `v`, lies inside the strip (with a
+    /// tenth of its width to spare on each side): a mesh edge from `v` to `w` then runs
+    /// along the corridor instead of across one of its walls.
+    fn holds(&self, v: Point, w: Point) -> bool {
+        let e = sub(w, v);
+        let b = e[0] * self.across[0] + e[1] * self.across[1];
+        b < 0.9 * self.near && b > -0.9 * self.far
+    }
+}
+
+/// The vertices lying in a corridor between two walls of samples: the samples within
+/// `3 d` of the vertex (`d` its distance to the data, between `lo` and `hi`) fall into
+/// two sheets, one on either side of it, each stretching at least `2 d` along the
+/// corridor, with none closer than `d / 2` to the line through the vertex along it.
+/// The direction across is the one to the nearest sample (`nearest`), which is the near
+/// wall's normal. Such a vertex is free space even where the tube around the data
+/// covers it: the gap between two walls narrower than the tube stays open.
+///
+/// A hole between two samples of one wall is no corridor: the samples on either side of
+/// it lie along the direction across, not along the corridor; nor is a hole among the
+/// samples of a noisy band, where the band's samples fill the line through the vertex.
+///
+/// A corridor's dead end (the cap where its two walls meet) fails the test, the cap's
+/// samples lying across the strip; the corridor is grown into it from the vertices that
+/// passed, through vertices inside their strip at least half as far from the data, so
+/// that the cap starts out on the right side.
+pub fn corridors<'a>(
+    field: &DistanceField,
+    coords: &[Point],
+    neighbours: impl Fn(usize) -> &'a [u32],
+    dist: &[f64],
+    nearest: &[u32],
+    lo: f64,
+    hi: f64,
+) -> Vec<Option<Strip>> {
+    // Each wall needs this many samples in the window to count as a sheet.
+    const MIN_SAMPLES: usize = 3;
+    let pts = field.points();
+    let mut strips: Vec<Option<Strip>> = coords
+        .par_iter()
+        .zip(dist.par_iter().zip(nearest.par_iter()))
+        .map_init(Vec::new, |buf, (&p, (&d, &j))| {
+            if !(d >= lo && d < hi) || d <= 0.0 {
+                return None;
+            }
+            let q = pts[j as usize];
+            let across = [(q[0] - p[0]) / d, (q[1] - p[1]) / d];
+            field.within(p, 3.0 * d, buf);
+            // Per wall: samples, the extent along the corridor, the nearest offset.
+            let mut walls = [(0usize, f64::INFINITY, f64::NEG_INFINITY, f64::INFINITY); 2];
+            for &i in buf.iter() {
+                let w = sub(pts[i as usize], p);
+                let b = w[0] * across[0] + w[1] * across[1];
+                let a = w[1] * across[0] - w[0] * across[1];
+                if b.abs() < 0.5 * d {
+                    return None;
+                }
+                let wall = &mut walls[usize::from(b < 0.0)];
+                wall.0 += 1;
+                wall.1 = wall.1.min(a);
+                wall.2 = wall.2.max(a);
+                wall.3 = wall.3.min(b.abs());
+            }
+            walls
+                .iter()
+                .all(|&(count, lo_a, hi_a, _)| count >= MIN_SAMPLES && hi_a - lo_a >= 2.0 * d)
+                .then_some(Strip {
+                    across,
+                    near: d,
+                    far: walls[1].3,
+                })
+        })
+        .collect();
+    // A grown vertex's strip is its own direction to the data, with the root's width;
+    // growth stops within 1.5 d of the root, as deep as a cap is.
+    let mut stack: Vec<(usize, usize)> = (0..strips.len())
+        .filter(|&v| strips[v].is_some())
+        .map(|v| (v, v))
+        .collect();
+    while let Some((v, root)) = stack.pop() {
+        let (Some(here), Some(origin)) = (strips[v], strips[root]) else {
+            continue;
+        };
+        for &w in neighbours(v) {
+            let w = w as usize;
+            let d = dist[w];
+            if strips[w].is_some()
+                || d < 0.5 * origin.near
+                || crate::geom::dist(coords[w], coords[root]) > 1.5 * origin.near
+                || !here.holds(coords[v], coords[w])
+            {
+                continue;
+            }
+            let q = pts[nearest[w] as usize];
+            strips[w] = Some(Strip {
+                across: [(q[0] - coords[w][0]) / d, (q[1] - coords[w][1]) / d],
+                near: d,
+                far: origin.near + origin.far - d,
+            });
+            stack.push((w, root));
+        }
+    }
+    strips
+}
+
 /// Which side of the tube `{d < delta}` around the data a vertex lies on.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Side {
@@ -171,19 +300,30 @@ pub enum Side {
 }
 
 /// Labels each vertex of `mesh` by its side of the tube of radius `delta` around the
-/// data (`dist`: the distance to the data at each vertex; `neighbours(v)`: its ring).
-/// The regions outside the tube are outside or inside by how many tube crossings
-/// separate them from the domain boundary. `None` when no region comes out inside (the
-/// tube leaks, or the data encloses nothing).
+/// data (`dist`: the distance to the data at each vertex; `neighbours(v)`: its ring),
+/// the vertices where `corridor` is true (see [`corridors`]; empty for none) taken out
+/// of the tube. The regions outside the tube are outside or inside by how many tube
+/// crossings separate them from the domain boundary. `None` when no region comes out
+/// inside (the tube leaks, or the data encloses nothing).
 pub fn tube_sides<'a>(
     mesh: &Mesh,
     neighbours: impl Fn(usize) -> &'a [u32],
     dist: &[f64],
     delta: f64,
+    corridor: &[Option<Strip>],
 ) -> Option<Vec<Side>> {
     let n = dist.len();
     const NONE: u32 = u32::MAX;
     // Label connected regions of free (d >= delta) and tube vertices separately.
+    // Two free vertices are joined only by an edge that runs along the corridors they
+    // lie in, not across a wall between two of them.
+    let joined = |v: usize, w: usize| {
+        let along = |a: usize, b: usize| match corridor.get(a) {
+            Some(Some(strip)) => strip.holds(mesh.coords[a], mesh.coords[b]),
+            _ => true,
+        };
+        along(v, w) && along(w, v)
+    };
     let label = |free_at: &dyn Fn(usize) -> bool| -> (Vec<u32>, Vec<bool>) {
         let mut region = vec![NONE; n];
         let mut kinds = Vec::new(); // true: free
@@ -200,7 +340,7 @@ pub fn tube_sides<'a>(
             while let Some(v) = stack.pop() {
                 for &w in neighbours(v) {
                     let w = w as usize;
-                    if region[w] == NONE && free_at(w) == free {
+                    if region[w] == NONE && free_at(w) == free && (!free || joined(v, w)) {
                         region[w] = id;
                         stack.push(w);
                     }
@@ -219,17 +359,23 @@ pub fn tube_sides<'a>(
     }
     let free_at = |v: usize| {
         let r = first[v] as usize;
-        first_kinds[r] && reach[r] >= 2.0 * delta
+        (first_kinds[r] && reach[r] >= 2.0 * delta) || matches!(corridor.get(v), Some(Some(_)))
     };
     let (region, kinds) = label(&free_at);
-    // Breadth-first depth of each region from the free regions touching the boundary.
+    // Depth of each region from the free regions touching the boundary: one step into or
+    // out of the tube, two across a wall between corridors (through the tube it is).
     let nr = kinds.len();
-    let mut adj: Vec<Vec<u32>> = vec![Vec::new(); nr];
+    let mut adj: Vec<Vec<(u32, u32)>> = vec![Vec::new(); nr];
     for v in 0..n {
         for &w in neighbours(v) {
             let (a, b) = (region[v], region[w as usize]);
             if a != b {
-                adj[a as usize].push(b);
+                let step = if kinds[a as usize] && kinds[b as usize] {
+                    2
+                } else {
+                    1
+                };
+                adj[a as usize].push((b, step));
             }
         }
     }
@@ -238,20 +384,23 @@ pub fn tube_sides<'a>(
         a.dedup();
     }
     let mut depth = vec![u32::MAX; nr];
-    let mut queue = std::collections::VecDeque::new();
+    let mut queue = std::collections::BinaryHeap::new();
     for (&rv, &tag) in region.iter().zip(&mesh.tag) {
         let r = rv as usize;
         if tag != VertexTag::Interior && kinds[r] && depth[r] == u32::MAX {
             depth[r] = 0;
-            queue.push_back(r);
+            queue.push(std::cmp::Reverse((0, r)));
         }
     }
-    while let Some(r) = queue.pop_front() {
-        for &q in &adj[r] {
+    while let Some(std::cmp::Reverse((dr, r))) = queue.pop() {
+        if dr > depth[r] {
+            continue;
+        }
+        for &(q, step) in &adj[r] {
             let q = q as usize;
-            if depth[q] == u32::MAX {
-                depth[q] = depth[r] + 1;
-                queue.push_back(q);
+            if dr + step < depth[q] {
+                depth[q] = dr + step;
+                queue.push(std::cmp::Reverse((depth[q], q)));
             }
         }
     }
@@ -285,18 +434,30 @@ pub fn tube<'a>(
     neighbours: impl Fn(usize) -> &'a [u32],
     dist: &[f64],
     delta: f64,
+    corridor: &[Option<Strip>],
 ) -> Option<Vec<f64>> {
-    let sides = tube_sides(mesh, neighbours, dist, delta)?;
+    let sides = tube_sides(mesh, neighbours, dist, delta, corridor)?;
     let u = sides
         .iter()
         .zip(dist)
-        .map(|(side, &d)| match side {
-            Side::Outside => d - delta,
+        .enumerate()
+        .map(|(v, (side, &d))| match side {
+            Side::Outside => d - radius_at(v, d, delta, corridor),
             Side::Inside => -d,
             Side::Tube => (d - delta).min(-f64::EPSILON),
         })
         .collect();
     Some(u)
+}
+
+/// The tube's radius at vertex `v` (distance `d` from the data): `delta`, and in a
+/// corridor half the distance, so that the corridor's vertices lie outside it.
+fn radius_at(v: usize, d: f64, delta: f64, corridor: &[Option<Strip>]) -> f64 {
+    if matches!(corridor.get(v), Some(Some(_))) {
+        delta.min(0.5 * d)
+    } else {
+        delta
+    }
 }
 
 /// The medial start: the curve midway across the tube of radius `delta`, between its
@@ -315,16 +476,18 @@ pub fn medial(
     space: &P1Space,
     dist: &[f64],
     delta: f64,
+    corridor: &[Option<Strip>],
     fm: &mut Redistancer,
 ) -> Option<Vec<f64>> {
-    let sides = tube_sides(mesh, |v| space.ring(v), dist, delta)?;
+    let sides = tube_sides(mesh, |v| space.ring(v), dist, delta, corridor)?;
     let mut boundary = |of: Side| -> Vec<f64> {
         let mut phi: Vec<f64> = sides
             .iter()
             .zip(dist)
-            .map(|(&side, &d)| {
+            .enumerate()
+            .map(|(v, (&side, &d))| {
                 if side == of {
-                    d - delta
+                    d - radius_at(v, d, delta, corridor)
                 } else {
                     // Everything else is the far side of the boundary: the tube
                     // (pockets included) and the regions of the other label.
@@ -487,8 +650,8 @@ mod tests {
         let delta = tube_radius(&field, 0.02);
         assert!((0.02..0.03).contains(&delta), "{delta}");
         // A tube too thin to close: nothing is inside.
-        assert!(tube(&mesh, |v| space.ring(v), &d, 1e-4).is_none());
-        let u = tube(&mesh, |v| space.ring(v), &d, delta).unwrap();
+        assert!(tube(&mesh, |v| space.ring(v), &d, 1e-4, &[]).is_none());
+        let u = tube(&mesh, |v| space.ring(v), &d, delta, &[]).unwrap();
         let at = |p: Point| {
             let v = (0..mesh.coords.len())
                 .min_by(|&a, &b| dist(mesh.coords[a], p).total_cmp(&dist(mesh.coords[b], p)))
@@ -502,6 +665,103 @@ mod tests {
             at([0.5, 0.5]) > 0.0 && at([0.62, 0.0]) > 0.0,
             "the gap is outside"
         );
+    }
+
+    /// Samples every `step` along `curves`, in order.
+    fn along(curves: &[Polyline], step: f64) -> Vec<Point> {
+        let mut pts = Vec::new();
+        for c in curves {
+            for (a, b) in c.segments() {
+                let n = (dist(a, b) / step).ceil().max(1.0) as usize;
+                pts.extend((0..n).map(|i| {
+                    let f = i as f64 / n as f64;
+                    [a[0] + (b[0] - a[0]) * f, a[1] + (b[1] - a[1]) * f]
+                }));
+            }
+        }
+        pts
+    }
+
+    #[test]
+    fn corridors_lie_between_two_walls_not_in_a_hole_of_one() {
+        // Two walls 0.05 apart sampled every 0.005, the lower one with a hole 0.05 long
+        // to the right; beyond x = 0.6 the lower wall alone.
+        let mut pts = Vec::new();
+        for i in 0..=200 {
+            let x = i as f64 * 0.005;
+            if !(0.7..0.75).contains(&x) {
+                pts.push([x, 0.0]);
+            }
+            if x <= 0.6 {
+                pts.push([x, 0.05]);
+            }
+        }
+        let field = DistanceField::new(&pts).unwrap();
+        let probes = [
+            [0.3, 0.025],
+            [0.3, 0.02],
+            [0.725, 0.0],
+            [0.725, 0.01],
+            [0.3, 0.003],
+        ];
+        let near = field.nearest_all(&probes);
+        let d: Vec<f64> = near.iter().map(|n| n.dist).collect();
+        let j: Vec<u32> = near.iter().map(|n| n.index).collect();
+        let c = corridors(&field, &probes, |_| &[], &d, &j, 0.001, 1.0);
+        assert!(c[0].is_some() && c[1].is_some(), "mid-corridor: {c:?}");
+        let strip = c[0].unwrap();
+        assert!((strip.near - 0.025).abs() < 1e-12 && (strip.far - 0.025).abs() < 1e-12);
+        assert!(
+            c[2].is_none() && c[3].is_none(),
+            "a hole in one wall is no corridor: {c:?}"
+        );
+        assert!(c[4].is_none(), "too near a wall to see the other: {c:?}");
+    }
+
+    #[test]
+    fn corridors_keep_an_inlet_narrower_than_the_tube_open() {
+        // The simulator's disc with three bays, inlets 0.02 wide, sampled every 0.004:
+        // a tube of radius 0.015 closes the inlets and fills the bays.
+        let truth = crate::synth::Shape::Bays.truth(0.02);
+        let pts = along(&truth, 0.004);
+        let field = DistanceField::new(&pts).unwrap();
+        let bbox = BBox {
+            min: [0.0, 0.0],
+            max: [1.0, 1.0],
+        };
+        let mesh = Mesh::structured(&bbox, 250);
+        let space = P1Space::new(&mesh);
+        let near = field.nearest_all(&mesh.coords);
+        let d: Vec<f64> = near.iter().map(|n| n.dist).collect();
+        let j: Vec<u32> = near.iter().map(|n| n.index).collect();
+        let delta = 0.015;
+        let at = |sides: &[Side], p: Point| {
+            let v = (0..mesh.coords.len())
+                .min_by(|&a, &b| dist(mesh.coords[a], p).total_cmp(&dist(mesh.coords[b], p)))
+                .unwrap();
+            sides[v]
+        };
+        // The first bay's centre and its inlet's middle; the body between two bays.
+        let (bay, inlet, body) = ([0.5, 0.7], [0.5, 0.85], [0.5, 0.45]);
+        let closed = tube_sides(&mesh, |v| space.ring(v), &d, delta, &[]).unwrap();
+        assert_eq!(
+            at(&closed, bay),
+            Side::Inside,
+            "without corridors the bay fills"
+        );
+        let c = corridors(
+            &field,
+            &mesh.coords,
+            |v| space.ring(v),
+            &d,
+            &j,
+            0.004,
+            2.0 * delta,
+        );
+        let open = tube_sides(&mesh, |v| space.ring(v), &d, delta, &c).unwrap();
+        assert_eq!(at(&open, bay), Side::Outside);
+        assert_eq!(at(&open, inlet), Side::Outside);
+        assert_eq!(at(&open, body), Side::Inside);
     }
 
     #[test]
@@ -528,7 +788,7 @@ mod tests {
         field.distances_into(&mesh.coords, &mut d);
         let delta = 3.0 * h;
         let mut fm = Redistancer::new();
-        let mut u = medial(&mesh, &space, &d, delta, &mut fm).unwrap();
+        let mut u = medial(&mesh, &space, &d, delta, &[], &mut fm).unwrap();
         fm.run(&mesh, &space, &mut u, f64::INFINITY);
         // The tube's middle is the circle itself, up to the first-order error of fast
         // marching and of the P1 tube boundaries: O(h) each.
