@@ -27,12 +27,17 @@ fn json_file(path: &Path) -> Value {
 /// reconstructed with the defaults and scored: (the reconstruction's stats, `eval`'s
 /// scores).
 fn circle_run(dir: &Path, points: usize, sigma: f64, seed: u64) -> (Value, Value) {
-    let name = format!("c{points}-{sigma}-{seed}");
+    shape_run(dir, "circle", points, sigma, seed)
+}
+
+/// [`circle_run`] for any of the simulator's shapes.
+fn shape_run(dir: &Path, shape: &str, points: usize, sigma: f64, seed: u64) -> (Value, Value) {
+    let name = format!("{shape}{points}-{sigma}-{seed}");
     let [frames, truth, recon, stats] = ["ndjson", "truth.json", "recon.ndjson", "stats.json"]
         .map(|ext| dir.join(format!("{name}.{ext}")));
     ok(&[
         "synth",
-        "circle",
+        shape,
         "--points",
         &points.to_string(),
         "--noise",
@@ -57,6 +62,25 @@ fn circle_run(dir: &Path, points: usize, sigma: f64, seed: u64) -> (Value, Value
         json_file(&stats),
         serde_json::from_slice(&out.stdout).unwrap(),
     )
+}
+
+/// Walls closer than the tube around the data: the spiral band (its walls 0.05 apart,
+/// 12 sample spacings at 2,000 points) and the disc whose three bays lie behind
+/// inlets 0.05 wide, at sigma = 0.002, come out as one loop each within 3 sigma + 2 hmin
+/// of the truth, neither the spiral's turns nor the bays filled (which is 0.25 and 0.18
+/// away).
+#[test]
+fn a_spiral_and_bays_behind_narrow_inlets_stay_open() {
+    let dir = tempfile::tempdir().unwrap();
+    let sigma = 0.002;
+    for shape in ["spiral", "bays"] {
+        let (s, acc) = shape_run(dir.path(), shape, 2000, sigma, 7);
+        let hmin = s["hmin"].as_f64().unwrap();
+        let h = acc["hausdorff"].as_f64().unwrap();
+        let bound = 3.0 * sigma + 2.0 * hmin;
+        assert_eq!(acc["components_recon"], 1, "{shape}: {acc}");
+        assert!(h <= bound, "{shape}: Hausdorff {h} > {bound}; {acc}");
+    }
 }
 
 /// Issue acceptance: the circle of radius 0.4 with 2,000 points, Hausdorff distance to

@@ -133,18 +133,16 @@ pub fn solve(
             }
             (None, _) => {
                 let t = Instant::now();
-                let corridor = match params.init {
-                    Init::Medial | Init::Tube => init::corridors(
+                let corridor = matches!(params.init, Init::Medial | Init::Tube).then(|| {
+                    init::corridors(
                         kd,
                         &mesh.coords,
-                        |v| space.ring(v),
                         &dist,
                         &nearest,
                         2.0 * hmin,
                         4.0 * tube_radius,
-                    ),
-                    Init::Box | Init::Circle => Vec::new(),
-                };
+                    )
+                });
                 let start = init::cold_start(
                     params.init,
                     mesh,
@@ -152,7 +150,7 @@ pub fn solve(
                     &dist,
                     pts,
                     tube_radius,
-                    &corridor,
+                    corridor.as_ref(),
                     params.margin * diag,
                     &mut fm,
                 );

@@ -96,7 +96,7 @@ pub fn cold_start(
     dist: &[f64],
     points: &[Point],
     tube_radius: f64,
-    corridor: &[Option<Strip>],
+    corridor: Option<&Corridors<'_>>,
     margin: f64,
     fm: &mut Redistancer,
 ) -> ColdStart {
@@ -192,10 +192,37 @@ impl Strip {
     }
 }
 
+/// What [`corridors`] found: a strip at each corridor vertex, and the data, to tell
+/// whether a segment between two vertices crosses a wall.
+pub struct Corridors<'a> {
+    /// The strip of each mesh vertex that lies in a corridor.
+    pub strips: Vec<Option<Strip>>,
+    field: &'a DistanceField,
+}
+
+impl Corridors<'_> {
+    /// Whether the segment from `p` to `q` keeps at least `clearance` from every
+    /// sample (checked every quarter of it).
+    fn clear(&self, p: Point, q: Point, clearance: f64) -> bool {
+        let steps = (dist(p, q) / (0.25 * clearance)).ceil().max(1.0) as usize;
+        (0..=steps).all(|i| {
+            let f = i as f64 / steps as f64;
+            let x = [p[0] + (q[0] - p[0]) * f, p[1] + (q[1] - p[1]) * f];
+            self.field.distance(x) >= clearance
+        })
+    }
+}
+
+/// The strip of vertex `v`, if it lies in a corridor.
+fn strip_at(corridor: Option<&Corridors<'_>>, v: usize) -> Option<Strip> {
+    corridor.and_then(|c| c.strips.get(v).copied().flatten())
+}
+
 /// The vertices lying in a corridor between two walls of samples: the samples within
 /// `3 d` of the vertex (`d` its distance to the data, between `lo` and `hi`) fall into
 /// two sheets, one on either side of it, each stretching at least `2 d` along the
-/// corridor, with none closer than `d / 2` to the line through the vertex along it.
+/// corridor (counting the samples within `d` of each sheet's nearest, not a wall
+/// beyond it), with none closer than `d / 2` to the line through the vertex along it.
 /// The direction across is the one to the nearest sample (`nearest`), which is the near
 /// wall's normal. Such a vertex is free space even where the tube around the data
 /// covers it: the gap between two walls narrower than the tube stays open.
@@ -203,24 +230,18 @@ impl Strip {
 /// A hole between two samples of one wall is no corridor: the samples on either side of
 /// it lie along the direction across, not along the corridor; nor is a hole among the
 /// samples of a noisy band, where the band's samples fill the line through the vertex.
-///
-/// A corridor's dead end (the cap where its two walls meet) fails the test, the cap's
-/// samples lying across the strip; the corridor is grown into it from the vertices that
-/// passed, through vertices inside their strip at least half as far from the data, so
-/// that the cap starts out on the right side.
 pub fn corridors<'a>(
-    field: &DistanceField,
+    field: &'a DistanceField,
     coords: &[Point],
-    neighbours: impl Fn(usize) -> &'a [u32],
     dist: &[f64],
     nearest: &[u32],
     lo: f64,
     hi: f64,
-) -> Vec<Option<Strip>> {
+) -> Corridors<'a> {
     // Each wall needs this many samples in the window to count as a sheet.
     const MIN_SAMPLES: usize = 3;
     let pts = field.points();
-    let mut strips: Vec<Option<Strip>> = coords
+    let strips = coords
         .par_iter()
         .zip(dist.par_iter().zip(nearest.par_iter()))
         .map_init(Vec::new, |buf, (&p, (&d, &j))| {
@@ -230,61 +251,46 @@ pub fn corridors<'a>(
             let q = pts[j as usize];
             let across = [(q[0] - p[0]) / d, (q[1] - p[1]) / d];
             field.within(p, 3.0 * d, buf);
-            // Per wall: samples, the extent along the corridor, the nearest offset.
-            let mut walls = [(0usize, f64::INFINITY, f64::NEG_INFINITY, f64::INFINITY); 2];
-            for &i in buf.iter() {
+            let local = |i: u32| {
                 let w = sub(pts[i as usize], p);
                 let b = w[0] * across[0] + w[1] * across[1];
                 let a = w[1] * across[0] - w[0] * across[1];
+                (b, a)
+            };
+            // The nearest offset on each side; none in the strip's middle.
+            let mut nearest_b = [f64::INFINITY; 2];
+            for &i in buf.iter() {
+                let (b, _) = local(i);
                 if b.abs() < 0.5 * d {
                     return None;
                 }
-                let wall = &mut walls[usize::from(b < 0.0)];
-                wall.0 += 1;
-                wall.1 = wall.1.min(a);
-                wall.2 = wall.2.max(a);
-                wall.3 = wall.3.min(b.abs());
+                let side = &mut nearest_b[usize::from(b < 0.0)];
+                *side = side.min(b.abs());
+            }
+            // Each wall: the samples within d of its nearest offset (the wall itself, not
+            // a wall beyond it), their count and their extent along the corridor.
+            let mut walls = [(0usize, f64::INFINITY, f64::NEG_INFINITY); 2];
+            for &i in buf.iter() {
+                let (b, a) = local(i);
+                let side = usize::from(b < 0.0);
+                if b.abs() <= nearest_b[side] + d {
+                    let wall = &mut walls[side];
+                    wall.0 += 1;
+                    wall.1 = wall.1.min(a);
+                    wall.2 = wall.2.max(a);
+                }
             }
             walls
                 .iter()
-                .all(|&(count, lo_a, hi_a, _)| count >= MIN_SAMPLES && hi_a - lo_a >= 2.0 * d)
+                .all(|&(count, lo_a, hi_a)| count >= MIN_SAMPLES && hi_a - lo_a >= 2.0 * d)
                 .then_some(Strip {
                     across,
                     near: d,
-                    far: walls[1].3,
+                    far: nearest_b[1],
                 })
         })
         .collect();
-    // A grown vertex's strip is its own direction to the data, with the root's width;
-    // growth stops within 1.5 d of the root, as deep as a cap is.
-    let mut stack: Vec<(usize, usize)> = (0..strips.len())
-        .filter(|&v| strips[v].is_some())
-        .map(|v| (v, v))
-        .collect();
-    while let Some((v, root)) = stack.pop() {
-        let (Some(here), Some(origin)) = (strips[v], strips[root]) else {
-            continue;
-        };
-        for &w in neighbours(v) {
-            let w = w as usize;
-            let d = dist[w];
-            if strips[w].is_some()
-                || d < 0.5 * origin.near
-                || crate::geom::dist(coords[w], coords[root]) > 1.5 * origin.near
-                || !here.holds(coords[v], coords[w])
-            {
-                continue;
-            }
-            let q = pts[nearest[w] as usize];
-            strips[w] = Some(Strip {
-                across: [(q[0] - coords[w][0]) / d, (q[1] - coords[w][1]) / d],
-                near: d,
-                far: origin.near + origin.far - d,
-            });
-            stack.push((w, root));
-        }
-    }
-    strips
+    Corridors { strips, field }
 }
 
 /// Which side of the tube `{d < delta}` around the data a vertex lies on.
@@ -310,7 +316,7 @@ pub fn tube_sides<'a>(
     neighbours: impl Fn(usize) -> &'a [u32],
     dist: &[f64],
     delta: f64,
-    corridor: &[Option<Strip>],
+    corridor: Option<&Corridors<'_>>,
 ) -> Option<Vec<Side>> {
     let n = dist.len();
     const NONE: u32 = u32::MAX;
@@ -318,9 +324,9 @@ pub fn tube_sides<'a>(
     // Two free vertices are joined only by an edge that runs along the corridors they
     // lie in, not across a wall between two of them.
     let joined = |v: usize, w: usize| {
-        let along = |a: usize, b: usize| match corridor.get(a) {
-            Some(Some(strip)) => strip.holds(mesh.coords[a], mesh.coords[b]),
-            _ => true,
+        let along = |a: usize, b: usize| match strip_at(corridor, a) {
+            Some(strip) => strip.holds(mesh.coords[a], mesh.coords[b]),
+            None => true,
         };
         along(v, w) && along(w, v)
     };
@@ -359,9 +365,13 @@ pub fn tube_sides<'a>(
     }
     let free_at = |v: usize| {
         let r = first[v] as usize;
-        (first_kinds[r] && reach[r] >= 2.0 * delta) || matches!(corridor.get(v), Some(Some(_)))
+        (first_kinds[r] && reach[r] >= 2.0 * delta) || strip_at(corridor, v).is_some()
     };
-    let (region, kinds) = label(&free_at);
+    let (mut region, kinds) = label(&free_at);
+    if let Some(c) = corridor {
+        let free: Vec<bool> = region.iter().map(|&r| kinds[r as usize]).collect();
+        bridge_corridors(mesh, c, &free, &mut region);
+    }
     // Depth of each region from the free regions touching the boundary: one step into or
     // out of the tube, two across a wall between corridors (through the tube it is).
     let nr = kinds.len();
@@ -406,7 +416,21 @@ pub fn tube_sides<'a>(
     }
     // Free regions at depth 0, 4, 8, ... are outside; 2, 6, ... inside. Unreached
     // regions (a domain with no free boundary) count as inside.
-    let any_inside = (0..nr).any(|r| kinds[r] && (depth[r] == u32::MAX || (depth[r] / 2) % 2 == 1));
+    // An inside region counts as enclosed only if some vertex of it lies at least
+    // delta / 2 from the data and it has a few vertices: a speck left where a leaking
+    // tube pinched is no interior, and a wider tube must be tried.
+    let mut size = vec![0u32; nr];
+    let mut region_reach = vec![0.0f64; nr];
+    for (v, &r) in region.iter().enumerate() {
+        size[r as usize] += 1;
+        region_reach[r as usize] = region_reach[r as usize].max(dist[v]);
+    }
+    let any_inside = (0..nr).any(|r| {
+        kinds[r]
+            && size[r] >= 3
+            && region_reach[r] >= 0.5 * delta
+            && (depth[r] == u32::MAX || (depth[r] / 2) % 2 == 1)
+    });
     if !any_inside {
         return None;
     }
@@ -424,6 +448,63 @@ pub fn tube_sides<'a>(
     Some(sides)
 }
 
+/// Joins the regions of free vertices that one corridor runs through but that the
+/// mesh's edges do not join: where the corridor test failed for a stretch (a gap in a
+/// wall, a noisy patch), and where a corridor opens into a wider free region through
+/// the tube (its mouth). A corridor vertex joins the free vertices within `3 d` of it
+/// inside its strip (and, if they are corridor vertices, with it inside theirs) when the
+/// segment between them keeps `d / 2` from every sample; `region` is relabelled to the
+/// representatives. Walls still separate: across one neither the strips nor the
+/// clearance hold.
+fn bridge_corridors(mesh: &Mesh, corridor: &Corridors<'_>, free: &[bool], region: &mut [u32]) {
+    let ids: Vec<usize> = (0..region.len()).filter(|&v| free[v]).collect();
+    if ids.len() < 2 || !ids.iter().any(|&v| strip_at(Some(corridor), v).is_some()) {
+        return;
+    }
+    let coords: Vec<Point> = ids.iter().map(|&v| mesh.coords[v]).collect();
+    let Ok(tree) = DistanceField::new(&coords) else {
+        return;
+    };
+    // The tree orders its (distinct) points by x then y: map them back to vertices.
+    let mut by_point = ids.clone();
+    by_point.sort_unstable_by(|&a, &b| {
+        let (p, q) = (mesh.coords[a], mesh.coords[b]);
+        p[0].total_cmp(&q[0]).then(p[1].total_cmp(&q[1]))
+    });
+    let regions = region.iter().copied().max().map_or(0, |m| m + 1);
+    let mut parent: Vec<u32> = (0..regions).collect();
+    fn find(parent: &mut [u32], mut r: u32) -> u32 {
+        while parent[r as usize] != r {
+            parent[r as usize] = parent[parent[r as usize] as usize];
+            r = parent[r as usize];
+        }
+        r
+    }
+    let mut near = Vec::new();
+    for &v in &ids {
+        let Some(sv) = strip_at(Some(corridor), v) else {
+            continue;
+        };
+        let p = mesh.coords[v];
+        tree.within(p, 3.0 * sv.near, &mut near);
+        for &j in &near {
+            let w = by_point[j as usize];
+            let q = mesh.coords[w];
+            let (a, b) = (find(&mut parent, region[v]), find(&mut parent, region[w]));
+            if a == b || !sv.holds(p, q) {
+                continue;
+            }
+            let mutual = strip_at(Some(corridor), w).is_none_or(|sw| sw.holds(q, p));
+            if mutual && corridor.clear(p, q, 0.5 * sv.near) {
+                parent[a.max(b) as usize] = a.min(b);
+            }
+        }
+    }
+    for r in region.iter_mut() {
+        *r = find(&mut parent, *r);
+    }
+}
+
 /// The tube start: `dist` is the distance to the data at each vertex of `mesh`,
 /// `neighbours(v)` its ring. Returns a level set whose zero isoline is the boundary
 /// between the regions labelled outside and the rest; it is a signed distance only up
@@ -434,7 +515,7 @@ pub fn tube<'a>(
     neighbours: impl Fn(usize) -> &'a [u32],
     dist: &[f64],
     delta: f64,
-    corridor: &[Option<Strip>],
+    corridor: Option<&Corridors<'_>>,
 ) -> Option<Vec<f64>> {
     let sides = tube_sides(mesh, neighbours, dist, delta, corridor)?;
     let u = sides
@@ -452,8 +533,8 @@ pub fn tube<'a>(
 
 /// The tube's radius at vertex `v` (distance `d` from the data): `delta`, and in a
 /// corridor half the distance, so that the corridor's vertices lie outside it.
-fn radius_at(v: usize, d: f64, delta: f64, corridor: &[Option<Strip>]) -> f64 {
-    if matches!(corridor.get(v), Some(Some(_))) {
+fn radius_at(v: usize, d: f64, delta: f64, corridor: Option<&Corridors<'_>>) -> f64 {
+    if strip_at(corridor, v).is_some() {
         delta.min(0.5 * d)
     } else {
         delta
@@ -476,7 +557,7 @@ pub fn medial(
     space: &P1Space,
     dist: &[f64],
     delta: f64,
-    corridor: &[Option<Strip>],
+    corridor: Option<&Corridors<'_>>,
     fm: &mut Redistancer,
 ) -> Option<Vec<f64>> {
     let sides = tube_sides(mesh, |v| space.ring(v), dist, delta, corridor)?;
@@ -650,8 +731,8 @@ mod tests {
         let delta = tube_radius(&field, 0.02);
         assert!((0.02..0.03).contains(&delta), "{delta}");
         // A tube too thin to close: nothing is inside.
-        assert!(tube(&mesh, |v| space.ring(v), &d, 1e-4, &[]).is_none());
-        let u = tube(&mesh, |v| space.ring(v), &d, delta, &[]).unwrap();
+        assert!(tube(&mesh, |v| space.ring(v), &d, 1e-4, None).is_none());
+        let u = tube(&mesh, |v| space.ring(v), &d, delta, None).unwrap();
         let at = |p: Point| {
             let v = (0..mesh.coords.len())
                 .min_by(|&a, &b| dist(mesh.coords[a], p).total_cmp(&dist(mesh.coords[b], p)))
@@ -707,7 +788,7 @@ mod tests {
         let near = field.nearest_all(&probes);
         let d: Vec<f64> = near.iter().map(|n| n.dist).collect();
         let j: Vec<u32> = near.iter().map(|n| n.index).collect();
-        let c = corridors(&field, &probes, |_| &[], &d, &j, 0.001, 1.0);
+        let c = corridors(&field, &probes, &d, &j, 0.001, 1.0).strips;
         assert!(c[0].is_some() && c[1].is_some(), "mid-corridor: {c:?}");
         let strip = c[0].unwrap();
         assert!((strip.near - 0.025).abs() < 1e-12 && (strip.far - 0.025).abs() < 1e-12);
@@ -743,22 +824,14 @@ mod tests {
         };
         // The first bay's centre and its inlet's middle; the body between two bays.
         let (bay, inlet, body) = ([0.5, 0.7], [0.5, 0.85], [0.5, 0.45]);
-        let closed = tube_sides(&mesh, |v| space.ring(v), &d, delta, &[]).unwrap();
+        let closed = tube_sides(&mesh, |v| space.ring(v), &d, delta, None).unwrap();
         assert_eq!(
             at(&closed, bay),
             Side::Inside,
             "without corridors the bay fills"
         );
-        let c = corridors(
-            &field,
-            &mesh.coords,
-            |v| space.ring(v),
-            &d,
-            &j,
-            0.004,
-            2.0 * delta,
-        );
-        let open = tube_sides(&mesh, |v| space.ring(v), &d, delta, &c).unwrap();
+        let c = corridors(&field, &mesh.coords, &d, &j, 0.004, 2.0 * delta);
+        let open = tube_sides(&mesh, |v| space.ring(v), &d, delta, Some(&c)).unwrap();
         assert_eq!(at(&open, bay), Side::Outside);
         assert_eq!(at(&open, inlet), Side::Outside);
         assert_eq!(at(&open, body), Side::Inside);
@@ -788,7 +861,7 @@ mod tests {
         field.distances_into(&mesh.coords, &mut d);
         let delta = 3.0 * h;
         let mut fm = Redistancer::new();
-        let mut u = medial(&mesh, &space, &d, delta, &[], &mut fm).unwrap();
+        let mut u = medial(&mesh, &space, &d, delta, None, &mut fm).unwrap();
         fm.run(&mesh, &space, &mut u, f64::INFINITY);
         // The tube's middle is the circle itself, up to the first-order error of fast
         // marching and of the P1 tube boundaries: O(h) each.

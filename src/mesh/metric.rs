@@ -178,7 +178,7 @@ impl<'a> CurveMetric<'a> {
             .map_init(Vec::new, |pts: &mut Vec<Point>, (&p, idx)| {
                 pts.clear();
                 pts.extend(idx.iter().map(|&i| points[i as usize]));
-                fit_frame(p, pts)
+                fit_one_sheet(p, pts)
             })
             .collect();
         let frames = raw
@@ -407,6 +407,106 @@ pub struct NoiseScale {
     pub neighbours: f64,
 }
 
+/// A frame fitted to the sheet of samples through `center`: `pts` are its nearest
+/// samples, nearest first, and may reach a second wall (the far side of a narrow
+/// corridor or inlet), which would turn the fit across both. The nearest quarter (at
+/// least 6) fixes the sheet, if its residual is below an eighth of its radius and it
+/// bends by less than half a radian over it (not a blob of data denser than its noise,
+/// nor a corner). The offsets of all the samples
+/// from that fit split at their widest gap, and only the centre's side is fitted when
+/// the split is two walls, not the tails of one noisy band, the bend of one clean wall
+/// or the other arm of a corner: the gap at least six times the first fit's noise and
+/// as wide as the nearest quarter's radius, opening at the centre's own sheet, with at
+/// least 4 samples beyond it at about one offset (spread below half the gap) that
+/// stretch along the sheet for a quarter of that radius. A second cut takes a wall on
+/// the other side off too.
+pub fn fit_one_sheet(center: Point, pts: &mut Vec<Point>) -> LocalFrame {
+    let k0 = (pts.len() / 4).max(6);
+    if pts.len() < 2 * k0 {
+        return fit_frame(center, pts);
+    }
+    let first = fit_frame(center, &pts[..k0]);
+    if !first.defined {
+        return fit_frame(center, pts);
+    }
+    let tangent = [first.normal[1], -first.normal[0]];
+    // Offsets from the first fit's parabola through the centre, to second order; a
+    // curvature within three standard errors of none is noise, and extrapolated over
+    // the whole window it would scatter one wall's samples.
+    let curvature = if first.curvature.abs() > 3.0 * first.curvature_se {
+        first.curvature
+    } else {
+        0.0
+    };
+    let offset = |p: Point| {
+        let q = sub(p, center);
+        let (s, h) = (dot(q, tangent), dot(q, first.normal));
+        h - 0.5 * curvature * s * s
+    };
+    // The sheet's own noise, the first fit's residual over its degrees of freedom.
+    let sigma = first.residual * (k0 as f64 / (k0 - 3) as f64).sqrt();
+    let window = dist(center, pts[k0 - 1]);
+    // Only a first fit along a sheet (its samples spread far more along it than across,
+    // and not bending by more than half a radian across it) fixes a direction to cut
+    // across; on data denser than its noise it is a blob, at a corner a bend.
+    if sigma > window / 8.0 || first.curvature.abs() * window > 0.5 {
+        return fit_frame(center, pts);
+    }
+    let own = offset(center);
+    // A wall on each side of the centre's (a turn of a spiral) takes two cuts.
+    let mut sorted = Vec::with_capacity(pts.len());
+    for _ in 0..2 {
+        sorted.clear();
+        sorted.extend(pts.iter().map(|&p| offset(p)));
+        sorted.sort_unstable_by(f64::total_cmp);
+        let Some((cut, gap)) = sorted
+            .windows(2)
+            .enumerate()
+            .map(|(i, w)| (i + 1, w[1] - w[0]))
+            .max_by(|a, b| a.1.total_cmp(&b.1))
+        else {
+            break;
+        };
+        let split = 0.5 * (sorted[cut - 1] + sorted[cut]);
+        let below = own < split;
+        let far = if below {
+            &sorted[cut..]
+        } else {
+            &sorted[..cut]
+        };
+        // A parallel wall lies at one offset; the other arm of a corner spreads.
+        let mean = far.iter().sum::<f64>() / far.len() as f64;
+        let spread =
+            (far.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / far.len() as f64).sqrt();
+        // The gap must open right at the centre's own sheet, not inside a spread of samples.
+        let edge = if below { sorted[cut - 1] } else { sorted[cut] };
+        let at_own = (edge - own).abs() <= 6.0 * sigma + 0.25 * window;
+        // And the far wall runs along the sheet, as the other arm of a corner does not.
+        let (lo_s, hi_s) = pts
+            .iter()
+            .filter(|&&p| (offset(p) < split) != below)
+            .map(|&p| dot(sub(p, center), tangent))
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), s| {
+                (a.min(s), b.max(s))
+            });
+        let along = hi_s - lo_s >= 0.25 * window;
+        if far.len() < 4
+            || gap < 6.0 * sigma
+            || gap < window
+            || spread > 0.5 * gap
+            || !at_own
+            || !along
+        {
+            break;
+        }
+        pts.retain(|&p| (offset(p) < split) == below);
+        if pts.len() < k0 {
+            break;
+        }
+    }
+    fit_frame(center, pts)
+}
+
 /// A frame fitted at each of `centres` to the samples of `field` within `r` of it (an
 /// even subsample of at most [`NOISE_FIT_MAX`] of them).
 fn fits_within(field: &DistanceField, centres: &[Point], r: f64) -> Vec<LocalFrame> {
@@ -417,11 +517,14 @@ fn fits_within(field: &DistanceField, centres: &[Point], r: f64) -> Vec<LocalFra
             || (Vec::new(), Vec::new()),
             |(idx, sel): &mut (Vec<u32>, Vec<Point>), &c| {
                 field.within(c, r, idx);
-                idx.sort_unstable();
+                // Nearest first, for the fit to find the centre's own sheet.
+                idx.sort_unstable_by(|&a, &b| {
+                    dist(c, pts[a as usize]).total_cmp(&dist(c, pts[b as usize]))
+                });
                 let stride = idx.len().div_ceil(NOISE_FIT_MAX).max(1);
                 sel.clear();
                 sel.extend(idx.iter().step_by(stride).map(|&j| pts[j as usize]));
-                fit_frame(c, sel)
+                fit_one_sheet(c, sel)
             },
         )
         .collect()
@@ -537,6 +640,43 @@ mod tests {
             gradation: 0.3,
             isotropic: false,
             neighbours,
+        }
+    }
+
+    #[test]
+    fn one_sheet_fits_leave_out_a_parallel_wall_and_nothing_else() {
+        use rand::SeedableRng;
+        use rand_distr::{Distribution, Normal};
+        let nearest_first = |c: Point, mut pts: Vec<Point>| {
+            pts.sort_by(|a, b| dist(c, *a).total_cmp(&dist(c, *b)));
+            pts.truncate(32);
+            pts
+        };
+        // Two walls 8 spacings apart: 32 neighbours reach the far one, which would put
+        // the fit's residual near half the gap; the one-sheet fit stays on its wall.
+        let walls: Vec<Point> = (-20..=20)
+            .flat_map(|i| [[i as f64, 0.0], [i as f64 + 0.5, 8.0]])
+            .collect();
+        let mut pts = nearest_first([0.0, 0.0], walls);
+        let both = fit_frame([0.0, 0.0], &pts);
+        assert!(both.residual > 1.0, "{both:?}");
+        let one = fit_one_sheet([0.0, 0.0], &mut pts);
+        assert!(one.residual < 1e-9 && one.normal[0].abs() < 1e-9, "{one:?}");
+        assert!(pts.iter().all(|p| p[1] == 0.0));
+        // One noisy band, and a corner: nothing to leave out.
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
+        let noise = Normal::new(0.0, 0.5).unwrap();
+        let band: Vec<Point> = (0..400)
+            .map(|i| [i as f64 * 0.1 - 20.0, noise.sample(&mut rng)])
+            .collect();
+        let corner: Vec<Point> = (0..20)
+            .flat_map(|i| [[i as f64, 0.0], [0.0, i as f64 + 1.0]])
+            .collect();
+        for (c, set) in [([0.0, 0.0], band), ([3.0, 0.0], corner)] {
+            let mut pts = nearest_first(c, set);
+            let all = fit_frame(c, &pts);
+            assert_eq!(fit_one_sheet(c, &mut pts), all);
+            assert_eq!(pts.len(), 32);
         }
     }
 
