@@ -6,7 +6,8 @@
 //! `isoline ...` and `cargo run --release -- ...` run the binary under test; scripts run
 //! with `QUICK=1` (a small version of their run) and that binary. `cargo test`, `cargo
 //! bench`, `cargo build`, `scripts/test.sh` and `.ci/run` are the suite and its build,
-//! not run here. Any
+//! and `scripts/cgal-peer.sh` installs a Debian package and builds a C++ peer: not run
+//! here. Any
 //! other command fails the test, so a page cannot show one that nothing checks. `toml`
 //! blocks are parsed as the configuration they are (daemon, batch job, or the shared
 //! tables), `json` blocks as the frame, result or truth they show.
@@ -123,7 +124,9 @@ fn run(dir: &Path, page: &Path, command: &str) {
     let mut cmd = match w.iter().map(String::as_str).collect::<Vec<_>>().as_slice() {
         ["cargo", "test" | "bench" | "build" | "clippy" | "fmt", ..]
         | [".ci/run"]
-        | ["scripts/test.sh"] => return,
+        | ["scripts/test.sh"]
+        // Installs a Debian package and builds a C++ driver: a measurement run by hand.
+        | ["scripts/cgal-peer.sh", ..] => return,
         ["cargo", "run", "--release", "--", rest @ ..] | ["isoline", rest @ ..] => {
             let mut c = Command::new(bin);
             c.args(rest);

@@ -517,13 +517,12 @@ fn fits_within(field: &DistanceField, centres: &[Point], r: f64) -> Vec<LocalFra
             || (Vec::new(), Vec::new()),
             |(idx, sel): &mut (Vec<u32>, Vec<Point>), &c| {
                 field.within(c, r, idx);
-                // Nearest first, for the fit to find the centre's own sheet.
-                idx.sort_unstable_by(|&a, &b| {
-                    dist(c, pts[a as usize]).total_cmp(&dist(c, pts[b as usize]))
-                });
+                idx.sort_unstable();
                 let stride = idx.len().div_ceil(NOISE_FIT_MAX).max(1);
                 sel.clear();
                 sel.extend(idx.iter().step_by(stride).map(|&j| pts[j as usize]));
+                // Nearest first, for the fit to find the centre's own sheet.
+                sel.sort_unstable_by(|a, b| dist(c, *a).total_cmp(&dist(c, *b)));
                 fit_one_sheet(c, sel)
             },
         )
