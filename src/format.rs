@@ -284,6 +284,25 @@ pub struct FeatureJson {
     pub returns: usize,
 }
 
+/// Where open strokes meet, on the wire: `{"at":[x,y],"polylines":[i,j,k]}`, the
+/// indices into the record's `polylines`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct JunctionJson {
+    /// The meeting point.
+    pub at: Point,
+    /// The polylines ending there.
+    pub polylines: Vec<usize>,
+}
+
+impl From<&crate::export::strokes::Junction> for JunctionJson {
+    fn from(j: &crate::export::strokes::Junction) -> Self {
+        JunctionJson {
+            at: j.at,
+            polylines: j.polylines.clone(),
+        }
+    }
+}
+
 impl From<&Feature> for FeatureJson {
     fn from(f: &Feature) -> Self {
         FeatureJson {
@@ -321,6 +340,9 @@ pub struct ResultRecord {
     /// returns).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub features: Option<Vec<FeatureJson>>,
+    /// Point clouds: where open strokes meet.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub junctions: Option<Vec<JunctionJson>>,
     /// How they were made.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub stats: Option<FrameStats>,
@@ -351,6 +373,8 @@ impl ResultRecord {
                 .stats
                 .unexplained
                 .map(|_| r.features.iter().map(FeatureJson::from).collect()),
+            junctions: (!r.junctions.is_empty())
+                .then(|| r.junctions.iter().map(JunctionJson::from).collect()),
             stats: Some(r.stats.clone()),
             warnings: (!r.warnings.is_empty()).then(|| r.warnings.clone()),
             ..Default::default()

@@ -67,8 +67,10 @@ impl Params {
 /// A reconstruction: the curves, and the mesh and level set they come from.
 #[derive(Debug)]
 pub struct Reconstruction {
-    /// The zero isoline, in data coordinates: closed loops counter-clockwise around
-    /// inside regions, clockwise around holes; open chains where it leaves the mesh.
+    /// The curves, in data coordinates: the zero isoline's closed loops counter-clockwise
+    /// around inside regions, clockwise around holes, and open chains where it leaves
+    /// the mesh (scans: cut to the returns' support); then, for point clouds, open
+    /// strokes along samples no loop explains.
     pub polylines: Vec<Polyline>,
     /// The adapted mesh, in data coordinates.
     pub mesh: Mesh,
@@ -88,6 +90,9 @@ pub struct Reconstruction {
     pub noise_estimate: f64,
     /// Scan frames: the clusters of returns that no curve explains, in data coordinates.
     pub features: Vec<Feature>,
+    /// Point clouds: where open strokes meet, and which of `polylines` meet there
+    /// ([`crate::export::strokes`]).
+    pub junctions: Vec<crate::export::strokes::Junction>,
     /// Scan frames: the sensor's position and the boundary of the free space its rays
     /// swept, in data coordinates.
     pub free_space: Option<(Point, Polyline)>,
@@ -440,6 +445,17 @@ fn export_with(
     let sigma = scan.map_or(adapted.noise_estimate, |(a, _)| a.scales.noise);
     let tolerance = at.len_to_data(3.0 * sigma + 2.0 * hmin);
     let data: Vec<Point> = prepared.local.iter().map(|&q| at.to_data(q)).collect();
+    let (polylines, junctions) = match scan {
+        Some(_) => (polylines, Vec::new()),
+        None => crate::export::strokes::with_strokes(
+            polylines,
+            &data,
+            solved.enclosed,
+            at.len_to_data(sigma),
+            at.len_to_data(hmin),
+            tolerance,
+        ),
+    };
     let fit = crate::export::fit::fit(&data, &polylines, tolerance);
     let supported = match &scan_analysis {
         Some(a) => a
@@ -505,6 +521,7 @@ fn export_with(
         settings: solved.settings,
         noise_estimate: at.len_to_data(adapted.noise_estimate),
         features,
+        junctions,
         free_space: scan_analysis.map(|a| {
             let mut poly = a.free.polygon();
             poly.points.iter_mut().for_each(|p| *p = at.to_data(*p));

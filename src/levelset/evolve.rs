@@ -31,6 +31,10 @@ pub struct Solved {
     /// Whether a warm start was tried, found worse than the previous frame, and
     /// replaced by a cold one.
     pub cold_fallback: bool,
+    /// Whether the data enclose anything: false when a tube start found no inside
+    /// region (open strokes, or samples too sparse to close) and the level set started
+    /// from the box around them, whose loop then explains nothing.
+    pub enclosed: bool,
     /// Whether `u` is already the signed distance to its zero isoline over the whole mesh
     /// (the median settle's last accepted round leaves it so).
     pub renormalized: bool,
@@ -118,6 +122,7 @@ pub fn solve(
             _ => None,
         };
         let warm_start = warm.is_some();
+        let mut enclosed = true;
         let mut u = match (warm, start) {
             (Some((u, near)), _) => {
                 if near {
@@ -155,6 +160,8 @@ pub fn solve(
                     &mut fm,
                 );
                 ms_renormalize += t.elapsed().as_secs_f64() * 1e3;
+                enclosed =
+                    !(matches!(params.init, Init::Medial | Init::Tube) && start.init == Init::Box);
                 if start.init == Init::Medial && params.settle == Settle::Median {
                     // Like a warm start at the data: nothing to capture, the settle
                     // places the curve.
@@ -216,6 +223,7 @@ pub fn solve(
             report,
             settings,
             warm_start,
+            enclosed,
             renormalized,
             ms_renormalize,
         }
@@ -248,6 +256,7 @@ pub fn solve(
         report: attempt.report,
         settings: attempt.settings,
         warm_start: attempt.warm_start,
+        enclosed: attempt.enclosed,
         cold_fallback,
         renormalized: attempt.renormalized,
         ms_distance,
@@ -262,6 +271,7 @@ struct Attempt {
     report: SolveReport,
     settings: SolverSettings,
     warm_start: bool,
+    enclosed: bool,
     renormalized: bool,
     ms_renormalize: f64,
 }

@@ -1,0 +1,489 @@
+//! Open strokes: samples that form a single sheet with ends (a pen stroke, a wire, a
+//! wall seen from both sides) have no inside for a level set to wrap, so no closed
+//! curve explains them. They become open polylines along the sheet's middle, split
+//! where strokes meet, and the junctions say which polylines meet where.
+//!
+//! The method is the classic thinning of a point cloud (Lee 2000): each sample moves
+//! across its sheet onto the line fitted to its neighbours within `r` (the 64 nearest at
+//! most); the moved samples are joined by a minimum spanning tree of the pairs closer
+//! than `r` (each sample's 16 nearest at most), and across gaps up to `2 r` from the
+//! tree's ends; branches
+//! shorter than `r` (the tree's zigzag across a still noisy sheet) are pruned; the tree's
+//! chains between its ends and its forks are the polylines, smoothed over `r / 2`, and
+//! forks closer than `2 r` are one junction (a crossing forks twice).
+
+use crate::distance::DistanceField;
+use crate::geom::{dist, Point, Polyline, Sym2};
+
+/// Samples a line is fitted to, at most (the nearest within `r`).
+const FIT: usize = 64;
+/// Candidate tree edges per moved sample, at most (the nearest within `r`).
+const LINKS: usize = 16;
+
+/// Where strokes meet.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Junction {
+    /// The meeting point.
+    pub at: Point,
+    /// The indices (into the strokes returned with it) of the polylines ending here.
+    pub polylines: Vec<usize>,
+}
+
+/// The curves of a point cloud with its strokes: the samples of `data` farther than
+/// `tol` from every curve of `closed` (the zero isoline) become strokes ([`strokes`]) at
+/// the scale `max(2 delta, 6 sigma)` (`delta` the tube radius of those samples, at least
+/// `2 hmin`), after the closed curves. When the data enclose nothing (`enclosed` false:
+/// the level set started from the box, and its loop runs round the data instead of
+/// along it) and strokes are found, the loops are dropped and every sample is a stroke's.
+/// Junction indices are into the returned curves.
+pub fn with_strokes(
+    closed: Vec<Polyline>,
+    data: &[Point],
+    enclosed: bool,
+    sigma: f64,
+    hmin: f64,
+    tol: f64,
+) -> (Vec<Polyline>, Vec<Junction>) {
+    let find = |curves: &[Polyline]| {
+        let index = crate::eval::SegmentIndex::new(curves);
+        let loose: Vec<Point> = data
+            .iter()
+            .copied()
+            .filter(|&p| index.is_empty() || index.distance(p) > tol)
+            .collect();
+        let Ok(field) = DistanceField::new(&loose) else {
+            return (Vec::new(), Vec::new());
+        };
+        let delta = crate::levelset::init::tube_radius(&field, 2.0 * hmin);
+        strokes(&loose, (2.0 * delta).max(6.0 * sigma))
+    };
+    if !enclosed {
+        let (lines, junctions) = find(&[]);
+        if !lines.is_empty() {
+            return (lines, junctions);
+        }
+        return (closed, Vec::new());
+    }
+    let (lines, mut junctions) = find(&closed);
+    let offset = closed.len();
+    for j in &mut junctions {
+        j.polylines.iter_mut().for_each(|i| *i += offset);
+    }
+    let mut curves = closed;
+    curves.extend(lines);
+    (curves, junctions)
+}
+
+/// The strokes through `points` at scale `r` (at least a few sample spacings and three
+/// noise deviations): open polylines, each at least `2 r` long or ending at a junction,
+/// and the junctions. Samples with fewer than 3 others within `r` are left out.
+pub fn strokes(points: &[Point], r: f64) -> (Vec<Polyline>, Vec<Junction>) {
+    if points.len() < 3 || r.is_nan() || r <= 0.0 {
+        return (Vec::new(), Vec::new());
+    }
+    let Ok(field) = DistanceField::new(points) else {
+        return (Vec::new(), Vec::new());
+    };
+    let moved = thin(&field, r);
+    let (nodes, edges) = spanning_tree(&moved, r);
+    let mut adj: Vec<Vec<usize>> = vec![Vec::new(); nodes.len()];
+    for &(a, b) in &edges {
+        adj[a].push(b);
+        adj[b].push(a);
+    }
+    prune(&nodes, &mut adj, r);
+    chains(&nodes, &adj, r, |p| {
+        field.points()[field.nearest(p).index as usize]
+    })
+}
+
+/// Each sample moved across its sheet onto the principal line of its neighbours within
+/// `r`; `None` for a sample with fewer than 3 neighbours (an outlier).
+fn thin(field: &DistanceField, r: f64) -> Vec<Option<Point>> {
+    use rayon::prelude::*;
+    let pts = field.points();
+    pts.par_iter()
+        .map_init(Vec::new, |buf, &p| {
+            // At most the FIT nearest: the cost stays bounded on dense data.
+            field.nearest_k(p, FIT, buf);
+            buf.retain(|&i| dist(p, pts[i as usize]) <= r);
+            if buf.len() < 4 {
+                return None;
+            }
+            let n = buf.len() as f64;
+            let c = buf.iter().fold([0.0, 0.0], |s, &i| {
+                let q = pts[i as usize];
+                [s[0] + q[0] / n, s[1] + q[1] / n]
+            });
+            let mut cov = Sym2::default();
+            for &i in buf.iter() {
+                let q = pts[i as usize];
+                cov = cov.plus(Sym2::outer([q[0] - c[0], q[1] - c[1]]));
+            }
+            let (_, _, t) = cov.eigen();
+            let s = (p[0] - c[0]) * t[0] + (p[1] - c[1]) * t[1];
+            Some([c[0] + s * t[0], c[1] + s * t[1]])
+        })
+        .collect()
+}
+
+/// The minimum spanning forest of the moved samples (Kruskal) over each one's
+/// [`LINKS`] nearest within `r`, then over the pairs within `2 r` from the ends that left
+/// (a gap between samples along a stroke: the nearest of a sample at its edge all lie
+/// on its own side): the nodes and the tree's edges as index pairs into them.
+fn spanning_tree(moved: &[Option<Point>], r: f64) -> (Vec<Point>, Vec<(usize, usize)>) {
+    let nodes: Vec<Point> = moved.iter().flatten().copied().collect();
+    let Ok(tree) = DistanceField::new(&nodes) else {
+        return (nodes, Vec::new());
+    };
+    // The tree merges equal points and orders them: work on its points.
+    let nodes = tree.points().to_vec();
+    let mut parent: Vec<usize> = (0..nodes.len()).collect();
+    fn find(parent: &mut [usize], mut i: usize) -> usize {
+        while parent[i] != i {
+            parent[i] = parent[parent[i]];
+            i = parent[i];
+        }
+        i
+    }
+    let mut edges = Vec::new();
+    let mut join = |mut pairs: Vec<(f64, usize, usize)>, edges: &mut Vec<(usize, usize)>| {
+        pairs.sort_unstable_by(|a, b| a.0.total_cmp(&b.0));
+        for (_, i, j) in pairs {
+            let (a, b) = (find(&mut parent, i), find(&mut parent, j));
+            if a != b {
+                parent[a] = b;
+                edges.push((i, j));
+            }
+        }
+    };
+    let mut near = Vec::new();
+    let mut pairs = Vec::new();
+    for (i, &p) in nodes.iter().enumerate() {
+        tree.nearest_k(p, LINKS, &mut near);
+        pairs.extend(
+            near.iter()
+                .map(|&j| j as usize)
+                .filter(|&j| j > i && dist(p, nodes[j]) <= r)
+                .map(|j| (dist(p, nodes[j]), i, j)),
+        );
+    }
+    join(pairs, &mut edges);
+    let mut degree = vec![0u32; nodes.len()];
+    for &(a, b) in &edges {
+        degree[a] += 1;
+        degree[b] += 1;
+    }
+    let mut pairs = Vec::new();
+    for (i, &p) in nodes.iter().enumerate().filter(|&(i, _)| degree[i] <= 1) {
+        tree.within(p, 2.0 * r, &mut near);
+        pairs.extend(
+            near.iter()
+                .map(|&j| j as usize)
+                .filter(|&j| j != i)
+                .map(|j| (dist(p, nodes[j]), i, j)),
+        );
+    }
+    join(pairs, &mut edges);
+    (nodes, edges)
+}
+
+/// Cuts the spurs off the tree: branches from a leaf to a fork shorter than `r`, the
+/// zigzag of the tree across a noisy sheet. Where a fork keeps at least two longer
+/// branches it is inside a stroke and all its short ones go; where it keeps fewer it
+/// is at a stroke's end, and the longest short one stays as the end. Twice over (a cut
+/// can leave a shorter spur behind).
+fn prune(nodes: &[Point], adj: &mut [Vec<usize>], r: f64) {
+    struct Branch {
+        nodes: Vec<usize>,
+        fork: usize,
+        length: f64,
+    }
+    for _ in 0..2 {
+        let mut by_fork: std::collections::HashMap<usize, Vec<Branch>> = Default::default();
+        for leaf in (0..adj.len()).filter(|&v| adj[v].len() == 1) {
+            let (mut prev, mut v) = (leaf, adj[leaf][0]);
+            let mut length = dist(nodes[leaf], nodes[v]);
+            let mut branch = vec![leaf];
+            while adj[v].len() == 2 && length < r {
+                branch.push(v);
+                let next = if adj[v][0] == prev {
+                    adj[v][1]
+                } else {
+                    adj[v][0]
+                };
+                length += dist(nodes[v], nodes[next]);
+                prev = v;
+                v = next;
+            }
+            if adj[v].len() >= 3 && length < r {
+                by_fork.entry(v).or_default().push(Branch {
+                    nodes: branch,
+                    fork: v,
+                    length,
+                });
+            }
+        }
+        for (fork, mut short) in by_fork {
+            let long = adj[fork].len() - short.len();
+            if long < 2 {
+                // Keep the longest as the stroke's end.
+                short.sort_by(|a, b| b.length.total_cmp(&a.length));
+                short.remove(0);
+            }
+            for b in short {
+                let last = *b.nodes.last().expect("a branch has its leaf");
+                adj[b.fork].retain(|&w| w != last);
+                for &v in &b.nodes {
+                    adj[v].clear();
+                }
+            }
+        }
+    }
+}
+
+/// The chains between the tree's ends and forks as smoothed polylines, forks within
+/// `2 r` of each other merged into one junction at `snap` of their centre; components shorter than `2 r` dropped.
+fn chains(
+    nodes: &[Point],
+    adj: &[Vec<usize>],
+    r: f64,
+    snap: impl Fn(Point) -> Point,
+) -> (Vec<Polyline>, Vec<Junction>) {
+    let n = nodes.len();
+    let fork = |v: usize| adj[v].len() >= 3;
+    // Forks within 2 r of each other along the tree are one junction.
+    let mut junction_of = vec![usize::MAX; n];
+    let mut junctions: Vec<(Vec<usize>, Vec<usize>)> = Vec::new(); // (forks, polylines)
+    for v in (0..n).filter(|&v| fork(v)) {
+        if junction_of[v] != usize::MAX {
+            continue;
+        }
+        let id = junctions.len();
+        let mut members = vec![v];
+        junction_of[v] = id;
+        let mut k = 0;
+        while k < members.len() {
+            let f = members[k];
+            k += 1;
+            for &w0 in &adj[f] {
+                // Follow the chain from f through w0 up to r; a fork there joins.
+                let (mut prev, mut w, mut length) = (f, w0, dist(nodes[f], nodes[w0]));
+                while adj[w].len() == 2 && length < 2.0 * r {
+                    let next = if adj[w][0] == prev {
+                        adj[w][1]
+                    } else {
+                        adj[w][0]
+                    };
+                    length += dist(nodes[w], nodes[next]);
+                    prev = w;
+                    w = next;
+                }
+                if fork(w) && length < 2.0 * r && junction_of[w] == usize::MAX {
+                    junction_of[w] = id;
+                    members.push(w);
+                }
+            }
+        }
+        junctions.push((members, Vec::new()));
+    }
+    let centre = |forks: &[usize]| {
+        let m = forks.len() as f64;
+        forks.iter().fold([0.0, 0.0], |s, &f| {
+            [s[0] + nodes[f][0] / m, s[1] + nodes[f][1] / m]
+        })
+    };
+    let mut used = vec![false; n];
+    let mut lines: Vec<(Polyline, [usize; 2])> = Vec::new();
+    let is_key = |v: usize| adj[v].len() != 2;
+    let walk = |start: usize, first: usize, used: &mut Vec<bool>| {
+        let mut path = vec![start, first];
+        let (mut prev, mut v) = (start, first);
+        while !is_key(v) && v != start {
+            used[v] = true;
+            let next = if adj[v][0] == prev {
+                adj[v][1]
+            } else {
+                adj[v][0]
+            };
+            path.push(next);
+            prev = v;
+            v = next;
+        }
+        path
+    };
+    for s in (0..n).filter(|&v| is_key(v) && !adj[v].is_empty()) {
+        for &first in &adj[s] {
+            if used[first] && !is_key(first) {
+                continue;
+            }
+            let path = walk(s, first, &mut used);
+            let end = *path.last().unwrap();
+            // Each chain once: from its smaller end (a chain between two forks of one
+            // junction is inside the junction).
+            if (is_key(end) && end < s) || (end == s && path.len() <= 2) {
+                continue;
+            }
+            if fork(s) && fork(end) && junction_of[s] == junction_of[end] {
+                continue;
+            }
+            lines.push((smooth(nodes, &path, r), [s, end]));
+        }
+    }
+    // Pin chain ends at forks to their junction: the sample nearest the forks' centre
+    // (the fits around a junction see two arms, so the thinned points there are off
+    // both; a sample is on one of them, at the junction).
+    let centres: Vec<Point> = junctions.iter().map(|(f, _)| snap(centre(f))).collect();
+    let mut out = Vec::new();
+    for (mut pl, ends) in lines {
+        for (k, &e) in ends.iter().enumerate() {
+            if fork(e) {
+                let at = centres[junction_of[e]];
+                if k == 0 {
+                    pl.points[0] = at;
+                } else {
+                    *pl.points.last_mut().unwrap() = at;
+                }
+            }
+        }
+        let free_ends = ends.iter().filter(|&&e| !fork(e)).count();
+        if free_ends == 2 && pl.length() < 2.0 * r {
+            continue;
+        }
+        let idx = out.len();
+        for &e in &ends {
+            if fork(e) {
+                let j = &mut junctions[junction_of[e]].1;
+                if !j.contains(&idx) {
+                    j.push(idx);
+                }
+            }
+        }
+        out.push(pl);
+    }
+    let junctions = junctions
+        .into_iter()
+        .zip(centres)
+        .filter(|((_, lines), _)| lines.len() >= 2)
+        .map(|((_, polylines), at)| Junction { at, polylines })
+        .collect();
+    (out, junctions)
+}
+
+/// The chain `path` through `nodes` as a polyline, each inner point the mean of the
+/// chain's points within `r / 2` of it along the chain (the ends stay).
+fn smooth(nodes: &[Point], path: &[usize], r: f64) -> Polyline {
+    let pts: Vec<Point> = path.iter().map(|&i| nodes[i]).collect();
+    let mut along = vec![0.0; pts.len()];
+    for i in 1..pts.len() {
+        along[i] = along[i - 1] + dist(pts[i - 1], pts[i]);
+    }
+    let half = 0.25 * r;
+    let mut out = Vec::with_capacity(pts.len());
+    let (mut lo, mut hi) = (0, 0);
+    for i in 0..pts.len() {
+        if i == 0 || i + 1 == pts.len() {
+            out.push(pts[i]);
+            continue;
+        }
+        // Symmetric window, shrunk near the ends so the ends do not pull the line.
+        let w = half.min(along[i]).min(along[pts.len() - 1] - along[i]);
+        while along[lo] < along[i] - w {
+            lo += 1;
+        }
+        while hi + 1 < pts.len() && along[hi + 1] <= along[i] + w {
+            hi += 1;
+        }
+        let m = (hi - lo + 1) as f64;
+        let s = pts[lo..=hi]
+            .iter()
+            .fold([0.0, 0.0], |s, p| [s[0] + p[0] / m, s[1] + p[1] / m]);
+        out.push(s);
+    }
+    Polyline {
+        closed: false,
+        points: out,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn line(a: Point, b: Point, n: usize) -> Vec<Point> {
+        (0..=n)
+            .map(|i| {
+                let f = i as f64 / n as f64;
+                [a[0] + (b[0] - a[0]) * f, a[1] + (b[1] - a[1]) * f]
+            })
+            .collect()
+    }
+
+    #[test]
+    fn a_t_and_a_cross_give_their_arms_and_junctions() {
+        // A T: a bar from (0,0) to (2,0) and a stem from (1,0) up to (1,1); a cross
+        // of two bars at (5,0). Samples every 0.01, r = 0.05.
+        let mut pts = line([0.0, 0.0], [2.0, 0.0], 200);
+        pts.extend(line([1.0, 0.01], [1.0, 1.0], 99));
+        pts.extend(line([4.0, 0.0], [6.0, 0.0], 200));
+        pts.extend(line([5.0, -1.0], [5.0, 1.0], 200));
+        let (lines, junctions) = strokes(&pts, 0.05);
+        assert_eq!(lines.len(), 7, "{lines:?}");
+        assert!(lines.iter().all(|l| !l.closed));
+        let mut degrees: Vec<usize> = junctions.iter().map(|j| j.polylines.len()).collect();
+        degrees.sort();
+        assert_eq!(degrees, vec![3, 4], "{junctions:?}");
+        for j in &junctions {
+            let expected = if j.polylines.len() == 3 {
+                [1.0, 0.0]
+            } else {
+                [5.0, 0.0]
+            };
+            assert!(dist(j.at, expected) < 0.05, "{j:?}");
+        }
+        // Clean samples on straight arms: away from the junctions (where the fits see
+        // two arms) the polylines lie on them.
+        for l in &lines {
+            for &p in &l.points {
+                if junctions.iter().all(|j| dist(j.at, p) > 0.1) {
+                    let off = p[1].abs().min((p[0] - 1.0).abs()).min((p[0] - 5.0).abs());
+                    assert!(off < 1e-9, "{p:?}");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn a_noisy_arc_is_one_polyline_along_its_middle_and_outliers_are_dropped() {
+        use rand::{Rng, SeedableRng};
+        use rand_distr::{Distribution, Normal};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(11);
+        let noise = Normal::new(0.0, 0.005).unwrap();
+        let mut pts: Vec<Point> = (0..2000)
+            .map(|_| {
+                let a = rng.random::<f64>() * std::f64::consts::PI;
+                let r = 0.5 + noise.sample(&mut rng);
+                [r * a.cos(), r * a.sin()]
+            })
+            .collect();
+        pts.extend((0..20).map(|_| [rng.random::<f64>() * 2.0 - 1.0, -0.5]));
+        let (lines, junctions) = strokes(&pts, 0.03);
+        assert_eq!(lines.len(), 1, "{lines:?}");
+        assert!(junctions.is_empty());
+        // The thinned line is within 2 sigma of the arc (the fit over r = 6 sigma
+        // averages the noise down), its ends within 2 r of the arc's.
+        let l = &lines[0];
+        let worst = l
+            .points
+            .iter()
+            .map(|p| (dist(*p, [0.0, 0.0]) - 0.5).abs())
+            .fold(0.0, f64::max);
+        assert!(worst < 0.01, "{worst}");
+        let ends = [l.points[0], *l.points.last().unwrap()];
+        assert!(ends.iter().any(|e| dist(*e, [0.5, 0.0]) < 0.06), "{ends:?}");
+        assert!(
+            ends.iter().any(|e| dist(*e, [-0.5, 0.0]) < 0.06),
+            "{ends:?}"
+        );
+    }
+}
