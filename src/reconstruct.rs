@@ -93,6 +93,8 @@ pub struct Reconstruction {
     /// Point clouds: where open strokes meet, and which of `polylines` meet there
     /// ([`crate::export::strokes`]).
     pub junctions: Vec<crate::export::strokes::Junction>,
+    /// Whether the data enclosed anything ([`crate::levelset::evolve::Solved::enclosed`]).
+    pub enclosed: bool,
     /// Scan frames: the sensor's position and the boundary of the free space its rays
     /// swept, in data coordinates.
     pub free_space: Option<(Point, Polyline)>,
@@ -522,6 +524,7 @@ fn export_with(
         noise_estimate: at.len_to_data(adapted.noise_estimate),
         features,
         junctions,
+        enclosed: solved.enclosed,
         free_space: scan_analysis.map(|a| {
             let mut poly = a.free.polygon();
             poly.points.iter_mut().for_each(|p| *p = at.to_data(*p));
@@ -665,6 +668,25 @@ mod tests {
         let again = reconstruct_warm(&next, &params, Some(&r)).unwrap();
         assert!(again.stats.warm_start && !again.stats.cold_fallback);
         assert_eq!(again.polylines.len(), 2);
+    }
+
+    /// A drawing of strokes encloses nothing: its frames come out as strokes, and the
+    /// next frame does not warm-start from the box's loop round the drawing (which would
+    /// come back as a loop).
+    #[test]
+    fn strokes_are_not_warm_started_from_the_loop_round_them() {
+        let mut p = SynthParams::new(Shape::Strokes);
+        p.noise = 0.002;
+        p.frames = 2;
+        p.seed = 7;
+        let frames = generate(&p).unwrap();
+        let params = Params::default();
+        let first = reconstruct(&frames[0].points, &params).unwrap();
+        assert!(!first.enclosed && first.polylines.iter().all(|l| !l.closed));
+        let next = reconstruct_warm(&frames[1].points, &params, Some(&first)).unwrap();
+        assert!(!next.stats.warm_start);
+        assert!(!next.polylines.is_empty() && next.polylines.iter().all(|l| !l.closed));
+        assert_eq!(next.junctions.len(), 3);
     }
 
     /// `mesh.max_vertices` bounds the mesh whatever the padding asks for (padding 20 with

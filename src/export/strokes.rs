@@ -30,9 +30,9 @@ pub struct Junction {
 }
 
 /// The curves of a point cloud with its strokes: the samples of `data` farther than
-/// `tol` from every curve of `closed` (the zero isoline) become strokes ([`strokes`]) at
-/// the scale `max(2 delta, 6 sigma)` (`delta` the tube radius of those samples, at least
-/// `2 hmin`), after the closed curves. When the data enclose nothing (`enclosed` false:
+/// `tol` from every curve of `closed` (the zero isoline) set the scale
+/// `r = max(2 delta, 6 sigma)` (`delta` their tube radius, at least `2 hmin`), and those
+/// farther than `r` become strokes ([`strokes`]) at that scale, after the closed curves. When the data enclose nothing (`enclosed` false:
 /// the level set started from the box, and its loop runs round the data instead of
 /// along it) and strokes are found, the loops are dropped and every sample is a stroke's.
 /// Junction indices are into the returned curves.
@@ -46,16 +46,23 @@ pub fn with_strokes(
 ) -> (Vec<Polyline>, Vec<Junction>) {
     let find = |curves: &[Polyline]| {
         let index = crate::eval::SegmentIndex::new(curves);
-        let loose: Vec<Point> = data
-            .iter()
-            .copied()
-            .filter(|&p| index.is_empty() || index.distance(p) > tol)
-            .collect();
+        let away = |p: Point| {
+            if index.is_empty() {
+                f64::INFINITY
+            } else {
+                index.distance(p)
+            }
+        };
+        let loose: Vec<Point> = data.iter().copied().filter(|&p| away(p) > tol).collect();
         let Ok(field) = DistanceField::new(&loose) else {
             return (Vec::new(), Vec::new());
         };
         let delta = crate::levelset::init::tube_radius(&field, 2.0 * hmin);
-        strokes(&loose, (2.0 * delta).max(6.0 * sigma))
+        let r = (2.0 * delta).max(6.0 * sigma);
+        // A loop that misses its samples by less than a stroke's scale (sparse samples
+        // of a small loop) still follows them: no stroke beside it.
+        let loose: Vec<Point> = loose.into_iter().filter(|&p| away(p) > r).collect();
+        strokes(&loose, r)
     };
     if !enclosed {
         let (lines, junctions) = find(&[]);

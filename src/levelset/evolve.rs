@@ -118,7 +118,7 @@ pub fn solve(
         let mut fm = Redistancer::new();
         let mut ms_renormalize = 0.0;
         let warm = match start {
-            Start::Warm(prev) => warm_start(prev, at, mesh, &data, &criteria),
+            Start::Warm(prev) if prev.enclosed => warm_start(prev, at, mesh, &data, &criteria),
             _ => None,
         };
         let warm_start = warm.is_some();

@@ -33,6 +33,9 @@ pub struct Previous<'a> {
     pub spread: f64,
     /// The share of its data within the median settle's reach of its curve.
     pub near: f64,
+    /// Whether its data enclosed anything ([`crate::levelset::evolve::Solved::enclosed`]):
+    /// the box's loop round a drawing of strokes is no start for the next frame.
+    pub enclosed: bool,
 }
 
 impl<'a> Previous<'a> {
@@ -43,6 +46,7 @@ impl<'a> Previous<'a> {
             u: &r.u,
             spread: r.spread,
             near: r.solve.near,
+            enclosed: r.enclosed,
         }
     }
 }
@@ -221,6 +225,7 @@ mod tests {
             u: &prev_u,
             spread: 0.0,
             near: 1.0,
+            enclosed: true,
         };
         let (u, near) = warm_start(prev, &UNIT, &mesh, &data, &C).unwrap();
         assert!(near && u == prev_u);
@@ -274,6 +279,7 @@ mod tests {
             u: &u,
             spread: 0.0,
             near: 0.95,
+            enclosed: true,
         };
         let (carried, near) = warm_start(prev, &UNIT, &mesh, &data, &C).unwrap();
         assert!(near && carried == u);

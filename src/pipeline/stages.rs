@@ -197,6 +197,7 @@ struct LevelSet {
     u: Vec<f64>,
     spread: f64,
     near: f64,
+    enclosed: bool,
     pose: Option<Pose>,
 }
 
@@ -599,6 +600,7 @@ pub(crate) fn spawn_solve(
                         u: &l.u,
                         spread: l.spread,
                         near: l.near,
+                        enclosed: l.enclosed,
                     }
                 });
                 let solved = reconstruct::solve(&p, &adapted, previous);
@@ -651,6 +653,7 @@ pub(crate) fn spawn_renormalize(
                             u: solved.u.iter().map(|&x| at.len_to_data(x)).collect(),
                             spread: at.len_to_data(solved.report.spread),
                             near: solved.report.near,
+                            enclosed: solved.enclosed,
                             pose,
                         }
                     })
