@@ -207,7 +207,7 @@ fn prune(nodes: &[Point], adj: &mut [Vec<usize>], r: f64) {
         length: f64,
     }
     for _ in 0..2 {
-        let mut by_fork: std::collections::HashMap<usize, Vec<Branch>> = Default::default();
+        let mut by_fork: std::collections::BTreeMap<usize, Vec<Branch>> = Default::default();
         for leaf in (0..adj.len()).filter(|&v| adj[v].len() == 1) {
             let (mut prev, mut v) = (leaf, adj[leaf][0]);
             let mut length = dist(nodes[leaf], nodes[v]);
