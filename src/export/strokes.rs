@@ -46,14 +46,18 @@ pub fn with_strokes(
 ) -> (Vec<Polyline>, Vec<Junction>) {
     let find = |curves: &[Polyline]| {
         let index = crate::eval::SegmentIndex::new(curves);
-        let away = |p: Point| {
-            if index.is_empty() {
-                f64::INFINITY
-            } else {
-                index.distance(p)
-            }
-        };
-        let loose: Vec<Point> = data.iter().copied().filter(|&p| away(p) > tol).collect();
+        let (loose, away): (Vec<Point>, Vec<f64>) = data
+            .iter()
+            .map(|&p| {
+                let d = if index.is_empty() {
+                    f64::INFINITY
+                } else {
+                    index.distance(p)
+                };
+                (p, d)
+            })
+            .filter(|&(_, d)| d > tol)
+            .unzip();
         let Ok(field) = DistanceField::new(&loose) else {
             return (Vec::new(), Vec::new());
         };
@@ -61,7 +65,12 @@ pub fn with_strokes(
         let r = (2.0 * delta).max(6.0 * sigma);
         // A loop that misses its samples by less than a stroke's scale (sparse samples
         // of a small loop) still follows them: no stroke beside it.
-        let loose: Vec<Point> = loose.into_iter().filter(|&p| away(p) > r).collect();
+        let loose: Vec<Point> = loose
+            .into_iter()
+            .zip(away)
+            .filter(|&(_, d)| d > r)
+            .map(|(p, _)| p)
+            .collect();
         strokes(&loose, r)
     };
     if !enclosed {
@@ -195,6 +204,33 @@ fn spanning_tree(moved: &[Option<Point>], r: f64) -> (Vec<Point>, Vec<(usize, us
     (nodes, edges)
 }
 
+/// The chain of the tree from `from` through its neighbour `first`, on through nodes of
+/// degree 2 until a node of another degree, `from` again, or `limit` of length: the
+/// nodes (both ends included) and the length.
+fn follow(
+    nodes: &[Point],
+    adj: &[Vec<usize>],
+    from: usize,
+    first: usize,
+    limit: f64,
+) -> (Vec<usize>, f64) {
+    let mut path = vec![from, first];
+    let mut length = dist(nodes[from], nodes[first]);
+    let (mut prev, mut v) = (from, first);
+    while adj[v].len() == 2 && v != from && length < limit {
+        let next = if adj[v][0] == prev {
+            adj[v][1]
+        } else {
+            adj[v][0]
+        };
+        length += dist(nodes[v], nodes[next]);
+        path.push(next);
+        prev = v;
+        v = next;
+    }
+    (path, length)
+}
+
 /// Cuts the spurs off the tree: branches from a leaf to a fork shorter than `r`, the
 /// zigzag of the tree across a noisy sheet. Where a fork keeps at least two longer
 /// branches it is inside a stroke and all its short ones go; where it keeps fewer it
@@ -209,20 +245,8 @@ fn prune(nodes: &[Point], adj: &mut [Vec<usize>], r: f64) {
     for _ in 0..2 {
         let mut by_fork: std::collections::BTreeMap<usize, Vec<Branch>> = Default::default();
         for leaf in (0..adj.len()).filter(|&v| adj[v].len() == 1) {
-            let (mut prev, mut v) = (leaf, adj[leaf][0]);
-            let mut length = dist(nodes[leaf], nodes[v]);
-            let mut branch = vec![leaf];
-            while adj[v].len() == 2 && length < r {
-                branch.push(v);
-                let next = if adj[v][0] == prev {
-                    adj[v][1]
-                } else {
-                    adj[v][0]
-                };
-                length += dist(nodes[v], nodes[next]);
-                prev = v;
-                v = next;
-            }
+            let (mut branch, length) = follow(nodes, adj, leaf, adj[leaf][0], r);
+            let v = branch.pop().expect("a chain has its two ends");
             if adj[v].len() >= 3 && length < r {
                 by_fork.entry(v).or_default().push(Branch {
                     nodes: branch,
@@ -274,18 +298,9 @@ fn chains(
             let f = members[k];
             k += 1;
             for &w0 in &adj[f] {
-                // Follow the chain from f through w0 up to r; a fork there joins.
-                let (mut prev, mut w, mut length) = (f, w0, dist(nodes[f], nodes[w0]));
-                while adj[w].len() == 2 && length < 2.0 * r {
-                    let next = if adj[w][0] == prev {
-                        adj[w][1]
-                    } else {
-                        adj[w][0]
-                    };
-                    length += dist(nodes[w], nodes[next]);
-                    prev = w;
-                    w = next;
-                }
+                // A fork at most 2 r along the chain from f through w0 joins.
+                let (path, length) = follow(nodes, adj, f, w0, 2.0 * r);
+                let w = *path.last().expect("a chain has its two ends");
                 if fork(w) && length < 2.0 * r && junction_of[w] == usize::MAX {
                     junction_of[w] = id;
                     members.push(w);
@@ -303,29 +318,16 @@ fn chains(
     let mut used = vec![false; n];
     let mut lines: Vec<(Polyline, [usize; 2])> = Vec::new();
     let is_key = |v: usize| adj[v].len() != 2;
-    let walk = |start: usize, first: usize, used: &mut Vec<bool>| {
-        let mut path = vec![start, first];
-        let (mut prev, mut v) = (start, first);
-        while !is_key(v) && v != start {
-            used[v] = true;
-            let next = if adj[v][0] == prev {
-                adj[v][1]
-            } else {
-                adj[v][0]
-            };
-            path.push(next);
-            prev = v;
-            v = next;
-        }
-        path
-    };
     for s in (0..n).filter(|&v| is_key(v) && !adj[v].is_empty()) {
         for &first in &adj[s] {
             if used[first] && !is_key(first) {
                 continue;
             }
-            let path = walk(s, first, &mut used);
-            let end = *path.last().unwrap();
+            let (path, _) = follow(nodes, adj, s, first, f64::INFINITY);
+            for &v in &path[1..path.len() - 1] {
+                used[v] = true;
+            }
+            let end = *path.last().expect("a chain has its two ends");
             // Each chain once: from its smaller end (a chain between two forks of one
             // junction is inside the junction).
             if (is_key(end) && end < s) || (end == s && path.len() <= 2) {
