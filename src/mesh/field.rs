@@ -374,7 +374,10 @@ impl MetricField {
         let noise = noise_scale.noise;
         // On data dense enough that `k` neighbours span less than the noise band, their
         // normals and curvatures are noise too: the frames come from fits at its scale.
-        if noise_scale.window > 2.0 * noise_scale.neighbours {
+        // Where they span several walls, the frames come from the one-wall windows.
+        if noise_scale.window > 2.0 * noise_scale.neighbours
+            || noise_scale.window < 0.5 * noise_scale.neighbours
+        {
             frames = crate::mesh::metric::frames_at_scale(&field, noise_scale)?;
         }
         let hmin = params.hmin.unwrap_or((scale / 1000.0).max(noise));

@@ -346,6 +346,8 @@ const NOISE_WINDOW: f64 = 4.0;
 const NOISE_CENTRES: usize = 2000;
 /// Samples in one of its fits, at most: an even subsample of a window holding more.
 const NOISE_FIT_MAX: usize = 512;
+/// Samples in the smallest window a fit along one wall is tried over.
+const SHEET_SAMPLES: usize = 10;
 
 /// The data's noise, measured at a scale that does not shrink with the sampling: the
 /// median residual of fits over the samples within a radius `r` of evenly spread
@@ -380,13 +382,34 @@ pub fn consistent_noise(
     let mid = radii.len() / 2;
     let knn = *radii.select_nth_unstable_by(mid, f64::total_cmp).1;
     let mut r = knn;
+    let centre_pts: Vec<Point> = centres.iter().map(|&i| pts[i]).collect();
+    // Where walls lie closer together than the k-th neighbour (sparse samples between
+    // narrow gaps), the k-neighbour fits span several walls and their residual is the
+    // gap, not the noise: the smallest window that spans four times its own residual
+    // sees one wall, and is taken when it measures under half as much.
+    let small_k = SHEET_SAMPLES.min(k) - 1;
+    let mut small: Vec<f64> = centres
+        .iter()
+        .map(|&i| dist(pts[i], pts[neighbours[i * k + small_k] as usize]))
+        .collect();
+    let mid_small = small.len() / 2;
+    let mut s = *small.select_nth_unstable_by(mid_small, f64::total_cmp).1;
+    while s < 0.8 * knn {
+        let at_s = median_residual(&fits_within(field, &centre_pts, s));
+        if s >= NOISE_WINDOW * at_s {
+            if at_s < 0.5 * noise && noise > knn / 16.0 {
+                (r, noise) = (s, at_s);
+            }
+            break;
+        }
+        s *= 1.25;
+    }
     for _ in 0..12 {
         let want = NOISE_WINDOW * noise;
         if want <= 1.05 * r {
             break;
         }
         r = want;
-        let centre_pts: Vec<Point> = centres.iter().map(|&i| pts[i]).collect();
         noise = median_residual(&fits_within(field, &centre_pts, r));
     }
     NoiseScale {
@@ -509,7 +532,7 @@ pub fn fit_one_sheet(center: Point, pts: &mut Vec<Point>) -> LocalFrame {
 
 /// A frame fitted at each of `centres` to the samples of `field` within `r` of it (an
 /// even subsample of at most [`NOISE_FIT_MAX`] of them).
-fn fits_within(field: &DistanceField, centres: &[Point], r: f64) -> Vec<LocalFrame> {
+pub fn fits_within(field: &DistanceField, centres: &[Point], r: f64) -> Vec<LocalFrame> {
     let pts = field.points();
     centres
         .par_iter()
@@ -523,7 +546,14 @@ fn fits_within(field: &DistanceField, centres: &[Point], r: f64) -> Vec<LocalFra
                 sel.extend(idx.iter().step_by(stride).map(|&j| pts[j as usize]));
                 // Nearest first, for the fit to find the centre's own sheet.
                 sel.sort_unstable_by(|a, b| dist(c, *a).total_cmp(&dist(c, *b)));
-                fit_one_sheet(c, sel)
+                let mut f = fit_one_sheet(c, sel);
+                // The parabola's three parameters absorb part of the noise of a few
+                // samples: the residual over its degrees of freedom is unbiased.
+                let m = sel.len() as f64;
+                if m > 4.0 {
+                    f.residual *= (m / (m - 3.0)).sqrt();
+                }
+                f
             },
         )
         .collect()
@@ -627,6 +657,36 @@ mod tests {
                 assert!(tilted * 100 < n, "n = {n}: {tilted} frames tilted over 5°");
             }
         }
+    }
+
+    /// Two parallel walls 0.08 apart sampled every 0.01 with sigma = 0.007: the 32
+    /// nearest samples reach 0.16, across both walls, and their fits measure the gap.
+    /// The smallest window spanning four times its own residual holds one wall, about
+    /// 10 samples, and its residual over its degrees of freedom estimates sigma; the
+    /// median over 200 such windows lies within 15% of it (the spread of one window's
+    /// estimate is about sigma / sqrt(2 (m - 3)), a quarter of it, and a median of 200
+    /// narrows that tenfold; the rest is the walls' ends).
+    #[test]
+    fn walls_closer_than_the_neighbours_reach_do_not_inflate_the_noise() {
+        use rand::SeedableRng;
+        use rand_distr::{Distribution, Normal};
+        let sigma = 0.007;
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
+        let noise = Normal::new(0.0, sigma).unwrap();
+        let pts: Vec<Point> = (0..400)
+            .map(|i| {
+                let (x, y) = ((i / 2) as f64 * 0.01, if i % 2 == 0 { 0.0 } else { 0.08 });
+                [x + noise.sample(&mut rng), y + noise.sample(&mut rng)]
+            })
+            .collect();
+        let field = DistanceField::new(&pts).unwrap();
+        let metric = CurveMetric::new(&field, unit_params(32));
+        let (frames, neighbours, k) = metric.into_parts();
+        let knn = median_residual(&frames);
+        let scale = consistent_noise(&field, &frames, &neighbours, k);
+        let ratio = scale.noise / sigma;
+        assert!((0.85..=1.15).contains(&ratio), "{ratio} (k-NN {knn})");
+        assert!(scale.window < 0.5 * scale.neighbours, "{scale:?}");
     }
 
     /// Sizes for unit-scale test data: hmin 1e-3 in a band of 0.01, hmax 0.1.
