@@ -27,11 +27,18 @@ fn json_file(path: &Path) -> Value {
 /// reconstructed with the defaults and scored: (the reconstruction's stats, `eval`'s
 /// scores).
 fn circle_run(dir: &Path, points: usize, sigma: f64, seed: u64) -> (Value, Value) {
-    shape_run(dir, "circle", points, sigma, seed)
+    shape_run(dir, "circle", points, sigma, seed, 0.05)
 }
 
-/// [`circle_run`] for any of the simulator's shapes.
-fn shape_run(dir: &Path, shape: &str, points: usize, sigma: f64, seed: u64) -> (Value, Value) {
+/// [`circle_run`] for any of the simulator's shapes (`gap`: the spiral's and the bays').
+fn shape_run(
+    dir: &Path,
+    shape: &str,
+    points: usize,
+    sigma: f64,
+    seed: u64,
+    gap: f64,
+) -> (Value, Value) {
     let name = format!("{shape}{points}-{sigma}-{seed}");
     let [frames, truth, recon, stats] = ["ndjson", "truth.json", "recon.ndjson", "stats.json"]
         .map(|ext| dir.join(format!("{name}.{ext}")));
@@ -44,6 +51,8 @@ fn shape_run(dir: &Path, shape: &str, points: usize, sigma: f64, seed: u64) -> (
         &sigma.to_string(),
         "--seed",
         &seed.to_string(),
+        "--gap",
+        &gap.to_string(),
         "-o",
         p(&frames),
         "--truth",
@@ -64,22 +73,31 @@ fn shape_run(dir: &Path, shape: &str, points: usize, sigma: f64, seed: u64) -> (
     )
 }
 
-/// Walls closer than the tube around the data: the spiral band (its walls 0.05 apart,
-/// 12 sample spacings at 2,000 points) and the disc whose three bays lie behind
-/// inlets 0.05 wide, at sigma = 0.002, come out as one loop each within 3 sigma + 2 hmin
-/// of the truth, neither the spiral's turns nor the bays filled (which is 0.25 and 0.18
-/// away).
+/// Walls closer than the tube around the data (issue 17): the spiral band, its walls
+/// and the corridor between its turns 0.08 wide, and the disc whose three bays lie
+/// behind inlets 0.08 wide, each sampled so that the gap is 8 sample spacings (498 and
+/// 442 points), at sigma = 0.5% of the unit box's diagonal (0.0071, a gap of 11 sigma);
+/// and both at the default gap 0.05 with 2,000 points and sigma = 0.002. One loop each,
+/// within 3 sigma + 2 hmin of the truth, neither the spiral's turns nor the bays filled.
 #[test]
 fn a_spiral_and_bays_behind_narrow_inlets_stay_open() {
     let dir = tempfile::tempdir().unwrap();
-    let sigma = 0.002;
-    for shape in ["spiral", "bays"] {
-        let (s, acc) = shape_run(dir.path(), shape, 2000, sigma, 7);
+    let diag = 0.005 * 2f64.sqrt();
+    for (shape, points, sigma, gap) in [
+        ("spiral", 498, diag, 0.08),
+        ("bays", 442, diag, 0.08),
+        ("spiral", 2000, 0.002, 0.05),
+        ("bays", 2000, 0.002, 0.05),
+    ] {
+        let (s, acc) = shape_run(dir.path(), shape, points, sigma, 7, gap);
         let hmin = s["hmin"].as_f64().unwrap();
         let h = acc["hausdorff"].as_f64().unwrap();
         let bound = 3.0 * sigma + 2.0 * hmin;
-        assert_eq!(acc["components_recon"], 1, "{shape}: {acc}");
-        assert!(h <= bound, "{shape}: Hausdorff {h} > {bound}; {acc}");
+        assert_eq!(acc["components_recon"], 1, "{shape} {points}: {acc}");
+        assert!(
+            h <= bound,
+            "{shape} {points}: Hausdorff {h} > {bound}; {acc}"
+        );
     }
 }
 
@@ -92,7 +110,7 @@ fn a_spiral_and_bays_behind_narrow_inlets_stay_open() {
 fn open_strokes_come_out_as_open_polylines_meeting_at_junctions() {
     let dir = tempfile::tempdir().unwrap();
     let sigma = 0.002;
-    let (s, acc) = shape_run(dir.path(), "strokes", 2000, sigma, 7);
+    let (s, acc) = shape_run(dir.path(), "strokes", 2000, sigma, 7, 0.05);
     let record: Value = serde_json::from_str(
         std::fs::read_to_string(
             dir.path()

@@ -148,6 +148,16 @@ pub fn solve(
                         4.0 * tube_radius,
                     )
                 });
+                let oriented = matches!(params.init, Init::Medial | Init::Tube)
+                    .then(|| {
+                        crate::levelset::orient::oriented_offsets(
+                            kd,
+                            adapted.noise_estimate,
+                            2.0 * adapted.noise_estimate + tube_radius,
+                            &mesh.coords,
+                        )
+                    })
+                    .flatten();
                 let start = init::cold_start(
                     params.init,
                     mesh,
@@ -156,6 +166,7 @@ pub fn solve(
                     pts,
                     tube_radius,
                     corridor.as_ref(),
+                    oriented.as_deref(),
                     params.margin * diag,
                     &mut fm,
                 );

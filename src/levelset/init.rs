@@ -97,6 +97,7 @@ pub fn cold_start(
     points: &[Point],
     tube_radius: f64,
     corridor: Option<&Corridors<'_>>,
+    oriented: Option<&[f64]>,
     margin: f64,
     fm: &mut Redistancer,
 ) -> ColdStart {
@@ -117,11 +118,34 @@ pub fn cold_start(
             }
         }
     };
-    match start {
-        Some(mut u) => {
+    let start = start.map(|mut u| {
+        fm.run(mesh, space, &mut u, f64::INFINITY);
+        u
+    });
+    // The oriented samples' offsets (see [`crate::levelset::orient`]) know which side
+    // of each wall is out however close the next wall is; the tube's parity does not
+    // once its walls merge, which joins regions the walls keep apart, cuts a corridor
+    // into pockets or fills one from its end. Where the two starts' regions differ, or
+    // their sides do at more than 1% of the vertices away from the data, the offsets
+    // start.
+    if let Some(offsets) = oriented.filter(|o| o.len() == dist.len()) {
+        let differ = |u: &[f64]| {
+            let (mut away, mut wrong) = (0usize, 0usize);
+            for v in (0..dist.len()).filter(|&v| dist[v] > tube_radius) {
+                away += 1;
+                wrong += usize::from((u[v] < 0.0) != (offsets[v] < 0.0));
+            }
+            wrong * 100 > away || regions(space, u) != regions(space, offsets)
+        };
+        if start.as_deref().is_none_or(differ) {
+            tracing::debug!("the tube's regions differ from the oriented normals': oriented start");
+            let mut u = offsets.to_vec();
             fm.run(mesh, space, &mut u, f64::INFINITY);
-            ColdStart { u, init }
+            return ColdStart { u, init };
         }
+    }
+    match start {
+        Some(u) => ColdStart { u, init },
         None => {
             tracing::debug!(tube_radius, "the tube encloses nothing: box start");
             ColdStart {
@@ -130,6 +154,45 @@ pub fn cold_start(
             }
         }
     }
+}
+
+/// Regions smaller than this (in vertices) are specks of noise, not topology.
+const MIN_REGION: usize = 16;
+
+/// The numbers of connected regions (of at least [`MIN_REGION`] vertices) where `u` is
+/// negative and where it is not.
+fn regions(space: &P1Space, u: &[f64]) -> (usize, usize) {
+    let n = u.len();
+    let mut seen = vec![false; n];
+    let mut stack = Vec::new();
+    let (mut inside, mut outside) = (0, 0);
+    for seed in 0..n {
+        if seen[seed] {
+            continue;
+        }
+        let side = u[seed] < 0.0;
+        seen[seed] = true;
+        stack.push(seed);
+        let mut size = 0;
+        while let Some(v) = stack.pop() {
+            size += 1;
+            for &w in space.ring(v) {
+                let w = w as usize;
+                if !seen[w] && (u[w] < 0.0) == side {
+                    seen[w] = true;
+                    stack.push(w);
+                }
+            }
+        }
+        if size >= MIN_REGION {
+            if side {
+                inside += 1;
+            } else {
+                outside += 1;
+            }
+        }
+    }
+    (inside, outside)
 }
 
 /// The padding (a fraction of the bounding box's diagonal) the mesh needs for the

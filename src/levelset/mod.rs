@@ -4,6 +4,7 @@
 
 pub mod evolve;
 pub mod init;
+pub mod orient;
 pub mod params;
 pub mod settle;
 pub mod solver;
