@@ -135,7 +135,20 @@ pub fn cold_start(
                 away += 1;
                 wrong += usize::from((u[v] < 0.0) != (offsets[v] < 0.0));
             }
-            wrong * 100 > away || regions(space, u) != regions(space, offsets)
+            // And where the offsets run through the samples and the tube's middle does
+            // not (clean data sparser than the tube is wide): the vertices next to a
+            // sample lie next to the offsets' curve.
+            let near = |u: &[f64]| {
+                let (mut sum, mut m) = (0.0, 0usize);
+                for v in (0..dist.len()).filter(|&v| dist[v] < 0.25 * tube_radius) {
+                    sum += u[v].abs();
+                    m += 1;
+                }
+                sum / m.max(1) as f64
+            };
+            wrong * 100 > away
+                || regions(space, u) != regions(space, offsets)
+                || near(offsets) < 0.5 * near(u)
         };
         if start.as_deref().is_none_or(differ) {
             tracing::debug!("the tube's regions differ from the oriented normals': oriented start");
