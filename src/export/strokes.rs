@@ -6,7 +6,7 @@
 //! The method is the classic thinning of a point cloud (Lee 2000): each sample moves
 //! across its sheet onto the line fitted to its neighbours within `r` (the 64 nearest at
 //! most); the moved samples are joined by a minimum spanning tree of the pairs closer
-//! than `r` (each sample's 16 nearest at most), and across gaps up to `2 r` from the
+//! than `r` (each sample's 16 nearest at most), and across gaps up to `2 r` between the
 //! tree's ends; branches
 //! shorter than `r` (the tree's zigzag across a still noisy sheet) are pruned; the tree's
 //! chains between its ends and its forks are the polylines, smoothed over `r / 2`, and
@@ -80,6 +80,10 @@ pub fn with_strokes(
         }
         return (closed, Vec::new());
     }
+    let closed = without_bridges(closed, data, tol);
+    if closed.is_empty() {
+        return find(&[]);
+    }
     let (lines, mut junctions) = find(&closed);
     let offset = closed.len();
     for j in &mut junctions {
@@ -88,6 +92,84 @@ pub fn with_strokes(
     let mut curves = closed;
     curves.extend(lines);
     (curves, junctions)
+}
+
+/// Gaps between supported positions this many times the median of the gaps around them
+/// are a bridge: far beyond a random sampling's longest gap (about `ln n` times the mean,
+/// the median being 0.69 of it) for any number of samples `n` below a million.
+const BRIDGE: f64 = 20.0;
+/// Gaps on either side a gap is compared with.
+const BRIDGE_CONTEXT: usize = 10;
+
+/// The loops of `closed` that the data support all round: a loop that bridges a gap in
+/// its samples (a stretch with no sample within `tol`, longer than `2 tol` and
+/// [`BRIDGE`] times the gaps between samples around it) is no closed curve of the data
+/// but strokes joined through empty space (an arc whose ends come near a line), and is
+/// left out, its samples to the strokes.
+fn without_bridges(closed: Vec<Polyline>, data: &[Point], tol: f64) -> Vec<Polyline> {
+    if closed.is_empty() {
+        return closed;
+    }
+    let index = crate::eval::SegmentIndex::new(&closed);
+    // Each segment's loop and arc length at its start, in the index's order.
+    let mut seg_at: Vec<(usize, f64, f64)> = Vec::new();
+    let mut lengths = Vec::with_capacity(closed.len());
+    for (k, pl) in closed.iter().enumerate() {
+        let mut s = 0.0;
+        for (a, b) in pl.segments() {
+            let len = crate::geom::dist(a, b);
+            seg_at.push((k, s, len));
+            s += len;
+        }
+        if pl.segments().next().is_none() {
+            seg_at.extend(pl.points.iter().map(|_| (k, 0.0, 0.0)));
+        }
+        lengths.push(s);
+    }
+    let mut at: Vec<Vec<f64>> = vec![Vec::new(); closed.len()];
+    for &p in data {
+        if let Some((d, seg, t)) = index.nearest(p) {
+            if d <= tol {
+                let (k, s, len) = seg_at[seg];
+                at[k].push(s + t * len);
+            }
+        }
+    }
+    closed
+        .into_iter()
+        .zip(at)
+        .zip(lengths)
+        .filter_map(|((pl, mut at), total)| {
+            if at.len() < 2 * BRIDGE_CONTEXT + 1 {
+                return Some(pl);
+            }
+            at.sort_unstable_by(f64::total_cmp);
+            let n = at.len();
+            let gaps: Vec<f64> = (0..n)
+                .map(|i| {
+                    if i + 1 < n {
+                        at[i + 1] - at[i]
+                    } else {
+                        total - at[i] + at[0]
+                    }
+                })
+                .collect();
+            let mut around = Vec::with_capacity(2 * BRIDGE_CONTEXT);
+            let bridged = (0..n).any(|i| {
+                if gaps[i] <= 2.0 * tol {
+                    return false;
+                }
+                around.clear();
+                around.extend(
+                    (1..=BRIDGE_CONTEXT).flat_map(|o| [gaps[(i + o) % n], gaps[(i + n - o) % n]]),
+                );
+                let mid = around.len() / 2;
+                let median = *around.select_nth_unstable_by(mid, f64::total_cmp).1;
+                gaps[i] > BRIDGE * median
+            });
+            (!bridged).then_some(pl)
+        })
+        .collect()
 }
 
 /// The strokes through `points` at scale `r` (at least a few sample spacings and three
@@ -144,9 +226,10 @@ fn thin(field: &DistanceField, r: f64) -> Vec<Option<Point>> {
 }
 
 /// The minimum spanning forest of the moved samples (Kruskal) over each one's
-/// [`LINKS`] nearest within `r`, then over the pairs within `2 r` from the ends that left
-/// (a gap between samples along a stroke: the nearest of a sample at its edge all lie
-/// on its own side): the nodes and the tree's edges as index pairs into them.
+/// [`LINKS`] nearest within `r`, then over the pairs of the ends that left within `2 r`
+/// of each other (a gap between samples along a stroke: the nearest of a sample at its
+/// edge all lie on its own side): the nodes and the tree's edges as index pairs into
+/// them.
 fn spanning_tree(moved: &[Option<Point>], r: f64) -> (Vec<Point>, Vec<(usize, usize)>) {
     let nodes: Vec<Point> = moved.iter().flatten().copied().collect();
     let Ok(tree) = DistanceField::new(&nodes) else {
@@ -193,10 +276,12 @@ fn spanning_tree(moved: &[Option<Point>], r: f64) -> (Vec<Point>, Vec<(usize, us
     let mut pairs = Vec::new();
     for (i, &p) in nodes.iter().enumerate().filter(|&(i, _)| degree[i] <= 1) {
         tree.within(p, 2.0 * r, &mut near);
+        // End to end: a stroke that stops more than `r` short of another's side does
+        // not touch it.
         pairs.extend(
             near.iter()
                 .map(|&j| j as usize)
-                .filter(|&j| j != i)
+                .filter(|&j| j != i && degree[j] <= 1)
                 .map(|j| (dist(p, nodes[j]), i, j)),
         );
     }
@@ -418,6 +503,51 @@ fn smooth(nodes: &[Point], path: &[usize], r: f64) -> Polyline {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A loop run along a line, down 0.07 to an arc below it and back up, where the
+    /// samples lie on the line and the arc only: the two connectors are 0.07 of empty
+    /// space, 35 times the spacing, and the loop goes. A circle sampled at random
+    /// angles (gaps up to about ln 400 = 6 times the mean) stays.
+    #[test]
+    fn a_loop_through_empty_space_is_left_to_the_strokes() {
+        use rand::{Rng, SeedableRng};
+        let arc = |n: usize| -> Vec<Point> {
+            (0..=n)
+                .map(|i| {
+                    let a = std::f64::consts::PI * (1.0 + i as f64 / n as f64);
+                    [0.25 * a.cos(), -0.07 + 0.25 * a.sin()]
+                })
+                .collect()
+        };
+        let mut ring = line([-0.25, 0.0], [0.25, 0.0], 100);
+        ring.extend(arc(100).into_iter().rev());
+        let bridged = Polyline {
+            closed: true,
+            points: ring,
+        };
+        let mut data = line([-0.3, 0.0], [0.3, 0.0], 300);
+        data.extend(arc(400));
+        assert!(without_bridges(vec![bridged], &data, 0.005).is_empty());
+
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
+        let angles: Vec<f64> = (0..400)
+            .map(|_| rng.random_range(0.0..std::f64::consts::TAU))
+            .collect();
+        let data: Vec<Point> = angles
+            .iter()
+            .map(|a| [0.3 * a.cos(), 0.3 * a.sin()])
+            .collect();
+        let circle = Polyline {
+            closed: true,
+            points: (0..600)
+                .map(|i| {
+                    let a = std::f64::consts::TAU * i as f64 / 600.0;
+                    [0.3 * a.cos(), 0.3 * a.sin()]
+                })
+                .collect(),
+        };
+        assert_eq!(without_bridges(vec![circle], &data, 0.001).len(), 1);
+    }
 
     fn line(a: Point, b: Point, n: usize) -> Vec<Point> {
         (0..=n)
