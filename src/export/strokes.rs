@@ -103,9 +103,10 @@ const BRIDGE_CONTEXT: usize = 10;
 
 /// The loops of `closed` that the data support all round: a loop that bridges a gap in
 /// its samples (a stretch with no sample within `tol`, longer than `2 tol` and
-/// [`BRIDGE`] times the gaps between samples around it) is no closed curve of the data
-/// but strokes joined through empty space (an arc whose ends come near a line), and is
-/// left out, its samples to the strokes.
+/// [`BRIDGE`] times the gaps between samples around it, whose middle lies a quarter of
+/// its length from every sample) is no closed curve of the data but strokes joined
+/// through empty space (an arc whose ends come near a line), and is left out, its
+/// samples to the strokes.
 fn without_bridges(closed: Vec<Polyline>, data: &[Point], tol: f64) -> Vec<Polyline> {
     if closed.is_empty() {
         return closed;
@@ -126,6 +127,8 @@ fn without_bridges(closed: Vec<Polyline>, data: &[Point], tol: f64) -> Vec<Polyl
         }
         lengths.push(s);
     }
+    // Built only for a loop with a candidate gap.
+    let samples = std::cell::OnceCell::new();
     let mut at: Vec<Vec<f64>> = vec![Vec::new(); closed.len()];
     for &p in data {
         if let Some((d, seg, t)) = index.nearest(p) {
@@ -165,11 +168,33 @@ fn without_bridges(closed: Vec<Polyline>, data: &[Point], tol: f64) -> Vec<Polyl
                 );
                 let mid = around.len() / 2;
                 let median = *around.select_nth_unstable_by(mid, f64::total_cmp).1;
-                gaps[i] > BRIDGE * median
+                if gaps[i] <= BRIDGE * median {
+                    return false;
+                }
+                // Through empty space, not a bulge beside the samples: the loop's point
+                // halfway across the gap lies a quarter of the gap from every sample.
+                let middle = point_at(&pl, (at[i] + 0.5 * gaps[i]) % total);
+                let field = samples.get_or_init(|| DistanceField::new(data).ok());
+                field
+                    .as_ref()
+                    .is_some_and(|f| f.nearest(middle).dist > 0.25 * gaps[i])
             });
             (!bridged).then_some(pl)
         })
         .collect()
+}
+
+/// The point of the closed polyline `pl` at arc length `s` from its first vertex.
+fn point_at(pl: &Polyline, mut s: f64) -> Point {
+    for (a, b) in pl.segments() {
+        let len = dist(a, b);
+        if s <= len && len > 0.0 {
+            let t = s / len;
+            return [a[0] + (b[0] - a[0]) * t, a[1] + (b[1] - a[1]) * t];
+        }
+        s -= len;
+    }
+    pl.points.first().copied().unwrap_or([0.0, 0.0])
 }
 
 /// The strokes through `points` at scale `r` (at least a few sample spacings and three

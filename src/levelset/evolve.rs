@@ -166,7 +166,10 @@ pub fn solve(
                     pts,
                     tube_radius,
                     corridor.as_ref(),
-                    oriented.as_deref(),
+                    oriented.as_deref().map(|offsets| init::Oriented {
+                        offsets,
+                        clean: adapted.noise_estimate < tube_radius / 8.0,
+                    }),
                     params.margin * diag,
                     &mut fm,
                 );

@@ -82,12 +82,22 @@ pub struct ColdStart {
     pub init: Init,
 }
 
+/// The oriented start offered to [`cold_start`] (see [`crate::levelset::orient`]).
+#[derive(Clone, Copy, Debug)]
+pub struct Oriented<'a> {
+    /// The offsets from the oriented samples' tangent lines at each vertex.
+    pub offsets: &'a [f64],
+    /// Whether the data's noise is small beside the tube (under an eighth of its
+    /// radius), so that a start that misses the samples is wrong.
+    pub clean: bool,
+}
+
 /// The level set `init` asks for on `mesh` (`dist`: the distance to the data `points`
 /// at each vertex), renormalized: the tube starts with the tube of radius
 /// `tube_radius`, or twice that when it encloses nothing, opened along `corridor` (see
 /// [`corridors`], computed up to `4 tube_radius`; empty for none), falling back to the
 /// box when neither tube encloses anything; the enclosing starts `margin` from the
-/// data.
+/// data. The tube starts give way to `oriented` where the two disagree.
 #[allow(clippy::too_many_arguments)]
 pub fn cold_start(
     init: Init,
@@ -97,7 +107,7 @@ pub fn cold_start(
     points: &[Point],
     tube_radius: f64,
     corridor: Option<&Corridors<'_>>,
-    oriented: Option<&[f64]>,
+    oriented: Option<Oriented<'_>>,
     margin: f64,
     fm: &mut Redistancer,
 ) -> ColdStart {
@@ -128,16 +138,17 @@ pub fn cold_start(
     // into pockets or fills one from its end. Where the two starts' regions differ, or
     // their sides do at more than 1% of the vertices away from the data, the offsets
     // start.
-    if let Some(offsets) = oriented.filter(|o| o.len() == dist.len()) {
+    if let Some(Oriented { offsets, clean }) = oriented.filter(|o| o.offsets.len() == dist.len()) {
         let differ = |u: &[f64]| {
             let (mut away, mut wrong) = (0usize, 0usize);
             for v in (0..dist.len()).filter(|&v| dist[v] > tube_radius) {
                 away += 1;
                 wrong += usize::from((u[v] < 0.0) != (offsets[v] < 0.0));
             }
-            // And where the offsets run through the samples and the tube's middle does
-            // not (clean data sparser than the tube is wide): the vertices next to a
-            // sample lie next to the offsets' curve.
+            // And on clean data where the offsets run through the samples and the tube's
+            // middle does not (samples sparser than the tube is wide): the vertices next
+            // to a sample lie next to the offsets' curve. In a noisy band neither start
+            // runs through the samples.
             let near = |u: &[f64]| {
                 let (mut sum, mut m) = (0.0, 0usize);
                 for v in (0..dist.len()).filter(|&v| dist[v] < 0.25 * tube_radius) {
@@ -148,7 +159,7 @@ pub fn cold_start(
             };
             wrong * 100 > away
                 || regions(space, u) != regions(space, offsets)
-                || near(offsets) < 0.5 * near(u)
+                || (clean && near(offsets) < 0.5 * near(u))
         };
         if start.as_deref().is_none_or(differ) {
             tracing::debug!("the tube's regions differ from the oriented normals': oriented start");
