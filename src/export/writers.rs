@@ -103,8 +103,10 @@ pub fn to_json(recs: &[ResultRecord]) -> String {
 
 /// The curves of `recs` as a GeoJSON FeatureCollection: one LineString per polyline
 /// (closed ones repeat their first point, as GeoJSON rings do), with `stream`, `frame`,
-/// `closed` and, for closed ones, the signed `area` (positive counter-clockwise) as
-/// properties. Error records become features without geometry that carry the error.
+/// its index `polyline`, `closed` and, for closed ones, the signed `area` (positive
+/// counter-clockwise) as properties; one Point per junction, with the indices of the
+/// `polylines` that end there. Error records become features without geometry that
+/// carry the error.
 pub fn to_geojson(recs: &[ResultRecord]) -> String {
     let mut features = Vec::new();
     for r in recs {
@@ -114,7 +116,7 @@ pub fn to_geojson(recs: &[ResultRecord]) -> String {
                 "properties": {"stream": r.stream, "frame": r.frame, "error": e}
             }));
         }
-        for pl in r.polylines.iter().flatten() {
+        for (k, pl) in r.polylines.iter().flatten().enumerate() {
             let mut coords = pl.points.clone();
             if pl.closed && !coords.is_empty() {
                 coords.push(coords[0]);
@@ -124,9 +126,16 @@ pub fn to_geojson(recs: &[ResultRecord]) -> String {
                 "type": "Feature",
                 "geometry": {"type": "LineString", "coordinates": coords},
                 "properties": {
-                    "stream": r.stream, "frame": r.frame, "closed": pl.closed,
+                    "stream": r.stream, "frame": r.frame, "polyline": k, "closed": pl.closed,
                     "area": if pl.closed { Some(poly.signed_area()) } else { None },
                 }
+            }));
+        }
+        for j in r.junctions.iter().flatten() {
+            features.push(json!({
+                "type": "Feature",
+                "geometry": {"type": "Point", "coordinates": j.at},
+                "properties": {"stream": r.stream, "frame": r.frame, "polylines": j.polylines}
             }));
         }
     }
@@ -177,10 +186,19 @@ mod tests {
         write_ndjson(&mut nd, &rec()).unwrap();
         let back: ResultRecord = serde_json::from_slice(&nd).unwrap();
         assert_eq!(back, rec());
-        let g: serde_json::Value = serde_json::from_str(&to_geojson(&[rec()])).unwrap();
+        let mut with_junction = rec();
+        with_junction.junctions = Some(vec![crate::format::JunctionJson {
+            at: [0.0, 0.0],
+            polylines: vec![0],
+        }]);
+        let g: serde_json::Value = serde_json::from_str(&to_geojson(&[with_junction])).unwrap();
         let f = &g["features"][0];
         assert_eq!(f["geometry"]["coordinates"].as_array().unwrap().len(), 4);
         assert_eq!(f["properties"]["area"], 0.5);
+        assert_eq!(f["properties"]["polyline"], 0);
+        let j = &g["features"][1];
+        assert_eq!(j["geometry"]["type"], "Point");
+        assert_eq!(j["properties"]["polylines"], serde_json::json!([0]));
         let csv = to_csv(&[rec()]);
         assert_eq!(csv.lines().count(), 4);
         assert!(csv.contains("s,3,0,true,1,1,0"));
