@@ -162,7 +162,7 @@ pub fn cold_start(
                 || (clean && near(offsets) < 0.5 * near(u))
         };
         if start.as_deref().is_none_or(differ) {
-            tracing::debug!("the tube's regions differ from the oriented normals': oriented start");
+            tracing::debug!("the tube's start and the oriented one disagree: oriented start");
             let mut u = offsets.to_vec();
             fm.run(mesh, space, &mut u, f64::INFINITY);
             return ColdStart { u, init };
