@@ -1,5 +1,6 @@
 //! Results for Foxglove: each frame's curves as a scene update (line strips in the
-//! frame's coordinates, under the stream's frame id), its points as a point cloud, its
+//! frame's coordinates, under the stream's frame id, with a sphere at each junction of
+//! strokes), its points as a point cloud, its
 //! record as JSON and, with a pose, the frame's transform from `world`. The messages are
 //! made by one plain function, [`frame_messages`]; [`McapOut`] writes them to an MCAP
 //! file and [`LiveView`] serves them over the Foxglove WebSocket protocol.
@@ -12,8 +13,8 @@ use std::thread::JoinHandle;
 use crossbeam_channel::{Receiver, Sender};
 use foxglove::messages::{
     line_primitive, packed_element_field, Color, FrameTransform, FrameTransforms, LinePrimitive,
-    PackedElementField, Point3, PointCloud, Quaternion, SceneEntity, SceneUpdate, Timestamp,
-    Vector3,
+    PackedElementField, Point3, PointCloud, Pose as FoxglovePose, Quaternion, SceneEntity,
+    SceneUpdate, SpherePrimitive, Timestamp, Vector3,
 };
 use foxglove::Encode;
 
@@ -156,6 +157,50 @@ pub fn frame_messages(view: &FrameView) -> Vec<(Topic, Vec<u8>)> {
             ..Default::default()
         })
         .collect();
+    // Junctions a hundredth of the curves' extent across: visible at any zoom that
+    // shows the drawing, small beside its strokes.
+    let bbox = crate::geom::BBox::of(
+        &view
+            .record
+            .polylines
+            .iter()
+            .flatten()
+            .flat_map(|p| p.points.iter().copied())
+            .collect::<Vec<_>>(),
+    );
+    let size = bbox.map_or(0.0, |b| b.diag()) / 100.0;
+    let spheres = view
+        .record
+        .junctions
+        .iter()
+        .flatten()
+        .map(|j| SpherePrimitive {
+            pose: Some(FoxglovePose {
+                position: Some(Vector3 {
+                    x: j.at[0],
+                    y: j.at[1],
+                    z: 0.0,
+                }),
+                orientation: Some(Quaternion {
+                    x: 0.0,
+                    y: 0.0,
+                    z: 0.0,
+                    w: 1.0,
+                }),
+            }),
+            size: Some(Vector3 {
+                x: size,
+                y: size,
+                z: size,
+            }),
+            color: Some(Color {
+                r: 0.2,
+                g: 0.3,
+                b: 0.9,
+                a: 1.0,
+            }),
+        })
+        .collect();
     let scene = SceneUpdate {
         deletions: Vec::new(),
         entities: vec![SceneEntity {
@@ -164,6 +209,7 @@ pub fn frame_messages(view: &FrameView) -> Vec<(Topic, Vec<u8>)> {
             id: format!("{frame_id}/curves"),
             frame_locked: true,
             lines,
+            spheres,
             ..Default::default()
         }],
     };
@@ -428,6 +474,10 @@ mod tests {
                     closed: false,
                     points: vec![[0.0, 1.0], [2.0, 1.0], [2.0, 3.0]],
                 }]),
+                junctions: Some(vec![crate::format::JunctionJson {
+                    at: [2.0, 1.0],
+                    polylines: vec![0],
+                }]),
                 ..Default::default()
             },
             points: vec![[0.0, 1.1], [2.0, 0.9]],
@@ -443,6 +493,8 @@ mod tests {
         let e = &scene.entities[0];
         assert_eq!((e.frame_id.as_str(), e.lines.len()), ("laser", 1));
         assert_eq!(e.lines[0].points.len(), 3);
+        let at = e.spheres[0].pose.unwrap().position.unwrap();
+        assert_eq!((e.spheres.len(), at.x, at.y), (1, 2.0, 1.0));
         assert_eq!(e.timestamp.unwrap().total_nanos(), 1_500_000_000);
         let cloud = PointCloud::decode(msgs[1].1.as_slice()).unwrap();
         assert_eq!(cloud.data.len(), 24);
