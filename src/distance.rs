@@ -79,7 +79,8 @@ impl DistanceField {
         })
     }
 
-    /// The distinct data points, in the tree's index order.
+    /// The distinct data points, in the tree's index order: sorted by x, then y, so
+    /// that a field built from some of them, in this order, keeps it.
     pub fn points(&self) -> &[Point] {
         &self.points
     }

@@ -23,8 +23,6 @@ const SHEET_NEIGHBOURS: usize = 16;
 const FIT_NEIGHBOURS: usize = 10;
 /// Normals closer than 30 degrees (up to their orientation) are turned to agree.
 const PARALLEL: f64 = 0.866;
-/// Nearest ends a sheet's end looks among for one facing it.
-const JOIN_CANDIDATES: usize = 4;
 /// Closed sheets, at most, for the start to be tried: each is tested against the others
 /// for nesting.
 const MAX_SHEETS: usize = 32;
@@ -49,9 +47,10 @@ pub fn oriented_offsets(
 ) -> Option<Vec<f64>> {
     let sheets = orient(field, sigma)?;
     let (pts, normals): (Vec<Point>, Vec<Point>) = sheets.into_iter().unzip();
+    // They come in a field's order, which a field built from them keeps: its indices
+    // are theirs.
     let tree = DistanceField::new(&pts).ok()?;
-    // The tree reorders its points: map back through their positions.
-    let order = reorder(&pts, tree.points());
+    debug_assert_eq!(tree.points(), &pts[..]);
     let k = OFFSET_NEIGHBOURS.min(tree.points().len());
     let h2 = (h * h).max(f64::MIN_POSITIVE);
     Some(
@@ -59,15 +58,13 @@ pub fn oriented_offsets(
             .par_iter()
             .map_init(Vec::new, |idx, &x| {
                 tree.nearest_k(x, k, idx);
-                let d0 = idx
-                    .first()
-                    .map_or(0.0, |&j| dist2(x, pts[order[j as usize]]));
+                let d0 = idx.first().map_or(0.0, |&j| dist2(x, pts[j as usize]));
                 // The width grows with the distance: far from the data one sample's
                 // normal (a corner's, say) must not decide alone.
                 let inv_h2 = 1.0 / (h2 + d0);
                 let (mut num, mut den) = (0.0, 0.0);
                 for &j in idx.iter() {
-                    let i = order[j as usize];
+                    let i = j as usize;
                     // Relative to the nearest, so that far vertices do not underflow.
                     let w = (-(dist2(x, pts[i]) - d0) * inv_h2).exp();
                     num += w * dot(sub(x, pts[i]), normals[i]);
@@ -82,29 +79,6 @@ pub fn oriented_offsets(
 fn dist2(a: Point, b: Point) -> f64 {
     let d = sub(a, b);
     dot(d, d)
-}
-
-/// For each point of `reordered`, its index in `original` (both the same multiset of
-/// distinct points, as [`DistanceField`] keeps them).
-fn reorder(original: &[Point], reordered: &[Point]) -> Vec<usize> {
-    let key = |p: &Point| (p[0].to_bits(), p[1].to_bits());
-    let mut by_key: Vec<(u64, u64, usize)> = original
-        .iter()
-        .enumerate()
-        .map(|(i, p)| {
-            let (a, b) = key(p);
-            (a, b, i)
-        })
-        .collect();
-    by_key.sort_unstable();
-    reordered
-        .iter()
-        .map(|p| {
-            let (a, b) = key(p);
-            let at = by_key.partition_point(|&(x, y, _)| (x, y) < (a, b));
-            by_key.get(at).map_or(0, |&(_, _, i)| i)
-        })
-        .collect()
 }
 
 /// The samples of the closed sheets with their normals oriented outward (away from what
@@ -122,34 +96,29 @@ pub fn orient(field: &DistanceField, sigma: f64) -> Option<Vec<(Point, Point)>> 
     if sub_pts.len() < MIN_SHEET {
         return None;
     }
+    // The samples are the tree's own points, so that its searches index them.
     let tree = DistanceField::new(&sub_pts).ok()?;
+    let pts = tree.points();
     let reach = median_reach(&tree, FIT_NEIGHBOURS);
     // Fitted to the subsample: on dense data a window of the full field holds thousands
-    // of samples, and the subsample already spans it evenly.
-    let frames = crate::mesh::metric::fits_within(&tree, &sub_pts, reach.max(8.0 * sigma));
-    let (pts, mut normals): (Vec<Point>, Vec<Point>) = sub_pts
-        .iter()
-        .zip(&frames)
-        .filter(|(_, f)| f.defined)
-        .map(|(&p, f)| (p, f.normal))
-        .unzip();
-    if pts.len() < MIN_SHEET {
-        return None;
-    }
-    let edges = sheet_edges(&pts, &normals, sigma, reach)?;
+    // of samples, and the subsample already spans it evenly. An undefined fit leaves
+    // a zero normal: no edge runs along it, and its sample is a sheet of its own.
+    let mut normals: Vec<Point> =
+        crate::mesh::metric::fits_within(&tree, pts, reach.max(8.0 * sigma))
+            .iter()
+            .map(|f| if f.defined { f.normal } else { [0.0, 0.0] })
+            .collect();
+    let edges = sheet_edges(&tree, &normals, sigma, reach);
     // Smaller sheets are clusters of outliers: they sign nothing.
-    let sheets: Vec<Vec<usize>> = turn_along(&pts, &mut normals, &edges, reach)?
+    let sheets: Vec<Vec<usize>> = turn_along(pts, &mut normals, &edges, reach)?
         .into_iter()
         .filter(|s| s.len() >= MIN_SHEET)
         .collect();
-    outward(&pts, &mut normals, &sheets)?;
-    Some(
-        sheets
-            .iter()
-            .flatten()
-            .map(|&i| (pts[i], normals[i]))
-            .collect(),
-    )
+    outward(pts, &mut normals, &sheets)?;
+    // In the tree's order, which a field built from them keeps.
+    let mut kept: Vec<usize> = sheets.into_iter().flatten().collect();
+    kept.sort_unstable();
+    Some(kept.into_iter().map(|i| (pts[i], normals[i])).collect())
 }
 
 /// The median distance from a sample of `tree` to its `k`-th nearest (itself first),
@@ -170,20 +139,14 @@ fn median_reach(tree: &DistanceField, k: usize) -> f64 {
     *radii.select_nth_unstable_by(mid, f64::total_cmp).1
 }
 
-/// The edges (`i < j`) along the sheets of `pts`: each sample to those of its
-/// [`SHEET_NEIGHBOURS`] nearest that lie along both tangents (within 60 degrees) and
+/// The edges (`i < j`) along the sheets of the points of `tree`: each sample to those of
+/// its [`SHEET_NEIGHBOURS`] nearest that lie along both tangents (within 60 degrees) and
 /// near both tangent lines (the noise plus half the length, for a bend); and, where a
-/// gap in the sampling wider than that breaks a sheet, its two ends (samples whose
-/// sheet neighbours all lie one way) joined when they face each other within `2 reach`.
-fn sheet_edges(
-    pts: &[Point],
-    normals: &[Point],
-    sigma: f64,
-    reach: f64,
-) -> Option<Vec<(u32, u32)>> {
+/// gap in the sampling wider than that breaks a sheet, each end (a sample whose sheet
+/// neighbours all lie one way) joined to the nearest end facing it within `2 reach`.
+fn sheet_edges(tree: &DistanceField, normals: &[Point], sigma: f64, reach: f64) -> Vec<(u32, u32)> {
+    let pts = tree.points();
     let n = pts.len();
-    let tree = DistanceField::new(pts).ok()?;
-    let order = reorder(pts, tree.points());
     let k = SHEET_NEIGHBOURS.min(n);
     let along = |i: usize, j: usize| {
         let q = sub(pts[j], pts[i]);
@@ -198,11 +161,8 @@ fn sheet_edges(
         .enumerate()
         .map_init(Vec::new, |idx, (i, &p)| {
             tree.nearest_k(p, k + 1, idx);
-            idx.iter()
-                .map(|&j| order[j as usize])
-                .filter(|&j| j != i && along(i, j))
-                .map(|j| j as u32)
-                .collect()
+            idx.retain(|&j| j as usize != i && along(i, j as usize));
+            idx.clone()
         })
         .collect();
     // Symmetric: an edge either end sees.
@@ -212,8 +172,10 @@ fn sheet_edges(
             seen[j as usize].push(i as u32);
         }
     }
-    let ends: Vec<(usize, Point)> = (0..n)
-        .filter_map(|i| {
+    // Off the sheet at an end: away from its neighbours (the fitted tangent may be off
+    // at a corner).
+    let off: Vec<Option<Point>> = (0..n)
+        .map(|i| {
             let t = tangent(normals[i]);
             let (mut ahead, mut behind, mut c) = (false, false, [0.0, 0.0]);
             for &j in &seen[i] {
@@ -223,9 +185,7 @@ fn sheet_edges(
                 c = [c[0] + q[0], c[1] + q[1]];
             }
             let len = dot(c, c).sqrt();
-            // Off the sheet: away from the neighbours (the fitted tangent may be off at
-            // a corner).
-            (!(ahead && behind) && len > 0.0).then(|| (i, [-c[0] / len, -c[1] / len]))
+            (!(ahead && behind) && len > 0.0).then(|| [-c[0] / len, -c[1] / len])
         })
         .collect();
     let mut edges: Vec<(u32, u32)> = neighbours
@@ -233,25 +193,26 @@ fn sheet_edges(
         .enumerate()
         .flat_map(|(i, js)| js.iter().map(move |&j| (i as u32, j)))
         .collect();
-    if ends.len() >= 2 {
-        let end_pts: Vec<Point> = ends.iter().map(|e| pts[e.0]).collect();
-        let end_tree = DistanceField::new(&end_pts).ok()?;
-        let end_order = reorder(&end_pts, end_tree.points());
-        let mut near = Vec::new();
-        for (a, &(i, out_i)) in ends.iter().enumerate() {
-            end_tree.nearest_k(pts[i], JOIN_CANDIDATES + 1, &mut near);
-            let facing = near.iter().map(|&b| end_order[b as usize]).find(|&b| {
-                let (j, out_j) = ends[b];
+    let mut near = Vec::new();
+    for (i, out_i) in off.iter().enumerate() {
+        let Some(out_i) = *out_i else { continue };
+        tree.within(pts[i], 2.0 * reach, &mut near);
+        let facing = near
+            .iter()
+            .map(|&j| j as usize)
+            .filter(|&j| j != i)
+            .filter_map(|j| {
+                let out_j = off[j]?;
                 let q = sub(pts[j], pts[i]);
                 let len = dot(q, q).sqrt();
                 // Across a gap in a wall each end faces the other; across a gap at a
                 // corner one of them may look past the other, but not away.
                 let (fi, fj) = (dot(q, out_i), -dot(q, out_j));
-                b != a && len <= 2.0 * reach && fi.min(fj) >= -0.2 * len && fi + fj >= 0.9 * len
-            });
-            if let Some(b) = facing {
-                edges.push((i as u32, ends[b].0 as u32));
-            }
+                (fi.min(fj) >= -0.2 * len && fi + fj >= 0.9 * len).then_some((len, j))
+            })
+            .min_by(|a, b| a.0.total_cmp(&b.0));
+        if let Some((_, j)) = facing {
+            edges.push((i as u32, j as u32));
         }
     }
     for e in &mut edges {
@@ -259,7 +220,7 @@ fn sheet_edges(
     }
     edges.sort_unstable();
     edges.dedup();
-    Some(edges)
+    edges
 }
 
 /// The normal turned a quarter clockwise: the direction the oriented curve runs.
@@ -376,27 +337,22 @@ fn outward(pts: &[Point], normals: &mut [Point], sheets: &[Vec<usize>]) -> Optio
             }
         }
     }
-    // Inside another sheet: behind its nearest sample's normal.
-    let trees: Vec<(DistanceField, Vec<usize>)> = sheets
-        .iter()
-        .map(|s| {
-            let sp: Vec<Point> = s.iter().map(|&i| pts[i]).collect();
-            let t = DistanceField::new(&sp).ok()?;
-            let ids = reorder(&sp, t.points()).into_iter().map(|k| s[k]).collect();
-            Some((t, ids))
-        })
-        .collect::<Option<_>>()?;
+    // Inside another sheet: behind its nearest sample's normal. At most 32 sheets of
+    // at most 5,000 samples: a search through each is cheap.
     let holes: Vec<bool> = sheets
         .iter()
         .enumerate()
         .map(|(a, s)| {
             let q = pts[s[0]];
-            let around = trees
+            let around = sheets
                 .iter()
                 .enumerate()
-                .filter(|&(b, (t, ids))| {
-                    let i = ids[t.nearest(q).index as usize];
-                    b != a && dot(sub(q, pts[i]), normals[i]) < 0.0
+                .filter(|&(b, other)| {
+                    let nearest = other
+                        .iter()
+                        .copied()
+                        .min_by(|&i, &j| dist2(q, pts[i]).total_cmp(&dist2(q, pts[j])));
+                    b != a && nearest.is_some_and(|i| dot(sub(q, pts[i]), normals[i]) < 0.0)
                 })
                 .count();
             around % 2 == 1

@@ -636,11 +636,7 @@ mod tests {
             let pts: Vec<Point> = (0..n)
                 .map(|_| [x.sample(&mut rng), y.sample(&mut rng)])
                 .collect();
-            let field = DistanceField::new(&pts).unwrap();
-            let metric = CurveMetric::new(&field, unit_params(32));
-            let (frames, neighbours, k) = metric.into_parts();
-            let knn = median_residual(&frames);
-            let scale = consistent_noise(&field, &frames, &neighbours, k);
+            let (field, knn, scale) = measured_noise(&pts);
             let ratio = scale.noise / sigma;
             assert!(
                 (0.8..=1.05).contains(&ratio),
@@ -679,14 +675,21 @@ mod tests {
                 [x + noise.sample(&mut rng), y + noise.sample(&mut rng)]
             })
             .collect();
-        let field = DistanceField::new(&pts).unwrap();
+        let (_, knn, scale) = measured_noise(&pts);
+        let ratio = scale.noise / sigma;
+        assert!((0.85..=1.15).contains(&ratio), "{ratio} (k-NN {knn})");
+        assert!(scale.window < 0.5 * scale.neighbours, "{scale:?}");
+    }
+
+    /// The field of `pts`, the median residual of its 32-neighbour frames and the
+    /// scale-consistent noise measured from them.
+    fn measured_noise(pts: &[Point]) -> (DistanceField, f64, NoiseScale) {
+        let field = DistanceField::new(pts).unwrap();
         let metric = CurveMetric::new(&field, unit_params(32));
         let (frames, neighbours, k) = metric.into_parts();
         let knn = median_residual(&frames);
         let scale = consistent_noise(&field, &frames, &neighbours, k);
-        let ratio = scale.noise / sigma;
-        assert!((0.85..=1.15).contains(&ratio), "{ratio} (k-NN {knn})");
-        assert!(scale.window < 0.5 * scale.neighbours, "{scale:?}");
+        (field, knn, scale)
     }
 
     /// Sizes for unit-scale test data: hmin 1e-3 in a band of 0.01, hmax 0.1.
