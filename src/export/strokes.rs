@@ -44,18 +44,12 @@ pub fn with_strokes(
     hmin: f64,
     tol: f64,
 ) -> (Vec<Polyline>, Vec<Junction>) {
-    let find = |curves: &[Polyline]| {
-        let index = crate::eval::SegmentIndex::new(curves);
+    // `away`: each sample's distance to the curves (none: infinite).
+    let find = |away: Vec<f64>| {
         let (loose, away): (Vec<Point>, Vec<f64>) = data
             .iter()
-            .map(|&p| {
-                let d = if index.is_empty() {
-                    f64::INFINITY
-                } else {
-                    index.distance(p)
-                };
-                (p, d)
-            })
+            .copied()
+            .zip(away)
             .filter(|&(_, d)| d > tol)
             .unzip();
         let Ok(field) = DistanceField::new(&loose) else {
@@ -73,18 +67,23 @@ pub fn with_strokes(
             .collect();
         strokes(&loose, r)
     };
+    let nowhere = || vec![f64::INFINITY; data.len()];
     if !enclosed {
-        let (lines, junctions) = find(&[]);
+        let (lines, junctions) = find(nowhere());
         if !lines.is_empty() {
             return (lines, junctions);
         }
         return (closed, Vec::new());
     }
-    let closed = without_bridges(closed, data, tol);
+    let (closed, away) = without_bridges(closed, data, tol);
     if closed.is_empty() {
-        return find(&[]);
+        return find(nowhere());
     }
-    let (lines, mut junctions) = find(&closed);
+    let away = away.unwrap_or_else(|| {
+        let index = crate::eval::SegmentIndex::new(&closed);
+        data.iter().map(|&p| index.distance(p)).collect()
+    });
+    let (lines, mut junctions) = find(away);
     let offset = closed.len();
     for j in &mut junctions {
         j.polylines.iter_mut().for_each(|i| *i += offset);
@@ -106,10 +105,15 @@ const BRIDGE_CONTEXT: usize = 10;
 /// [`BRIDGE`] times the gaps between samples around it, whose middle lies a quarter of
 /// its length from every sample) is no closed curve of the data but strokes joined
 /// through empty space (an arc whose ends come near a line), and is left out, its
-/// samples to the strokes.
-fn without_bridges(closed: Vec<Polyline>, data: &[Point], tol: f64) -> Vec<Polyline> {
+/// samples to the strokes. With them, the samples' distances to the loops when every
+/// loop stays.
+fn without_bridges(
+    closed: Vec<Polyline>,
+    data: &[Point],
+    tol: f64,
+) -> (Vec<Polyline>, Option<Vec<f64>>) {
     if closed.is_empty() {
-        return closed;
+        return (closed, None);
     }
     let index = crate::eval::SegmentIndex::new(&closed);
     // Each segment's loop and arc length at its start, in the index's order.
@@ -130,15 +134,20 @@ fn without_bridges(closed: Vec<Polyline>, data: &[Point], tol: f64) -> Vec<Polyl
     // Built only for a loop with a candidate gap.
     let samples = std::cell::OnceCell::new();
     let mut at: Vec<Vec<f64>> = vec![Vec::new(); closed.len()];
+    let mut away = Vec::with_capacity(data.len());
     for &p in data {
-        if let Some((d, seg, t)) = index.nearest(p) {
-            if d <= tol {
-                let (k, s, len) = seg_at[seg];
-                at[k].push(s + t * len);
-            }
+        let Some((d, seg, t)) = index.nearest(p) else {
+            away.push(f64::INFINITY);
+            continue;
+        };
+        away.push(d);
+        if d <= tol {
+            let (k, s, len) = seg_at[seg];
+            at[k].push(s + t * len);
         }
     }
-    closed
+    let before = closed.len();
+    let kept: Vec<Polyline> = closed
         .into_iter()
         .zip(at)
         .zip(lengths)
@@ -181,7 +190,9 @@ fn without_bridges(closed: Vec<Polyline>, data: &[Point], tol: f64) -> Vec<Polyl
             });
             (!bridged).then_some(pl)
         })
-        .collect()
+        .collect();
+    let away = (kept.len() == before).then_some(away);
+    (kept, away)
 }
 
 /// The point of the closed polyline `pl` at arc length `s` from its first vertex.
@@ -552,7 +563,7 @@ mod tests {
         };
         let mut data = line([-0.3, 0.0], [0.3, 0.0], 300);
         data.extend(arc(400));
-        assert!(without_bridges(vec![bridged], &data, 0.005).is_empty());
+        assert!(without_bridges(vec![bridged], &data, 0.005).0.is_empty());
 
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
         let angles: Vec<f64> = (0..400)
@@ -571,7 +582,7 @@ mod tests {
                 })
                 .collect(),
         };
-        assert_eq!(without_bridges(vec![circle], &data, 0.001).len(), 1);
+        assert_eq!(without_bridges(vec![circle], &data, 0.001).0.len(), 1);
     }
 
     fn line(a: Point, b: Point, n: usize) -> Vec<Point> {
