@@ -449,14 +449,37 @@ fn export_with(
     let data: Vec<Point> = prepared.local.iter().map(|&q| at.to_data(q)).collect();
     let (polylines, junctions) = match scan {
         Some(_) => (polylines, Vec::new()),
-        None => crate::export::strokes::with_strokes(
-            polylines,
-            &data,
-            solved.enclosed,
-            at.len_to_data(sigma),
-            at.len_to_data(hmin),
-            tolerance,
-        ),
+        None => {
+            let (mut curves, junctions) = crate::export::strokes::with_strokes(
+                polylines,
+                &data,
+                solved.enclosed,
+                at.len_to_data(sigma),
+                at.len_to_data(hmin),
+                tolerance,
+            );
+            // In local coordinates, where the samples' tree is; only the loops changed
+            // come back, so the others keep their coordinates to the bit.
+            let mut local: Vec<Polyline> = curves
+                .iter()
+                .map(|pl| Polyline {
+                    closed: pl.closed,
+                    points: pl.points.iter().map(|&p| at.to_local(p)).collect(),
+                })
+                .collect();
+            let changed = crate::export::gaps::span_gaps(
+                &mut local,
+                &prepared.metric.field,
+                sigma,
+                3.0 * sigma + 2.0 * hmin,
+                hmin,
+            );
+            tracing::debug!(loops = changed.len(), "sampling gaps spanned by arcs");
+            for k in changed {
+                curves[k].points = local[k].points.iter().map(|&p| at.to_data(p)).collect();
+            }
+            (curves, junctions)
+        }
     };
     let fit = crate::export::fit::fit(&data, &polylines, tolerance);
     let supported = match &scan_analysis {

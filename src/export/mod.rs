@@ -5,6 +5,7 @@ pub mod contour;
 pub mod corners;
 pub mod fit;
 pub mod foxglove;
+pub mod gaps;
 pub mod strokes;
 pub mod support;
 pub mod svg;

@@ -1,0 +1,487 @@
+//! Closed curves across sampling gaps. Where consecutive samples lie far apart, no data
+//! hold the level set: it settles near the chord (the least weighted length, which cuts
+//! a bend short by its sagitta) or stays where the solve stopped on the coarse mesh
+//! there, zigzagging. A stretch of a loop with no sample within the data's tolerance is
+//! therefore replaced by the cubic Hermite arc between its supported ends, with the
+//! samples' tangents there: the smooth curve the samples on either side imply, as a
+//! spline through them would draw it. A stretch that already runs along that arc stays
+//! the level set's.
+//!
+//! The tangents' length is `c / cos²(θ / 4)` for a chord `c` and a turn `θ` between the
+//! ends' tangents, which makes the arc a circle's to within 3e-4 of the radius over a
+//! quarter turn (the classic four-thirds-tangent Bézier arc) and to a few percent over a
+//! half turn. An arc is only taken where it stays within `0.6 c` of the chord (a half
+//! circle reaches `c / 2`) and clear of every other part of the curves.
+
+use crate::distance::DistanceField;
+use crate::eval::SegmentIndex;
+use crate::geom::{add, cross, dist, dot, mid, norm, scale, sub, Point, Polyline, Sym2};
+
+/// A turn between the ends' tangents beyond this (radians) leaves no way to tell a bend
+/// from a fold: the stretch stays as it is.
+const MAX_TURN: f64 = 0.95 * std::f64::consts::PI;
+/// How far an arc may stray from its chord, in chords.
+const MAX_BULGE: f64 = 0.6;
+/// Vertices per arc, at most.
+const MAX_ARC_VERTICES: usize = 4096;
+/// Samples a tangent is fitted to, at least (the nearest, where fewer lie within reach).
+const MIN_FIT: usize = 5;
+
+/// The samples' local fits that give an arc its ends' tangents.
+struct Fit<'a> {
+    field: &'a DistanceField,
+    sigma: f64,
+}
+
+/// Replaces every stretch of the closed polylines of `curves` whose vertices lie
+/// farther than `tol` from every sample of `field` (or one long segment whose middle
+/// does) by the Hermite arc between its supported ends, sampled every `step` at most,
+/// where the stretch strays more than `step` from that arc.
+/// The ends' tangents are the samples' own: a quadratic fitted to those near each end,
+/// a line where the noise (`sigma`) hides the curvature. An arc is taken where it turns
+/// less than [`MAX_TURN`], stays within [`MAX_BULGE`] chords of its chord and keeps `tol`
+/// from every other part of the curves. Open polylines are left as they are. Returns
+/// the indices of the polylines changed.
+pub fn span_gaps(
+    curves: &mut [Polyline],
+    field: &DistanceField,
+    sigma: f64,
+    tol: f64,
+    step: f64,
+) -> Vec<usize> {
+    if !(tol.is_finite() && tol > 0.0 && step.is_finite() && step > 0.0 && sigma >= 0.0) {
+        return Vec::new();
+    }
+    let fit = Fit { field, sigma };
+    let index = SegmentIndex::new(curves);
+    // Where each polyline's segments start in the index (its order, a lone point one
+    // segment of length zero).
+    let mut first_segment = Vec::with_capacity(curves.len());
+    let mut count = 0;
+    for pl in curves.iter() {
+        first_segment.push(count);
+        count += pl.segments().count().max(pl.points.len().min(1));
+    }
+    let mut spans = Vec::new();
+    for (k, pl) in curves.iter().enumerate() {
+        if !pl.closed || pl.points.len() < 8 {
+            continue;
+        }
+        let near: Vec<bool> = pl
+            .points
+            .iter()
+            .map(|&p| field.distance(p) <= tol)
+            .collect();
+        let Some(start) = near.iter().position(|&b| b) else {
+            continue;
+        };
+        let loop_ = Loop::new(&pl.points);
+        let n = pl.points.len();
+        let mut a = start;
+        for ahead in 1..=n {
+            let b = (start + ahead) % n;
+            if !near[b] {
+                continue;
+            }
+            // A stretch with a vertex off the samples, or one long segment whose middle is.
+            let off = (b + n - a) % n > 1 || field.distance(mid(pl.points[a], pl.points[b])) > tol;
+            if off && loop_.arc(a, b) > 4.0 * step {
+                let gap = Gap { a, b };
+                let clear = |window: (usize, usize), p: Point| {
+                    index.nearest(p).is_none_or(|(d, seg, _)| {
+                        d > tol || {
+                            let local = seg.wrapping_sub(first_segment[k]);
+                            local < n && in_cyclic(local, window, n)
+                        }
+                    })
+                };
+                if let Some(arc) = loop_.span(gap, &fit, step, clear) {
+                    spans.push((k, gap, arc));
+                }
+            }
+            a = b;
+        }
+    }
+    let mut changed = Vec::new();
+    // Each loop rebuilt once, its arcs in the order of the walk round it.
+    let mut spans = spans.into_iter().peekable();
+    while let Some(&(k, _, _)) = spans.peek() {
+        let pl = &mut curves[k];
+        let n = pl.points.len();
+        let mut arcs: Vec<(Gap, Vec<Point>)> = Vec::new();
+        while let Some((_, gap, arc)) = spans.next_if(|s| s.0 == k) {
+            arcs.push((gap, arc));
+        }
+        let start = arcs[0].0.a;
+        let mut points = Vec::with_capacity(n);
+        let mut i = start;
+        let mut next = arcs.iter().peekable();
+        // Gaps are disjoint and begin at supported vertices, so the walk comes back to
+        // `start`; at most `n` moves all the same.
+        for _ in 0..n {
+            points.push(pl.points[i]);
+            match next.next_if(|(gap, _)| gap.a == i) {
+                Some((gap, arc)) => {
+                    points.extend_from_slice(arc);
+                    i = gap.b;
+                }
+                None => i = (i + 1) % n,
+            }
+            if i == start {
+                break;
+            }
+        }
+        pl.points = points;
+        changed.push(k);
+    }
+    changed
+}
+
+impl Fit<'_> {
+    /// The unit tangent of the samples' curve at `p` (a curve vertex near them),
+    /// fitted to the samples within `reach` of the nearest (at least [`MIN_FIT`]) and
+    /// pointing along the first of `along` that is not across it. `None` when they give
+    /// no direction, or every `along` runs across it.
+    fn tangent(&self, p: Point, reach: f64, along: &[Point]) -> Option<Point> {
+        let field = self.field;
+        let centre = field.points()[field.nearest(p).index as usize];
+        let mut ids = Vec::new();
+        field.within(centre, reach, &mut ids);
+        if ids.len() < MIN_FIT {
+            field.nearest_k(centre, MIN_FIT, &mut ids);
+        }
+        let pts: Vec<Point> = ids.iter().map(|&i| field.points()[i as usize]).collect();
+        let inv = 1.0 / pts.len() as f64;
+        let c = pts.iter().fold([0.0, 0.0], |s, &q| add(s, scale(q, inv)));
+        let cov = pts
+            .iter()
+            .fold(Sym2::default(), |s, &q| s.plus(Sym2::outer(sub(q, c))));
+        let (l1, l2, e) = cov.eigen();
+        if l1.is_nan() || l1 <= 0.0 || l2 >= 0.5 * l1 {
+            return None;
+        }
+        let mut x = scale(e, 1.0 / norm(e));
+        let lean = along
+            .iter()
+            .map(|&v| (dot(x, v), norm(v)))
+            .find(|&(l, v)| v > 0.0 && l.abs() >= 0.3 * v)?
+            .0;
+        if lean < 0.0 {
+            x = scale(x, -1.0);
+        }
+        let y = [-x[1], x[0]];
+        let u_p = dot(sub(p, c), x);
+        // A quadratic y = a + b u + c u^2 where the noise leaves its curvature readable
+        // over the samples' spread, else their line.
+        let spread = (l1 * inv).sqrt();
+        let slope = if self.sigma < 0.1 * spread {
+            let mut m = [[0.0; 3]; 3];
+            let mut r = [0.0; 3];
+            for &q in &pts {
+                let d = sub(q, c);
+                let (u, v) = (dot(d, x), dot(d, y));
+                let f = [1.0, u, u * u];
+                for i in 0..3 {
+                    for j in 0..3 {
+                        m[i][j] += f[i] * f[j];
+                    }
+                    r[i] += f[i] * v;
+                }
+            }
+            solve3(m, r).map_or(0.0, |[_, b, c2]| b + 2.0 * c2 * u_p)
+        } else {
+            0.0
+        };
+        let t = add(x, scale(y, slope));
+        Some(scale(t, 1.0 / norm(t)))
+    }
+}
+
+/// The solution of the 3x3 system `m z = r` by Cramer's rule; `None` when `m` is
+/// (nearly) singular, as for samples on a line or all but coincident.
+fn solve3(m: [[f64; 3]; 3], r: [f64; 3]) -> Option<[f64; 3]> {
+    let det = |m: [[f64; 3]; 3]| {
+        m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1])
+            - m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0])
+            + m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0])
+    };
+    let d = det(m);
+    let scale_ = m.iter().flatten().fold(0.0f64, |s, v| s.max(v.abs()));
+    if d.is_nan() || d.abs() <= 1e-12 * scale_.powi(3) {
+        return None;
+    }
+    let mut z = [0.0; 3];
+    for (k, zk) in z.iter_mut().enumerate() {
+        let mut mk = m;
+        for i in 0..3 {
+            mk[i][k] = r[i];
+        }
+        *zk = det(mk) / d;
+    }
+    Some(z)
+}
+
+/// A stretch of a loop between two supported vertices, `a` before `b` along it.
+#[derive(Clone, Copy, Debug)]
+struct Gap {
+    a: usize,
+    b: usize,
+}
+
+/// A closed polyline's vertices with their arc lengths.
+struct Loop<'a> {
+    points: &'a [Point],
+    /// Arc length from vertex 0 to each vertex.
+    at: Vec<f64>,
+    total: f64,
+}
+
+impl<'a> Loop<'a> {
+    fn new(points: &'a [Point]) -> Loop<'a> {
+        let mut at = Vec::with_capacity(points.len());
+        let mut s = 0.0;
+        for (i, &p) in points.iter().enumerate() {
+            at.push(s);
+            s += dist(p, points[(i + 1) % points.len()]);
+        }
+        Loop {
+            points,
+            at,
+            total: s,
+        }
+    }
+
+    /// Arc length from vertex `a` forward to vertex `b`.
+    fn arc(&self, a: usize, b: usize) -> f64 {
+        (self.at[b] - self.at[a]).rem_euclid(self.total)
+    }
+
+    /// The vertex at most `reach` of arc length from `e`, forward (`ahead`) or back.
+    fn reach(&self, e: usize, reach: f64, ahead: bool) -> usize {
+        let n = self.points.len();
+        let mut last = e;
+        for k in 1..n {
+            let i = if ahead { (e + k) % n } else { (e + n - k) % n };
+            let along = if ahead {
+                self.arc(e, i)
+            } else {
+                self.arc(i, e)
+            };
+            if along > reach {
+                break;
+            }
+            last = i;
+        }
+        last
+    }
+
+    /// The Hermite arc across `gap` (its inner vertices, from `a`'s side), when it is
+    /// one to take: `clear(window, p)` says whether `p` keeps clear of every part of the
+    /// curves but this loop's vertices in the cyclic index range `window`.
+    fn span(
+        &self,
+        gap: Gap,
+        fit: &Fit<'_>,
+        step: f64,
+        clear: impl Fn((usize, usize), Point) -> bool,
+    ) -> Option<Vec<Point>> {
+        let (pa, pb) = (self.points[gap.a], self.points[gap.b]);
+        let c = dist(pa, pb);
+        if c <= 0.0 {
+            return None;
+        }
+        // The tangents from the samples within a quarter chord of each end (a few noise
+        // deviations at least): a bend's curvature shows in the quadratic fitted there
+        // and its next order (a circle's quartic) hardly does. The curve's own run over
+        // a chord (16 steps at least) before and after tells which way along it is (over
+        // less, its zigzag between sparse clean samples can run backwards), or where it
+        // ran across (the chord of a bend before), the chord.
+        let reach = (0.25 * c).max(4.0 * fit.sigma);
+        let run = c.max(16.0 * step);
+        let (from, to) = (self.reach(gap.a, run, false), self.reach(gap.b, run, true));
+        let ta = fit.tangent(pa, reach, &[sub(pa, self.points[from]), sub(pb, pa)])?;
+        let tb = fit.tangent(pb, reach, &[sub(self.points[to], pb), sub(pb, pa)])?;
+        let turn = dot(ta, tb).clamp(-1.0, 1.0).acos();
+        if turn > MAX_TURN {
+            return None;
+        }
+        let m = c / (0.25 * turn).cos().powi(2);
+        let length = if turn > 1e-9 {
+            c * 0.5 * turn / (0.5 * turn).sin()
+        } else {
+            c
+        };
+        let pieces = ((length / step).ceil() as usize).clamp(2, MAX_ARC_VERTICES);
+        let chord = scale(sub(pb, pa), 1.0 / c);
+        let mut arc = Vec::with_capacity(pieces - 1);
+        for i in 1..pieces {
+            let t = i as f64 / pieces as f64;
+            let (t2, t3) = (t * t, t * t * t);
+            let p = add(
+                add(
+                    scale(pa, 2.0 * t3 - 3.0 * t2 + 1.0),
+                    scale(ta, m * (t3 - 2.0 * t2 + t)),
+                ),
+                add(scale(pb, -2.0 * t3 + 3.0 * t2), scale(tb, m * (t3 - t2))),
+            );
+            if cross(chord, sub(p, pa)).abs() > MAX_BULGE * c || !clear((from, to), p) {
+                return None;
+            }
+            arc.push(p);
+        }
+        // A stretch that already runs along the arc (to within a step: the mesh's
+        // resolution) is the level set's, which the samples beyond the ends shaped.
+        let path = Polyline {
+            closed: false,
+            points: [pa]
+                .into_iter()
+                .chain(arc.iter().copied())
+                .chain([pb])
+                .collect(),
+        };
+        let along = SegmentIndex::new(std::slice::from_ref(&path));
+        let n = self.points.len();
+        // The stretch's segments walked a step at a time: a long one is a chord.
+        let strays = (0..(gap.b + n - gap.a) % n).any(|k| {
+            let (p, q) = (
+                self.points[(gap.a + k) % n],
+                self.points[(gap.a + k + 1) % n],
+            );
+            let pieces = (dist(p, q) / step).ceil().max(1.0) as usize;
+            (1..=pieces).any(|i| {
+                let t = i as f64 / pieces as f64;
+                along.distance(add(p, scale(sub(q, p), t))) > step
+            })
+        });
+        strays.then_some(arc)
+    }
+}
+
+/// Whether `i` lies in the cyclic range from `window.0` forward to `window.1` of `n`.
+fn in_cyclic(i: usize, (from, to): (usize, usize), n: usize) -> bool {
+    (i + n - from) % n <= (to + n - from) % n
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn circle(r: f64, n: usize, keep: impl Fn(f64) -> bool) -> Vec<Point> {
+        (0..n)
+            .map(|i| std::f64::consts::TAU * i as f64 / n as f64)
+            .filter(|&a| keep(a))
+            .map(|a| [r * a.cos(), r * a.sin()])
+            .collect()
+    }
+
+    fn field(samples: &[Point]) -> DistanceField {
+        DistanceField::new(samples).unwrap()
+    }
+
+    fn nearest(points: &[Point], p: Point) -> f64 {
+        points
+            .iter()
+            .map(|&s| dist(p, s))
+            .fold(f64::INFINITY, f64::min)
+    }
+
+    /// A circle sampled but for a quarter turn, whose loop cuts the quarter by its
+    /// chord: the arc put across the gap follows the circle to within the
+    /// four-thirds-tangent arc's 2.7e-4 of the radius, plus the tangents' error from a
+    /// quadratic over a quarter chord (about 1e-3 rad, a few 1e-4 of the radius); 2e-3 of it is asserted.
+    #[test]
+    fn a_chord_across_a_quarter_turn_becomes_the_arc() {
+        let r = 1.0;
+        let gap = |a: f64| a > 0.3 && a < 0.3 + std::f64::consts::FRAC_PI_2;
+        let samples = circle(r, 400, |a| !gap(a));
+        let loop_points: Vec<Point> = circle(r, 2000, |a| !gap(a));
+        let mut curves = vec![Polyline {
+            closed: true,
+            points: loop_points,
+        }];
+        let before = curves[0].points.len();
+        let changed = span_gaps(&mut curves, &field(&samples), 0.0, 0.01, 0.005);
+        assert_eq!(changed, [0]);
+        let pl = &curves[0];
+        assert!(pl.points.len() > before + 200, "{}", pl.points.len());
+        let worst = pl
+            .points
+            .iter()
+            .map(|&p| (norm(p) - r).abs())
+            .fold(0.0, f64::max);
+        assert!(worst < 2e-3 * r, "{worst}");
+        // Every point of the gap is now within a step of the arc.
+        let middle = [
+            r * (0.3 + std::f64::consts::FRAC_PI_4).cos(),
+            r * (0.3 + std::f64::consts::FRAC_PI_4).sin(),
+        ];
+        let d = nearest(&pl.points, middle);
+        assert!(d < 0.005, "{d}");
+    }
+
+    /// A loop round two walls that a gap separates from a third part: an arc that would
+    /// come near another part of the curves is not taken, nor one that would fold.
+    #[test]
+    fn an_arc_that_would_touch_another_curve_is_refused() {
+        let r = 1.0;
+        let gap = |a: f64| a > 0.3 && a < 0.3 + std::f64::consts::FRAC_PI_2;
+        let samples = circle(r, 400, |a| !gap(a));
+        let loop_points: Vec<Point> = circle(r, 2000, |a| !gap(a));
+        // A second loop just outside the arc's path, at the gap's middle.
+        let m = 0.3 + std::f64::consts::FRAC_PI_4;
+        let centre = [1.003 * r * m.cos(), 1.003 * r * m.sin()];
+        let other: Vec<Point> = circle(0.002, 16, |_| true)
+            .into_iter()
+            .map(|p| add(p, centre))
+            .collect();
+        let mut curves = vec![
+            Polyline {
+                closed: true,
+                points: loop_points.clone(),
+            },
+            Polyline {
+                closed: true,
+                points: other,
+            },
+        ];
+        assert!(span_gaps(&mut curves, &field(&samples), 0.0, 0.01, 0.005).is_empty());
+        assert_eq!(curves[0].points, loop_points);
+    }
+
+    /// A loop that already follows the circle across the gap (the level set held by
+    /// the samples beyond it) stays as it is: it strays from the arc by the arc's own
+    /// error, far under a step.
+    #[test]
+    fn a_stretch_along_the_arc_stays() {
+        let gap = |a: f64| a > 0.3 && a < 0.3 + std::f64::consts::FRAC_PI_2;
+        let samples = circle(1.0, 400, |a| !gap(a));
+        let points = circle(1.0, 2000, |_| true);
+        let mut curves = vec![Polyline {
+            closed: true,
+            points: points.clone(),
+        }];
+        assert!(span_gaps(&mut curves, &field(&samples), 0.0, 0.01, 0.005).is_empty());
+        assert_eq!(curves[0].points, points);
+    }
+
+    /// Supported loops and open polylines are left alone, as are gaps too short to hold
+    /// a vertex of the arc.
+    #[test]
+    fn supported_curves_stay() {
+        let samples = circle(1.0, 400, |_| true);
+        let points = circle(1.0, 1000, |_| true);
+        let mut curves = vec![
+            Polyline {
+                closed: true,
+                points: points.clone(),
+            },
+            Polyline {
+                closed: false,
+                points: vec![[3.0, 0.0], [4.0, 0.0]],
+            },
+        ];
+        let before = curves.clone();
+        assert!(span_gaps(&mut curves, &field(&samples), 0.0, 0.01, 0.005).is_empty());
+        assert_eq!(curves, before);
+    }
+}
