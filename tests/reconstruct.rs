@@ -101,6 +101,22 @@ fn a_spiral_and_bays_behind_narrow_inlets_stay_open() {
     }
 }
 
+/// The clean spiral with its turns 8 sample spacings apart (498 points, seed 7): one
+/// loop. A random sampling leaves stretches of up to five spacings with no sample,
+/// across which the level set cuts the bend by up to two spacings; the arcs put across
+/// them (`export::gaps`) follow the bend the samples on either side imply, to within
+/// half a spacing of the truth on top of `2 hmin`.
+#[test]
+fn a_clean_spiral_keeps_its_bends_across_sampling_gaps() {
+    let dir = tempfile::tempdir().unwrap();
+    let spacing = 0.08 / 8.0;
+    let (s, acc) = shape_run(dir.path(), "spiral", 498, 0.0, 7, 0.08);
+    let bound = 2.0 * s["hmin"].as_f64().unwrap() + 0.5 * spacing;
+    assert_eq!(acc["components_recon"], 1, "{acc}");
+    let h = acc["hausdorff"].as_f64().unwrap();
+    assert!(h <= bound, "Hausdorff {h} > {bound}: {acc}");
+}
+
 /// The simulator's drawing of five open strokes (a baseline with a stem and a hook
 /// standing on it, a wave crossing the stem, a free arc whose ends come within 0.065 of
 /// the baseline) at sigma = 0.002 and 0.005: one open polyline per stroke, split only

@@ -304,7 +304,15 @@ fn turn_along(
         .iter()
         .filter(|&&(i, j)| !runs(normals, i as usize, j as usize))
         .count();
-    (opposed * 100 <= edges.len()).then_some(sheets)
+    if opposed * 100 > edges.len() {
+        tracing::debug!(
+            opposed,
+            edges = edges.len(),
+            "orientation: normals disagree"
+        );
+        return None;
+    }
+    Some(sheets)
 }
 
 /// Turns each sheet of `sheets` outward, or `None` when one does not close or there are
@@ -315,6 +323,7 @@ fn turn_along(
 /// a hole, and turns the other way.
 fn outward(pts: &[Point], normals: &mut [Point], sheets: &[Vec<usize>]) -> Option<()> {
     if sheets.is_empty() || sheets.len() > MAX_SHEETS {
+        tracing::debug!(sheets = sheets.len(), "orientation: no sheets, or too many");
         return None;
     }
     let sum = |s: &[usize], f: &dyn Fn(usize) -> Point| {
@@ -326,6 +335,11 @@ fn outward(pts: &[Point], normals: &mut [Point], sheets: &[Vec<usize>]) -> Optio
     for s in sheets {
         let total = sum(s, &|i| normals[i]);
         if dot(total, total).sqrt() > CLOSURE * s.len() as f64 {
+            tracing::debug!(
+                samples = s.len(),
+                open = dot(total, total).sqrt() / s.len() as f64,
+                "orientation: a sheet does not close"
+            );
             return None;
         }
         let c = sum(s, &|i| pts[i]);
