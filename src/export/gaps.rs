@@ -16,6 +16,8 @@
 //! half turn. An arc is only taken where it stays within `0.6 c` of the chord (a half
 //! circle reaches `c / 2`) and clear of every other part of the curves.
 
+use nalgebra::{Matrix3, Vector3};
+
 use crate::distance::DistanceField;
 use crate::eval::SegmentIndex;
 use crate::geom::{add, cross, dist, dot, mid, norm, scale, sub, Point, Polyline, Sym2};
@@ -207,9 +209,9 @@ impl Fit<'_> {
         }
         let y = [-x[1], x[0]];
         let u_p = dot(sub(p, c), x);
-        // Their line where it holds them (a straight side, of no curvature), or where a quadratic y = a + b u + c u^2 does not halve its
-        // residual (the noise hides the curvature); else the quadratic, with its
-        // curvature.
+        // Their line where it holds them (a straight side, of no curvature), or where
+        // a quadratic y = a + b u + c u^2 does not halve its residual (the noise hides
+        // the curvature); else the quadratic, with its curvature.
         let line = (l2 * inv).max(0.0).sqrt();
         let (slope, curvature) = if pts.len() < 3 {
             // Too few for a line to be a test of straightness.
@@ -219,23 +221,26 @@ impl Fit<'_> {
             // samples, rounded as written, of a noise estimate under that).
             (0.0, Some(0.0))
         } else {
-            let mut m = [[0.0; 3]; 3];
-            let mut r = [0.0; 3];
+            let mut ata = Matrix3::<f64>::zeros();
+            let mut atb = Vector3::<f64>::zeros();
             let local: Vec<(f64, f64)> = pts
                 .iter()
                 .map(|&q| (dot(sub(q, c), x), dot(sub(q, c), y)))
                 .collect();
             for &(u, v) in &local {
-                let f = [1.0, u, u * u];
-                for i in 0..3 {
-                    for j in 0..3 {
-                        m[i][j] += f[i] * f[j];
-                    }
-                    r[i] += f[i] * v;
-                }
+                let row = Vector3::new(1.0, u, u * u);
+                ata += row * row.transpose();
+                atb += row * v;
             }
-            match solve3(m, r) {
-                Some([a, b, c2]) => {
+            // Samples all but on a line across, or coincident along it, fix no quadratic.
+            let conditioned = ata.determinant().abs() > 1e-12 * ata.amax().powi(3);
+            match conditioned
+                .then(|| ata.lu().solve(&atb))
+                .flatten()
+                .filter(|z| z.iter().all(|v| v.is_finite()))
+            {
+                Some(z) => {
+                    let (a, b, c2) = (z[0], z[1], z[2]);
                     let quad = (local
                         .iter()
                         .map(|&(u, v)| (v - a - b * u - c2 * u * u).powi(2))
@@ -258,30 +263,6 @@ impl Fit<'_> {
             curvature,
         })
     }
-}
-
-/// The solution of the 3x3 system `m z = r` by Cramer's rule; `None` when `m` is
-/// (nearly) singular, as for samples on a line or all but coincident.
-fn solve3(m: [[f64; 3]; 3], r: [f64; 3]) -> Option<[f64; 3]> {
-    let det = |m: [[f64; 3]; 3]| {
-        m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1])
-            - m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0])
-            + m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0])
-    };
-    let d = det(m);
-    let scale_ = m.iter().flatten().fold(0.0f64, |s, v| s.max(v.abs()));
-    if d.is_nan() || d.abs() <= 1e-12 * scale_.powi(3) {
-        return None;
-    }
-    let mut z = [0.0; 3];
-    for (k, zk) in z.iter_mut().enumerate() {
-        let mut mk = m;
-        for i in 0..3 {
-            mk[i][k] = r[i];
-        }
-        *zk = det(mk) / d;
-    }
-    Some(z)
 }
 
 /// A stretch of a loop between two supported vertices, `a` before `b` along it.
@@ -475,8 +456,8 @@ impl<'a> Loop<'a> {
 }
 
 /// The samples a loop's stretch `gap` passes by without holding: each the nearest to a
-/// point of it (walked `step` at a time), farther than `tol` from the
-/// curves, whose nearest part of them is this stretch; in order along it.
+/// point of it (walked `step` at a time), farther than `tol` from the curves, whose
+/// nearest part of them is this stretch; in order along it.
 fn skipped_samples(
     loop_: &Loop<'_>,
     gap: Gap,
@@ -623,7 +604,8 @@ mod tests {
     /// A circle sampled but for a quarter turn, whose loop cuts the quarter by its
     /// chord: the arc put across the gap follows the circle to within the
     /// four-thirds-tangent arc's 2.7e-4 of the radius, plus the tangents' error from a
-    /// quadratic over a quarter chord (about 1e-3 rad, a few 1e-4 of the radius); 2e-3 of it is asserted.
+    /// quadratic over a quarter chord (about 1e-3 rad, a few 1e-4 of the radius); 2e-3
+    /// of it is asserted.
     #[test]
     fn a_chord_across_a_quarter_turn_becomes_the_arc() {
         let r = 1.0;
