@@ -12,7 +12,7 @@
 use rayon::prelude::*;
 
 use crate::distance::DistanceField;
-use crate::geom::{dot, sub, Point};
+use crate::geom::{cross, dot, sub, Point};
 
 /// Samples the orientation works on, at most: an even subsample of denser data (its
 /// normals come from fits at the noise's scale, so a subsample loses nothing).
@@ -103,14 +103,22 @@ pub fn orient(field: &DistanceField, sigma: f64) -> Option<Vec<(Point, Point)>> 
     // Fitted to the subsample: on dense data a window of the full field holds thousands
     // of samples, and the subsample already spans it evenly. An undefined fit leaves
     // a zero normal: no edge runs along it, and its sample is a sheet of its own.
-    let mut normals: Vec<Point> =
-        crate::mesh::metric::fits_within(&tree, pts, reach.max(8.0 * sigma))
-            .iter()
-            .map(|f| if f.defined { f.normal } else { [0.0, 0.0] })
-            .collect();
+    let r = reach.max(8.0 * sigma);
+    let fits = crate::mesh::metric::fits_within(&tree, pts, r);
+    let mut normals: Vec<Point> = fits
+        .iter()
+        .map(|f| if f.defined { f.normal } else { [0.0, 0.0] })
+        .collect();
+    // A fit leaving more than twice the noise and a quarter of its radius (a bend as
+    // tight as the window leaves a seventh) has two walls in its window: its sample lies
+    // in the noise's tail between them, and its normal may run across both.
+    let one_wall: Vec<bool> = fits
+        .iter()
+        .map(|f| f.residual <= (2.0 * sigma).max(0.25 * r))
+        .collect();
     let edges = sheet_edges(&tree, &normals, sigma, reach);
     // Smaller sheets are clusters of outliers: they sign nothing.
-    let sheets: Vec<Vec<usize>> = turn_along(pts, &mut normals, &edges, reach)?
+    let sheets: Vec<Vec<usize>> = turn_along(pts, &mut normals, &one_wall, &edges, reach)?
         .into_iter()
         .filter(|s| s.len() >= MIN_SHEET)
         .collect();
@@ -151,7 +159,12 @@ fn sheet_edges(tree: &DistanceField, normals: &[Point], sigma: f64, reach: f64) 
     let along = |i: usize, j: usize| {
         let q = sub(pts[j], pts[i]);
         let len = dot(q, q).sqrt();
-        let tol = 3.0 * sigma + 0.5 * len;
+        // A bend leaves the tangent line by half the length times its turn; samples
+        // whose normals barely turn (under 15 degrees) may lie off each other's line by
+        // the noise plus a quarter of the length, not half: further off, they lie on
+        // two walls across a corridor that the noise's tails narrow.
+        let turn = cross(normals[i], normals[j]).abs();
+        let tol = 3.0 * sigma + 0.5 * len * (2.0 * turn).clamp(0.5, 1.0);
         [i, j].iter().all(|&v| {
             dot(q, tangent(normals[v])).abs() >= 0.5 * len && dot(q, normals[v]).abs() <= tol
         })
@@ -208,7 +221,12 @@ fn sheet_edges(tree: &DistanceField, normals: &[Point], sigma: f64, reach: f64) 
                 // Across a gap in a wall each end faces the other; across a gap at a
                 // corner one of them may look past the other, but not away.
                 let (fi, fj) = (dot(q, out_i), -dot(q, out_j));
-                (fi.min(fj) >= -0.2 * len && fi + fj >= 0.9 * len).then_some((len, j))
+                // Along the sheet, as its edges are (within 60 degrees of both tangents):
+                // not across a corridor, where two walls' ends may face each other.
+                let along_both = [i, j]
+                    .iter()
+                    .all(|&v| dot(q, tangent(normals[v])).abs() >= 0.5 * len);
+                (along_both && fi.min(fj) >= -0.2 * len && fi + fj >= 0.9 * len).then_some((len, j))
             })
             .min_by(|a, b| a.0.total_cmp(&b.0));
         if let Some((_, j)) = facing {
@@ -236,6 +254,7 @@ fn tangent(n: Point) -> Point {
 fn turn_along(
     pts: &[Point],
     normals: &mut [Point],
+    one_wall: &[bool],
     edges: &[(u32, u32)],
     reach: f64,
 ) -> Option<Vec<Vec<usize>>> {
@@ -258,9 +277,16 @@ fn turn_along(
         let along = |v: usize| dot(q, tangent(normals[v])).abs() / len;
         len / reach + (1.0 - along(i).min(along(j))) + (1.0 - dot(normals[i], normals[j]).abs())
     };
+    // An edge from a sample whose fit straddles two walls comes after every other: its
+    // normal may run across both, and the first edge between two pieces decides how
+    // they turn to each other.
+    let straddles = |i: usize, j: usize| if one_wall[i] && one_wall[j] { 0.0 } else { 1e3 };
     let mut by_doubt: Vec<(f64, usize, usize)> = edges
         .iter()
-        .map(|&(i, j)| (doubt(i as usize, j as usize), i as usize, j as usize))
+        .map(|&(i, j)| {
+            let (i, j) = (i as usize, j as usize);
+            (doubt(i, j) + straddles(i, j), i, j)
+        })
         .collect();
     by_doubt.sort_unstable_by(|a, b| a.0.total_cmp(&b.0));
     // Union-find whose links carry the turn between a sample and its parent.
