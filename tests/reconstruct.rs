@@ -83,20 +83,24 @@ fn shape_run(
 fn a_spiral_and_bays_behind_narrow_inlets_stay_open() {
     let dir = tempfile::tempdir().unwrap();
     let diag = 0.005 * 2f64.sqrt();
-    for (shape, points, sigma, gap) in [
-        ("spiral", 498, diag, 0.08),
-        ("bays", 442, diag, 0.08),
-        ("spiral", 2000, 0.002, 0.05),
-        ("bays", 2000, 0.002, 0.05),
+    // Seeds 2 and 5 of the noisy spiral once had a turn's normals signed across the
+    // corridor by a sample in the noise's tail between two walls.
+    for (shape, points, sigma, gap, seed) in [
+        ("spiral", 498, diag, 0.08, 7),
+        ("spiral", 498, diag, 0.08, 2),
+        ("spiral", 498, diag, 0.08, 5),
+        ("bays", 442, diag, 0.08, 7),
+        ("spiral", 2000, 0.002, 0.05, 7),
+        ("bays", 2000, 0.002, 0.05, 7),
     ] {
-        let (s, acc) = shape_run(dir.path(), shape, points, sigma, 7, gap);
+        let (s, acc) = shape_run(dir.path(), shape, points, sigma, seed, gap);
         let hmin = s["hmin"].as_f64().unwrap();
         let h = acc["hausdorff"].as_f64().unwrap();
         let bound = 3.0 * sigma + 2.0 * hmin;
-        assert_eq!(acc["components_recon"], 1, "{shape} {points}: {acc}");
+        assert_eq!(acc["components_recon"], 1, "{shape} {points} {seed}: {acc}");
         assert!(
             h <= bound,
-            "{shape} {points}: Hausdorff {h} > {bound}; {acc}"
+            "{shape} {points} {seed}: Hausdorff {h} > {bound}; {acc}"
         );
     }
 }
