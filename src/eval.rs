@@ -17,6 +17,8 @@ use crate::geom::{add, dist, point_segment_dist2, scale, sub, Point, Polyline};
 /// Nearest-segment queries over a set of polylines.
 pub struct SegmentIndex {
     segs: Vec<(Point, Point)>,
+    /// Where each polyline's segments start in `segs`.
+    starts: Vec<usize>,
     piece_seg: Vec<u32>,
     tree: Option<ImmutableKdTree<f64, 2>>,
     half_piece: f64,
@@ -27,8 +29,10 @@ impl SegmentIndex {
     /// length zero).
     pub fn new(polylines: &[Polyline]) -> SegmentIndex {
         let mut segs: Vec<(Point, Point)> = Vec::new();
+        let mut starts = Vec::with_capacity(polylines.len());
         for pl in polylines {
             let before = segs.len();
+            starts.push(before);
             segs.extend(pl.segments());
             if segs.len() == before {
                 segs.extend(pl.points.iter().map(|&p| (p, p)));
@@ -63,6 +67,7 @@ impl SegmentIndex {
         };
         SegmentIndex {
             segs,
+            starts,
             piece_seg,
             tree,
             half_piece: 0.5 * piece,
@@ -83,6 +88,12 @@ impl SegmentIndex {
     /// segment last among its own).
     pub fn segments(&self) -> &[(Point, Point)] {
         &self.segs
+    }
+
+    /// Where the segments of polyline `k` (in the order given) start in
+    /// [`segments`](Self::segments): its segment `j` is `start(k) + j`.
+    pub fn start(&self, k: usize) -> usize {
+        self.starts[k]
     }
 
     /// The nearest segment to `q`: the distance, the segment's index in

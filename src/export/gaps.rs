@@ -71,14 +71,6 @@ pub fn span_gaps(
     }
     let fit = Fit { field, sigma };
     let index = SegmentIndex::new(curves);
-    // Where each polyline's segments start in the index (its order, a lone point one
-    // segment of length zero).
-    let mut first_segment = Vec::with_capacity(curves.len());
-    let mut count = 0;
-    for pl in curves.iter() {
-        first_segment.push(count);
-        count += pl.segments().count().max(pl.points.len().min(1));
-    }
     let mut spans = Vec::new();
     for (k, pl) in curves.iter().enumerate() {
         if !pl.closed || pl.points.len() < 8 {
@@ -107,13 +99,12 @@ pub fn span_gaps(
                 let clear = |window: (usize, usize), p: Point| {
                     index.nearest(p).is_none_or(|(d, seg, _)| {
                         d > tol || {
-                            let local = seg.wrapping_sub(first_segment[k]);
+                            let local = seg.wrapping_sub(index.start(k));
                             local < n && in_cyclic(local, window, n)
                         }
                     })
                 };
-                let skipped =
-                    skipped_samples(&loop_, gap, field, &index, first_segment[k], tol, step);
+                let skipped = skipped_samples(&loop_, gap, field, &index, k, tol, step);
                 if let Some(arc) = loop_.span(gap, &skipped, &fit, step, clear) {
                     spans.push((k, gap, arc));
                 }
@@ -456,14 +447,14 @@ impl<'a> Loop<'a> {
 }
 
 /// The samples a loop's stretch `gap` passes by without holding: each the nearest to a
-/// point of it (walked `step` at a time), farther than `tol` from the curves, whose
-/// nearest part of them is this stretch; in order along it.
+/// point of it (walked `step` at a time), farther than `tol` from the curves of `index`,
+/// whose nearest part of them is this stretch (of their polyline `k`); in order along it.
 fn skipped_samples(
     loop_: &Loop<'_>,
     gap: Gap,
     field: &DistanceField,
     index: &SegmentIndex,
-    first_segment: usize,
+    k: usize,
     tol: f64,
     step: f64,
 ) -> Vec<Point> {
@@ -479,7 +470,7 @@ fn skipped_samples(
         .filter_map(|i| {
             let p = field.points()[i as usize];
             let (d, seg, t) = index.nearest(p)?;
-            let local = seg.wrapping_sub(first_segment);
+            let local = seg.wrapping_sub(index.start(k));
             let on_stretch = local < n && in_cyclic(local, (gap.a, (gap.b + n - 1) % n), n);
             (d > tol && on_stretch).then(|| {
                 let len = dist(loop_.points[local], loop_.points[(local + 1) % n]);
@@ -590,6 +581,18 @@ mod tests {
             .collect()
     }
 
+    /// Whether the angle `a` lies in the quarter turn from 0.3 rad that the tests cut.
+    fn in_quarter(a: f64) -> bool {
+        a > 0.3 && a < 0.3 + std::f64::consts::FRAC_PI_2
+    }
+
+    /// A unit circle sampled every 0.016 but across [`in_quarter`], and a loop of 2,000
+    /// vertices along it that cuts that quarter by its chord.
+    fn quarter_cut() -> (Vec<Point>, Vec<Point>) {
+        let out = |a: f64| !in_quarter(a);
+        (circle(1.0, 400, out), circle(1.0, 2000, out))
+    }
+
     fn field(samples: &[Point]) -> DistanceField {
         DistanceField::new(samples).unwrap()
     }
@@ -609,9 +612,7 @@ mod tests {
     #[test]
     fn a_chord_across_a_quarter_turn_becomes_the_arc() {
         let r = 1.0;
-        let gap = |a: f64| a > 0.3 && a < 0.3 + std::f64::consts::FRAC_PI_2;
-        let samples = circle(r, 400, |a| !gap(a));
-        let loop_points: Vec<Point> = circle(r, 2000, |a| !gap(a));
+        let (samples, loop_points) = quarter_cut();
         let mut curves = vec![Polyline {
             closed: true,
             points: loop_points,
@@ -641,9 +642,7 @@ mod tests {
     #[test]
     fn an_arc_that_would_touch_another_curve_is_refused() {
         let r = 1.0;
-        let gap = |a: f64| a > 0.3 && a < 0.3 + std::f64::consts::FRAC_PI_2;
-        let samples = circle(r, 400, |a| !gap(a));
-        let loop_points: Vec<Point> = circle(r, 2000, |a| !gap(a));
+        let (samples, loop_points) = quarter_cut();
         // A second loop just outside the arc's path, at the gap's middle.
         let m = 0.3 + std::f64::consts::FRAC_PI_4;
         let centre = [1.003 * r * m.cos(), 1.003 * r * m.sin()];
@@ -670,8 +669,7 @@ mod tests {
     /// error, far under a step.
     #[test]
     fn a_stretch_along_the_arc_stays() {
-        let gap = |a: f64| a > 0.3 && a < 0.3 + std::f64::consts::FRAC_PI_2;
-        let samples = circle(1.0, 400, |a| !gap(a));
+        let samples = circle(1.0, 400, |a| !in_quarter(a));
         let points = circle(1.0, 2000, |_| true);
         let mut curves = vec![Polyline {
             closed: true,
@@ -689,11 +687,10 @@ mod tests {
     #[test]
     fn a_loop_that_passed_samples_by_goes_through_them() {
         let r = 1.0;
-        let cut = |a: f64| a > 0.3 && a < 0.3 + std::f64::consts::FRAC_PI_2;
         let samples = circle(r, 400, |_| true);
         let mut curves = vec![Polyline {
             closed: true,
-            points: circle(r, 2000, |a| !cut(a)),
+            points: circle(r, 2000, |a| !in_quarter(a)),
         }];
         assert_eq!(
             span_gaps(&mut curves, &field(&samples), 0.0, 0.01, 0.005),
