@@ -188,37 +188,51 @@ fn check_json(page: &Path, k: usize, body: &str) {
     }
 }
 
-#[test]
-fn every_documented_command_and_snippet_works() {
+/// Runs and parses one page's blocks in a folder of its own; the commands run.
+fn check_page(page: &Path) -> usize {
     let mut ran = 0;
-    for page in pages() {
-        let text = std::fs::read_to_string(&page).unwrap();
-        let dir = tempfile::tempdir().unwrap();
-        for name in ["fixtures", "scripts"] {
-            link(dir.path(), name);
-        }
-        // Copied, not linked: a configuration's relative paths (`../scan-out`) must
-        // resolve into the temporary folder, not beside the real one.
-        std::fs::create_dir(dir.path().join("config")).unwrap();
-        for e in std::fs::read_dir(root().join("config")).unwrap() {
-            let e = e.unwrap();
-            std::fs::copy(e.path(), dir.path().join("config").join(e.file_name())).unwrap();
-        }
-        std::fs::create_dir(dir.path().join("config-snippets")).unwrap();
-        for (k, (lang, body)) in blocks(&text).into_iter().enumerate() {
-            match lang.as_str() {
-                "sh" => {
-                    for c in commands(&body) {
-                        run(dir.path(), &page, &c);
-                        ran += 1;
-                    }
+    let text = std::fs::read_to_string(page).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    for name in ["fixtures", "scripts"] {
+        link(dir.path(), name);
+    }
+    // Copied, not linked: a configuration's relative paths (`../scan-out`) must
+    // resolve into the temporary folder, not beside the real one.
+    std::fs::create_dir(dir.path().join("config")).unwrap();
+    for e in std::fs::read_dir(root().join("config")).unwrap() {
+        let e = e.unwrap();
+        std::fs::copy(e.path(), dir.path().join("config").join(e.file_name())).unwrap();
+    }
+    std::fs::create_dir(dir.path().join("config-snippets")).unwrap();
+    for (k, (lang, body)) in blocks(&text).into_iter().enumerate() {
+        match lang.as_str() {
+            "sh" => {
+                for c in commands(&body) {
+                    run(dir.path(), page, &c);
+                    ran += 1;
                 }
-                "toml" => check_toml(dir.path(), &page, k, &body),
-                "json" => check_json(&page, k, &body),
-                _ => {}
             }
+            "toml" => check_toml(dir.path(), page, k, &body),
+            "json" => check_json(page, k, &body),
+            _ => {}
         }
     }
+    ran
+}
+
+/// The pages run side by side, each in its own folder: most commands use one core.
+#[test]
+fn every_documented_command_and_snippet_works() {
+    let pages = pages();
+    let ran: usize = std::thread::scope(|s| {
+        let runs: Vec<_> = pages
+            .iter()
+            .map(|page| s.spawn(move || check_page(page)))
+            .collect();
+        runs.into_iter()
+            .map(|r| r.join().expect("a page failed; its message is above"))
+            .sum()
+    });
     assert!(ran >= 10, "only {ran} commands found in the docs");
 }
 
