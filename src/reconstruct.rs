@@ -450,16 +450,11 @@ fn export_with(
     let (polylines, junctions) = match scan {
         Some(_) => (polylines, Vec::new()),
         None => {
-            let (mut curves, junctions) = crate::export::strokes::with_strokes(
-                polylines,
-                &data,
-                solved.enclosed,
-                at.len_to_data(sigma),
-                at.len_to_data(hmin),
-                tolerance,
-            );
-            // In local coordinates, where the samples' tree is; only the loops changed
-            // come back, so the others keep their coordinates to the bit.
+            // Across sampling gaps first: a loop that passed a sparse wall by would
+            // otherwise look like strokes joined through empty space. In local
+            // coordinates, where the samples' tree is; only the loops changed come back,
+            // so the others keep their coordinates to the bit.
+            let mut curves = polylines;
             let mut local: Vec<Polyline> = curves
                 .iter()
                 .map(|pl| Polyline {
@@ -478,7 +473,14 @@ fn export_with(
             for k in changed {
                 curves[k].points = local[k].points.iter().map(|&p| at.to_data(p)).collect();
             }
-            (curves, junctions)
+            crate::export::strokes::with_strokes(
+                curves,
+                &data,
+                solved.enclosed,
+                at.len_to_data(sigma),
+                at.len_to_data(hmin),
+                tolerance,
+            )
         }
     };
     let fit = crate::export::fit::fit(&data, &polylines, tolerance);

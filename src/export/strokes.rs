@@ -94,18 +94,28 @@ pub fn with_strokes(
 }
 
 /// Gaps between supported positions this many times the median of the gaps around them
-/// are a bridge: far beyond a random sampling's longest gap (about `ln n` times the mean,
-/// the median being 0.69 of it) for any number of samples `n` below a million.
+/// may be a bridge: far beyond a random sampling's longest gap (about `ln n` times the
+/// mean, the median being 0.69 of it) for any number of samples `n` below a million.
+/// The median of the gaps around fluctuates too (a clean closed curve's widest sampling
+/// gap measured 28 times it), so a bridge must also leave a sheet that runs on
+/// ([`LEFT_BEHIND`]).
 const BRIDGE: f64 = 20.0;
+/// Samples off the loops, near a gap's end, that show the sheet running on past where
+/// the loop left it, at least: a loop closed through empty space leaves a stroke's
+/// samples behind (a baseline beyond the loop's turn down to an arc), while the samples
+/// at a closed curve's sampling gap stop where the gap starts. Three, so that a sample
+/// in the noise's tail is not one.
+const LEFT_BEHIND: usize = 3;
 /// Gaps on either side a gap is compared with.
 const BRIDGE_CONTEXT: usize = 10;
 
 /// The loops of `closed` that the data support all round: a loop that bridges a gap in
 /// its samples (a stretch with no sample within `tol`, longer than `2 tol` and
 /// [`BRIDGE`] times the gaps between samples around it, whose middle lies a quarter of
-/// its length from every sample) is no closed curve of the data but strokes joined
-/// through empty space (an arc whose ends come near a line), and is left out, its
-/// samples to the strokes. With them, the samples' distances to the loops when every
+/// its length from every sample, and past one of whose ends [`LEFT_BEHIND`] samples
+/// farther than `tol` from the loops lie within `tol` and half its length) is no closed
+/// curve of the data but strokes joined through empty space (an arc whose ends come
+/// near a line), and is left out, its samples to the strokes. With them, the samples' distances to the loops when every
 /// loop stays.
 fn without_bridges(
     closed: Vec<Polyline>,
@@ -146,6 +156,9 @@ fn without_bridges(
             at[k].push(s + t * len);
         }
     }
+    // The samples off the loops, built only for a loop with a candidate gap.
+    let loose = std::cell::OnceCell::new();
+    let mut near = Vec::new();
     let before = closed.len();
     let kept: Vec<Polyline> = closed
         .into_iter()
@@ -184,9 +197,26 @@ fn without_bridges(
                 // halfway across the gap lies a quarter of the gap from every sample.
                 let middle = point_at(&pl, (at[i] + 0.5 * gaps[i]) % total);
                 let field = samples.get_or_init(|| DistanceField::new(data).ok());
-                field
+                let empty = field
                     .as_ref()
-                    .is_some_and(|f| f.nearest(middle).dist > 0.25 * gaps[i])
+                    .is_some_and(|f| f.nearest(middle).dist > 0.25 * gaps[i]);
+                // And the sheet runs on past one of its ends, off the loop.
+                let off = loose.get_or_init(|| {
+                    let off: Vec<Point> = data
+                        .iter()
+                        .zip(&away)
+                        .filter(|&(_, &d)| d > tol)
+                        .map(|(&p, _)| p)
+                        .collect();
+                    DistanceField::new(&off).ok()
+                });
+                empty
+                    && off.as_ref().is_some_and(|f| {
+                        [at[i], at[i] + gaps[i]].iter().any(|&s| {
+                            f.within(point_at(&pl, s % total), tol + 0.5 * gaps[i], &mut near);
+                            near.len() >= LEFT_BEHIND
+                        })
+                    })
             });
             (!bridged).then_some(pl)
         })
@@ -542,8 +572,9 @@ mod tests {
 
     /// A loop run along a line, down 0.07 to an arc below it and back up, where the
     /// samples lie on the line and the arc only: the two connectors are 0.07 of empty
-    /// space, 35 times the spacing, and the loop goes. A circle sampled at random
-    /// angles (gaps up to about ln 400 = 6 times the mean) stays.
+    /// space, 35 times the spacing, the line's samples run on past them, and the loop
+    /// goes. A circle sampled at random angles (gaps up to about ln 400 = 6 times the
+    /// mean) stays, and so does one whose samples leave out a whole arc.
     #[test]
     fn a_loop_through_empty_space_is_left_to_the_strokes() {
         use rand::{Rng, SeedableRng};
@@ -582,6 +613,18 @@ mod tests {
                 })
                 .collect(),
         };
+        assert_eq!(
+            without_bridges(vec![circle.clone()], &data, 0.001).0.len(),
+            1
+        );
+
+        // Its samples but for an arc of 0.3, 56 times the median of the gaps around: a
+        // sampling gap, past whose ends no sample runs on off the loop.
+        let data: Vec<Point> = angles
+            .iter()
+            .filter(|&&a| !(1.0..2.0).contains(&a))
+            .map(|a| [0.3 * a.cos(), 0.3 * a.sin()])
+            .collect();
         assert_eq!(without_bridges(vec![circle], &data, 0.001).0.len(), 1);
     }
 
