@@ -458,9 +458,12 @@ impl<'a> Loop<'a> {
     }
 }
 
-/// The samples a loop's stretch `gap` passes by without holding: each the nearest to a
-/// point of it (walked `step` at a time), farther than `tol` from the curves of `index`,
-/// whose nearest part of them is this stretch (of their polyline `k`); in order along it.
+/// The samples a loop's stretch `gap` passes by without holding: each within twice the
+/// nearest's distance of a point of it (walked `step` at a time), farther than `tol`
+/// from the curves of `index`, whose nearest part of them is this stretch (of their
+/// polyline `k`); in order along it. Not the nearest alone: a stretch that cuts a corner
+/// wide has the samples on either side nearer to every point of it than the one sample
+/// near the corner.
 fn skipped_samples(
     loop_: &Loop<'_>,
     gap: Gap,
@@ -471,10 +474,12 @@ fn skipped_samples(
     step: f64,
 ) -> Vec<Point> {
     let n = loop_.points.len();
-    let mut ids: Vec<u32> = loop_
-        .walk(gap, step)
-        .map(|p| field.nearest(p).index)
-        .collect();
+    let mut ids: Vec<u32> = Vec::new();
+    let mut near = Vec::new();
+    for p in loop_.walk(gap, step) {
+        field.within(p, 2.0 * field.nearest(p).dist, &mut near);
+        ids.extend_from_slice(&near);
+    }
     ids.sort_unstable();
     ids.dedup();
     let mut found: Vec<(f64, Point)> = ids
