@@ -420,10 +420,17 @@ impl<'a> Loop<'a> {
             // A corner is judged by each side's own samples (the knots' tangents, fitted
             // round them, would bend round it), within half a chord: the few samples
             // nearest a sparse wall's end are too few to tell a line from a circle.
+            // Which way along each side: the path's run into `p` and out of `q` from the
+            // first knot a quarter chord away, or the loop's (the chord may run nearly
+            // across a side, as at a corner's steep piece, and two samples a rounding
+            // apart give no direction).
+            let far = |j: &usize| dist(knots[*j], p).min(dist(knots[*j], q)) >= 0.25 * chord(i);
+            let before = (0..i).rev().find(far).map_or(run_a, |j| sub(p, knots[j]));
+            let after = (i + 2..k).find(far).map_or(run_b, |j| sub(knots[j], q));
             let sides = || {
                 let (d, r) = (sub(q, p), 2.0 * reach(chord(i)));
-                let a = fit.tangent(p, r, &[d], Some(d))?;
-                let b = fit.tangent(q, r, &[d], Some(scale(d, -1.0)))?;
+                let a = fit.tangent(p, r, &[before, d], Some(d))?;
+                let b = fit.tangent(q, r, &[after, d], Some(scale(d, -1.0)))?;
                 corner(p, q, a, b, step)
             };
             match sides() {
