@@ -467,8 +467,9 @@ impl<'a> Loop<'a> {
 
 /// The samples a loop's stretch `gap` passes by without holding: each within twice the
 /// nearest's distance of a point of it (walked `step` at a time), farther than `tol`
-/// from the curves of `index`, whose nearest part of them is this stretch (of their
-/// polyline `k`); in order along it. Not the nearest alone: a stretch that cuts a corner
+/// from the curves of `index` (or held only by a long segment's inner part, away from
+/// the ends), whose nearest part of them is this stretch (of their polyline `k`); in
+/// order along it. Not the nearest alone: a stretch that cuts a corner
 /// wide has the samples on either side nearer to every point of it than the one sample
 /// near the corner.
 fn skipped_samples(
@@ -496,7 +497,12 @@ fn skipped_samples(
             let (d, seg, t) = index.nearest(p)?;
             let local = seg.wrapping_sub(index.start(k));
             let on_stretch = local < n && in_cyclic(local, (gap.a, (gap.b + n - 1) % n), n);
-            (d > tol && on_stretch).then(|| {
+            // Held, but by a long segment's inner part (the stretch's ends are the
+            // only vertices near samples): a knot all the same, or the arc between the
+            // ends would bow off it.
+            let (pa, pb) = (loop_.points[gap.a], loop_.points[gap.b]);
+            let held_in_between = d <= tol && dist(p, pa) > tol && dist(p, pb) > tol;
+            ((d > tol || held_in_between) && on_stretch).then(|| {
                 let len = dist(loop_.points[local], loop_.points[(local + 1) % n]);
                 (loop_.arc(gap.a, local) + t * len, p)
             })
