@@ -56,9 +56,9 @@ struct Fit<'a> {
 /// The tangents are the samples' own: a quadratic fitted to those near each knot (at an
 /// end, on its side only), their line where it holds them or where the noise (`sigma`)
 /// hides the curvature; two sides whose curves run on to meet within a chord, turning
-/// by [`MIN_CORNER`] or more, meet at that corner. Arcs are taken where each turns less than [`MAX_TURN`], stays within
-/// [`MAX_BULGE`] chords of its chord and all keep `tol` from every other part of the
-/// curves. Open polylines are left as they are. Returns the indices of the polylines
+/// by [`MIN_CORNER`] or more, meet at that corner. Arcs are taken where each turns less
+/// than [`MAX_TURN`], stays within [`MAX_BULGE`] chords of its chord and all keep `tol`
+/// from every other part of the curves. Open polylines are left as they are. Returns the indices of the polylines
 /// changed.
 pub fn span_gaps(
     curves: &mut [Polyline],
@@ -469,9 +469,9 @@ impl<'a> Loop<'a> {
 /// nearest's distance of a point of it (walked `step` at a time), farther than `tol`
 /// from the curves of `index` (or held only by a long segment's inner part, away from
 /// the ends), whose nearest part of them is this stretch (of their polyline `k`); in
-/// order along it. Not the nearest alone: a stretch that cuts a corner
-/// wide has the samples on either side nearer to every point of it than the one sample
-/// near the corner.
+/// order along it. Not the nearest alone: a stretch that cuts a corner wide has the
+/// samples on either side nearer to every point of it than the one sample near the
+/// corner.
 fn skipped_samples(
     loop_: &Loop<'_>,
     gap: Gap,
@@ -490,6 +490,7 @@ fn skipped_samples(
     }
     ids.sort_unstable();
     ids.dedup();
+    let (pa, pb) = (loop_.points[gap.a], loop_.points[gap.b]);
     let mut found: Vec<(f64, Point)> = ids
         .into_iter()
         .filter_map(|i| {
@@ -500,7 +501,6 @@ fn skipped_samples(
             // Held, but by a long segment's inner part (the stretch's ends are the
             // only vertices near samples): a knot all the same, or the arc between the
             // ends would bow off it.
-            let (pa, pb) = (loop_.points[gap.a], loop_.points[gap.b]);
             let held_in_between = d <= tol && dist(p, pa) > tol && dist(p, pb) > tol;
             ((d > tol || held_in_between) && on_stretch).then(|| {
                 let len = dist(loop_.points[local], loop_.points[(local + 1) % n]);
@@ -680,6 +680,14 @@ mod tests {
         DistanceField::new(samples).unwrap()
     }
 
+    /// How far the farthest of `points` lies from the circle of radius `r` round 0.
+    fn off_circle(points: &[Point], r: f64) -> f64 {
+        points
+            .iter()
+            .map(|&p| (norm(p) - r).abs())
+            .fold(0.0, f64::max)
+    }
+
     fn nearest(points: &[Point], p: Point) -> f64 {
         points
             .iter()
@@ -705,11 +713,7 @@ mod tests {
         assert_eq!(changed, [0]);
         let pl = &curves[0];
         assert!(pl.points.len() > before + 200, "{}", pl.points.len());
-        let worst = pl
-            .points
-            .iter()
-            .map(|&p| (norm(p) - r).abs())
-            .fold(0.0, f64::max);
+        let worst = off_circle(&pl.points, r);
         assert!(worst < 2e-3 * r, "{worst}");
         // Every point of the gap is now within a step of the arc.
         let middle = [
@@ -787,11 +791,7 @@ mod tests {
             .map(|&s| index.distance(s))
             .fold(0.0, f64::max);
         assert!(missed < 1e-5, "{missed}");
-        let worst = pl
-            .points
-            .iter()
-            .map(|&p| (norm(p) - r).abs())
-            .fold(0.0, f64::max);
+        let worst = off_circle(&pl.points, r);
         assert!(worst < 1e-3 * r, "{worst}");
     }
 

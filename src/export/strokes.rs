@@ -115,8 +115,8 @@ const BRIDGE_CONTEXT: usize = 10;
 /// its length from every sample, and past one of whose ends [`LEFT_BEHIND`] samples
 /// farther than `tol` from the loops lie within `tol` and half its length) is no closed
 /// curve of the data but strokes joined through empty space (an arc whose ends come
-/// near a line), and is left out, its samples to the strokes. With them, the samples' distances to the loops when every
-/// loop stays.
+/// near a line), and is left out, its samples to the strokes. With them, the samples'
+/// distances to the loops when every loop stays.
 fn without_bridges(
     closed: Vec<Polyline>,
     data: &[Point],
@@ -200,6 +200,9 @@ fn without_bridges(
                 let empty = field
                     .as_ref()
                     .is_some_and(|f| f.nearest(middle).dist > 0.25 * gaps[i]);
+                if !empty {
+                    return false;
+                }
                 // And the sheet runs on past one of its ends, off the loop.
                 let off = loose.get_or_init(|| {
                     let off: Vec<Point> = data
@@ -210,13 +213,12 @@ fn without_bridges(
                         .collect();
                     DistanceField::new(&off).ok()
                 });
-                empty
-                    && off.as_ref().is_some_and(|f| {
-                        [at[i], at[i] + gaps[i]].iter().any(|&s| {
-                            f.within(point_at(&pl, s % total), tol + 0.5 * gaps[i], &mut near);
-                            near.len() >= LEFT_BEHIND
-                        })
+                off.as_ref().is_some_and(|f| {
+                    [at[i], at[i] + gaps[i]].iter().any(|&s| {
+                        f.within(point_at(&pl, s % total), tol + 0.5 * gaps[i], &mut near);
+                        near.len() >= LEFT_BEHIND
                     })
+                })
             });
             (!bridged).then_some(pl)
         })
