@@ -146,20 +146,26 @@ pub fn cold_start(
                 wrong += usize::from((u[v] < 0.0) != (offsets[v] < 0.0));
             }
             // And on clean data where the offsets run through the samples and the tube's
-            // middle does not (samples sparser than the tube is wide): the vertices next
-            // to a sample lie next to the offsets' curve. In a noisy band neither start
-            // runs through the samples.
-            let near = |u: &[f64]| {
-                let (mut sum, mut m) = (0.0, 0usize);
-                for v in (0..dist.len()).filter(|&v| dist[v] < 0.25 * tube_radius) {
-                    sum += u[v].abs();
-                    m += 1;
-                }
-                sum / m.max(1) as f64
+            // middle does not (samples sparser than the tube is wide, or walls closer
+            // than it): the vertices next to a sample lie next to the offsets' curve,
+            // while the merged tube's middle passes such a sample by half the gap. A
+            // count, not a mean: the middle may be off only along one turn of a spiral.
+            // In a noisy band neither start runs through the samples.
+            let passed_by = |u: &[f64]| {
+                (0..dist.len())
+                    .filter(|&v| dist[v] < 0.25 * tube_radius)
+                    .filter(|&v| u[v].abs() > dist[v] + 0.25 * tube_radius)
+                    .count()
             };
+            let near = (0..dist.len())
+                .filter(|&v| dist[v] < 0.25 * tube_radius)
+                .count();
             wrong * 100 > away
                 || regions(space, u) != regions(space, offsets)
-                || (clean && near(offsets) < 0.5 * near(u))
+                || (clean && {
+                    let missed = passed_by(u);
+                    missed * 100 > near && passed_by(offsets) * 2 < missed
+                })
         };
         if start.as_deref().is_none_or(differ) {
             tracing::debug!("the tube's start and the oriented one disagree: oriented start");
