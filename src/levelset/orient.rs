@@ -30,6 +30,8 @@ const MAX_SHEETS: usize = 32;
 const MIN_SHEET: usize = 12;
 /// The largest sum of a closed sheet's unit normals, as a fraction of their number.
 const CLOSURE: f64 = 0.1;
+/// Open sheets' ends are joined across gaps up to this many times the reach of a fit.
+const JOIN_REACH: f64 = 4.0;
 /// Nearest oriented samples a vertex's offset is averaged over.
 const OFFSET_NEIGHBOURS: usize = 16;
 
@@ -122,6 +124,7 @@ pub fn orient(field: &DistanceField, sigma: f64) -> Option<Vec<(Point, Point)>> 
         .into_iter()
         .filter(|s| s.len() >= MIN_SHEET)
         .collect();
+    let sheets = join_open_sheets(pts, &mut normals, &edges, sheets, reach, sigma);
     outward(pts, &mut normals, &sheets)?;
     // In the tree's order, which a field built from them keeps.
     let mut kept: Vec<usize> = sheets.into_iter().flatten().collect();
@@ -341,6 +344,223 @@ fn turn_along(
     Some(sheets)
 }
 
+/// Whether `normals` sum to more than [`CLOSURE`] of their number over `sheet`: an open
+/// curve's, whose unit normals sum to its chord.
+fn is_open(normals: &[Point], sheet: &[usize]) -> bool {
+    let total = sheet.iter().fold([0.0, 0.0], |a, &i| {
+        [a[0] + normals[i][0], a[1] + normals[i][1]]
+    });
+    dot(total, total).sqrt() > CLOSURE * sheet.len() as f64
+}
+
+/// One end of an open sheet: where it leaves the data, which way, and whether the
+/// sheet's oriented curve runs out there (the tangent along `out`) or in.
+struct End {
+    sheet: usize,
+    at: Point,
+    out: Point,
+    runs_out: bool,
+}
+
+/// `sheets` with the open ones joined end to end where a gap in the sampling wider than
+/// [`sheet_edges`] bridges cuts a closed curve: a random sampling's widest gap, or the
+/// samples missing round a cap as tight as the walls are close, where the two ends lie
+/// across the cap rather than along it. Each open sheet's two ends (the samples farthest
+/// apart along its edges) are paired where two are each other's nearest end within
+/// [`JOIN_REACH`] `reach` facing it; a pair turns one sheet so that the curve runs out
+/// of one end and into the other. Only when every end pairs, consistently, are the
+/// sheets joined, and then judged closed or not by [`outward`] as any other.
+fn join_open_sheets(
+    pts: &[Point],
+    normals: &mut [Point],
+    edges: &[(u32, u32)],
+    sheets: Vec<Vec<usize>>,
+    reach: f64,
+    sigma: f64,
+) -> Vec<Vec<usize>> {
+    let open: Vec<usize> = (0..sheets.len())
+        .filter(|&s| is_open(normals, &sheets[s]))
+        .collect();
+    if open.is_empty() {
+        return sheets;
+    }
+    let mut in_open = vec![false; pts.len()];
+    for &s in &open {
+        for &i in &sheets[s] {
+            in_open[i] = true;
+        }
+    }
+    let mut adj: Vec<Vec<(u32, f64)>> = vec![Vec::new(); pts.len()];
+    for &(i, j) in edges {
+        let (a, b) = (i as usize, j as usize);
+        if in_open[a] {
+            let len = dist2(pts[a], pts[b]).sqrt();
+            adj[a].push((j, len));
+            adj[b].push((i, len));
+        }
+    }
+    let mut along = vec![f64::INFINITY; pts.len()];
+    let mut ends: Vec<End> = Vec::new();
+    for &s in &open {
+        let sheet = &sheets[s];
+        let far = farthest(&adj, sheet, sheet[0], &mut along);
+        let other = farthest(&adj, sheet, far, &mut along);
+        // The way out over half a reach, or the noise's width where that is longer: a
+        // whole reach lags behind a cap's bend.
+        let span = (0.5 * reach).max(4.0 * sigma);
+        ends.extend(end_of(pts, normals, s, sheet, far, &along, span));
+        farthest(&adj, sheet, other, &mut along);
+        ends.extend(end_of(pts, normals, s, sheet, other, &along, span));
+    }
+    // Facing each other: neither looks away from the other, and together they look
+    // along the chord by half its length (two walls' ends side by side look past it).
+    // Each end's nearest such end; a pair only where each is the other's: at a corner
+    // where a sheet across an inlet's mouth ends too, the third end is nobody's pair.
+    let mut nearest: Vec<Option<(f64, usize)>> = vec![None; ends.len()];
+    for a in 0..ends.len() {
+        for b in a + 1..ends.len() {
+            let q = sub(ends[b].at, ends[a].at);
+            let len = dot(q, q).sqrt();
+            if len == 0.0 || len > JOIN_REACH * reach {
+                continue;
+            }
+            let (fa, fb) = (dot(q, ends[a].out) / len, -dot(q, ends[b].out) / len);
+            if fa.min(fb) >= -0.2 && fa + fb >= 0.5 {
+                for (x, y) in [(a, b), (b, a)] {
+                    if nearest[x].is_none_or(|(d, _)| len < d) {
+                        nearest[x] = Some((len, y));
+                    }
+                }
+            }
+        }
+    }
+    let pairs: Vec<(usize, usize)> = (0..ends.len())
+        .filter_map(|a| {
+            let (_, b) = nearest[a]?;
+            (a < b && nearest[b].is_some_and(|(_, c)| c == a)).then_some((a, b))
+        })
+        .collect();
+    // Every end paired, or the sheets stay as they are: an end left over is where the
+    // sampling leaves the pairing in doubt (three ends at a corner, one of them a stub
+    // joined across an inlet's mouth), and a chain it ends is no closed curve.
+    if ends.len() != 2 * open.len() || pairs.len() != open.len() {
+        return sheets;
+    }
+    // Union-find over the sheets whose links carry whether a sheet turns to its parent.
+    let mut parent: Vec<(usize, bool)> = (0..sheets.len()).map(|s| (s, false)).collect();
+    let find = |parent: &[(usize, bool)], mut s: usize| {
+        let mut turn = false;
+        while parent[s].0 != s {
+            turn ^= parent[s].1;
+            s = parent[s].0;
+        }
+        (s, turn)
+    };
+    for &(a, b) in &pairs {
+        let (ra, ta) = find(&parent, ends[a].sheet);
+        let (rb, tb) = find(&parent, ends[b].sheet);
+        // Out of one, into the other: turned alike where they run alike. A chain that
+        // comes back to a sheet turned the other way is no curve.
+        let turn = ends[a].runs_out == ends[b].runs_out;
+        if ra != rb {
+            parent[rb] = (ra, ta ^ tb ^ turn);
+        } else if ta ^ tb != turn {
+            return sheets;
+        }
+    }
+    tracing::debug!(
+        open = open.len(),
+        "orientation: open sheets joined across gaps"
+    );
+    let mut merged: Vec<Vec<usize>> = Vec::new();
+    let mut slot = vec![usize::MAX; sheets.len()];
+    for (s, sheet) in sheets.into_iter().enumerate() {
+        let (root, turn) = find(&parent, s);
+        if turn {
+            for &i in &sheet {
+                normals[i] = [-normals[i][0], -normals[i][1]];
+            }
+        }
+        if slot[root] == usize::MAX {
+            slot[root] = merged.len();
+            merged.push(Vec::new());
+        }
+        merged[slot[root]].extend(sheet);
+    }
+    merged
+}
+
+/// The end of sheet `s` (its samples `sheet`) at its sample `e`, `along` holding the
+/// distances along the sheet from `e`: it leaves the data away from the samples within
+/// `span` of it along the sheet (past its nearest), and runs the way their normals,
+/// which agree along the sheet, make the curve run. `None` for a sheet too short to
+/// tell.
+fn end_of(
+    pts: &[Point],
+    normals: &[Point],
+    s: usize,
+    sheet: &[usize],
+    e: usize,
+    along: &[f64],
+    span: f64,
+) -> Option<End> {
+    // From its nearest along the sheet on: an end may hang on one long edge across a
+    // gap.
+    let first = sheet
+        .iter()
+        .filter(|&&i| i != e)
+        .map(|&i| along[i])
+        .fold(f64::INFINITY, f64::min);
+    let (mut c, mut n, mut m) = ([0.0, 0.0], [0.0, 0.0], 0usize);
+    for &i in sheet
+        .iter()
+        .filter(|&&i| i != e && along[i] <= first + span)
+    {
+        c = [c[0] + pts[i][0], c[1] + pts[i][1]];
+        n = [n[0] + normals[i][0], n[1] + normals[i][1]];
+        m += 1;
+    }
+    let q = sub(pts[e], [c[0] / m.max(1) as f64, c[1] / m.max(1) as f64]);
+    let len = dot(q, q).sqrt();
+    (m > 0 && len > 0.0).then(|| {
+        let out = [q[0] / len, q[1] / len];
+        End {
+            sheet: s,
+            at: pts[e],
+            out,
+            runs_out: dot(tangent(n), out) > 0.0,
+        }
+    })
+}
+
+/// The sample of `sheet` farthest from `from` along the edges of `adj`, leaving the
+/// distances along them to it in `along` (set for the samples of `sheet` only).
+fn farthest(adj: &[Vec<(u32, f64)>], sheet: &[usize], from: usize, along: &mut [f64]) -> usize {
+    use std::cmp::Reverse;
+    for &i in sheet {
+        along[i] = f64::INFINITY;
+    }
+    along[from] = 0.0;
+    // Non-negative floats order as their bits do.
+    let mut heap = std::collections::BinaryHeap::from([Reverse((0u64, from as u32))]);
+    let mut last = from;
+    while let Some(Reverse((d, i))) = heap.pop() {
+        let (d, i) = (f64::from_bits(d), i as usize);
+        if d > along[i] {
+            continue;
+        }
+        last = i;
+        for &(j, len) in &adj[i] {
+            let j = j as usize;
+            if d + len < along[j] {
+                along[j] = d + len;
+                heap.push(Reverse(((d + len).to_bits(), j as u32)));
+            }
+        }
+    }
+    last
+}
+
 /// Turns each sheet of `sheets` outward, or `None` when one does not close or there are
 /// none or more than [`MAX_SHEETS`]. Closed: the unit normals of a closed curve sum to
 /// nothing (their integral along it vanishes), an open stroke's to its chord. Outward:
@@ -359,8 +579,8 @@ fn outward(pts: &[Point], normals: &mut [Point], sheets: &[Vec<usize>]) -> Optio
         })
     };
     for s in sheets {
-        let total = sum(s, &|i| normals[i]);
-        if dot(total, total).sqrt() > CLOSURE * s.len() as f64 {
+        if is_open(normals, s) {
+            let total = sum(s, &|i| normals[i]);
             tracing::debug!(
                 samples = s.len(),
                 open = dot(total, total).sqrt() / s.len() as f64,
@@ -484,6 +704,77 @@ mod tests {
         let (inside, outside) = u.split_at(band.len());
         assert!(inside.iter().all(|&v| v < 0.0), "{inside:?}");
         assert!(outside.iter().all(|&v| v > 0.0), "{outside:?}");
+    }
+
+    /// A circle of radius 0.3 sampled every 0.0063 but for two arcs, leaving gaps of
+    /// 0.113 and 0.118: wider than a sample's 16 nearest reach (0.1) and than the joins
+    /// of [`sheet_edges`] (`2 reach`, 0.063), within [`JOIN_REACH`] `reach` (0.126). The
+    /// two open sheets join back into the circle, every normal pointing out of it.
+    #[test]
+    fn a_closed_curve_cut_by_wide_sampling_gaps_is_joined_back() {
+        let missing = |a: f64| (0.5..0.86).contains(&a) || (3.5..3.87).contains(&a);
+        let circle: Vec<Point> = (0..300)
+            .map(|i| TAU * i as f64 / 300.0)
+            .filter(|&a| !missing(a))
+            .map(|a| [0.3 * a.cos(), 0.3 * a.sin()])
+            .collect();
+        let f = DistanceField::new(&circle).unwrap();
+        let reach = median_reach(&f, FIT_NEIGHBOURS);
+        assert!(2.0 * reach < 0.11 && 0.12 < JOIN_REACH * reach, "{reach}");
+        let oriented = orient(&f, 0.0).unwrap();
+        assert_eq!(oriented.len(), circle.len());
+        for (p, n) in oriented {
+            assert!(dot(p, n) > 0.0, "{p:?} {n:?}");
+        }
+    }
+
+    /// A capsule, walls 0.06 apart joined by half circles, sampled every 0.0075 (the
+    /// spiral's turns at 8 spacings) but for the middle 90 degrees of each cap: two
+    /// open sheets, each a wall whose ends bend towards the other's. The ends lie across
+    /// a cap from each other rather than along it, as the ends of two walls side by side
+    /// would, but each looks 16 degrees past the chord towards the other: the capsule is
+    /// oriented, every normal pointing out of it. (With 120 degrees missing they look
+    /// 10 degrees towards each other, too little to tell them from walls side by side.)
+    #[test]
+    fn caps_missing_their_samples_are_joined_across() {
+        use std::f64::consts::PI;
+        let (r, half, step) = (0.03, 0.3, 0.0075);
+        let n = (2.0 * half / step) as usize;
+        let mut capsule: Vec<Point> = (0..n)
+            .flat_map(|i| {
+                let x = -half + step * i as f64;
+                [[x, -r], [-x, r]]
+            })
+            .collect();
+        let m = (PI * r / step) as usize;
+        for (x, from) in [(half, -0.5 * PI), (-half, 0.5 * PI)] {
+            capsule.extend(
+                (1..m)
+                    .map(|i| PI * i as f64 / m as f64)
+                    .filter(|&a| (a - 0.5 * PI).abs() >= PI / 4.0)
+                    .map(|a| [x + r * (from + a).cos(), r * (from + a).sin()]),
+            );
+        }
+        let oriented = orient(&DistanceField::new(&capsule).unwrap(), 0.0).unwrap();
+        assert_eq!(oriented.len(), capsule.len());
+        for (p, n) in oriented {
+            // Out of the capsule: away from the nearest point of its axis.
+            let axis = [p[0].clamp(-half, half), 0.0];
+            assert!(dot(sub(p, axis), n) > 0.0, "{p:?} {n:?}");
+        }
+    }
+
+    /// Two walls side by side, 0.06 apart, their ends level: a capsule with no cap, or
+    /// two strokes. Their ends look past each other and are not joined: no orientation.
+    #[test]
+    fn walls_side_by_side_are_not_joined_into_a_loop() {
+        let walls: Vec<Point> = (0..80)
+            .flat_map(|i| {
+                let x = -0.3 + 0.0075 * i as f64;
+                [[x, -0.03], [x, 0.03]]
+            })
+            .collect();
+        assert!(orient(&DistanceField::new(&walls).unwrap(), 0.0).is_none());
     }
 
     /// Open strokes have no inside: no orientation is given.
