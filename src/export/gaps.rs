@@ -320,7 +320,10 @@ impl<'a> Loop<'a> {
         })
     }
 
-    /// The vertex at most `reach` of arc length from `e`, forward (`ahead`) or back.
+    /// The vertex `reach` of arc length forward (`ahead`) or back from `e` (the last
+    /// within it), or farther where that lies less than `reach / 2` from `e` in a
+    /// straight line: the level set's own curve may tangle, running back and forth over
+    /// more arc length than it covers. At most `4 reach` of arc length.
     fn reach(&self, e: usize, reach: f64, ahead: bool) -> usize {
         let n = self.points.len();
         let mut last = e;
@@ -331,7 +334,8 @@ impl<'a> Loop<'a> {
             } else {
                 self.arc(i, e)
             };
-            if along > reach {
+            let covered = dist(self.points[last], self.points[e]) >= 0.5 * reach;
+            if along > 4.0 * reach || (along > reach && covered) {
                 break;
             }
             last = i;
@@ -360,8 +364,9 @@ impl<'a> Loop<'a> {
         // deviations at least): a bend's curvature shows in the quadratic fitted there
         // and its next order (a circle's quartic) hardly does. The curve's own run over
         // a chord (16 steps at least) before and after tells which way along it is (over
-        // less, its zigzag between sparse clean samples can run backwards), or where it
-        // ran across (the chord of a bend before), the chord.
+        // less, its zigzag between sparse clean samples can run backwards; where it
+        // tangles, on until it covers half that), or where it ran across (the chord of a
+        // bend before), the chord.
         let reach = |c: f64| (0.25 * c).max(4.0 * fit.sigma);
         let run = c.max(16.0 * step);
         let (from, to) = (self.reach(gap.a, run, false), self.reach(gap.b, run, true));
@@ -722,6 +727,51 @@ mod tests {
         ];
         let d = nearest(&pl.points, middle);
         assert!(d < 0.005, "{d}");
+    }
+
+    /// A unit circle sampled every 0.016 but for a gap from 1.0 to 1.1 rad, and a loop
+    /// that runs on to the gap, back 0.12 along the circle (as the level set's own curve
+    /// can tangle where it is flat between sparse clean samples) and from there runs
+    /// 0.03 inside it, past the samples and across the gap. Its run into the stretch,
+    /// walked back over a chord of arc length, ends ahead of the stretch's start; taken
+    /// on until it covers half a chord it runs the way the loop goes, and the arc
+    /// follows the circle across the gap (2e-3 as in the quarter turn's test).
+    #[test]
+    fn a_tangle_before_a_gap_does_not_turn_its_arc_back() {
+        let (a0, a1, back) = (1.0, 1.1, 0.12);
+        let samples = circle(1.0, 400, |a| !(a0..a1).contains(&a));
+        let at = |a: f64, r: f64| [r * a.cos(), r * a.sin()];
+        let d = 0.0025;
+        let n = |len: f64| (len / d).round() as usize;
+        let tau = std::f64::consts::TAU;
+        let mut points: Vec<Point> = (0..n(tau - (a1 - a0)))
+            .map(|i| at(a1 + d * i as f64, 1.0))
+            .collect();
+        points.extend((0..n(back)).map(|i| at(a0 + tau - d * i as f64, 1.0)));
+        let dip = n(a1 - (a0 - back));
+        points.extend((0..dip).map(|i| {
+            let t = i as f64 / dip as f64;
+            at(
+                a0 - back + (a1 - a0 + back) * t,
+                if i == 0 { 1.0 } else { 0.97 },
+            )
+        }));
+        let mut curves = vec![Polyline {
+            closed: true,
+            points,
+        }];
+        assert!(off_circle(&curves[0].points, 1.0) > 0.029);
+        let changed = span_gaps(&mut curves, &field(&samples), 0.0, 0.01, 0.005);
+        assert_eq!(changed, [0]);
+        let across: Vec<Point> = curves[0]
+            .points
+            .iter()
+            .copied()
+            .filter(|p| (a0..a1).contains(&p[1].atan2(p[0])))
+            .collect();
+        assert!(across.len() > 10, "{}", across.len());
+        let worst = off_circle(&across, 1.0);
+        assert!(worst < 2e-3, "{worst}");
     }
 
     /// A loop round two walls that a gap separates from a third part: an arc that would
