@@ -272,7 +272,17 @@ fn thin(field: &DistanceField, r: f64) -> Vec<Option<Point>> {
         .map_init(Vec::new, |buf, &p| {
             // At most the FIT nearest: the cost stays bounded on dense data.
             field.nearest_k(p, FIT, buf);
-            buf.retain(|&i| dist(p, pts[i as usize]) <= r);
+            // A sample with too few neighbours within `r` (a stroke's end past a gap in
+            // a sparse clean sampling) takes those within `2 r`; one without them there
+            // either is an outlier.
+            let within =
+                |buf: &mut Vec<u32>, reach: f64| buf.retain(|&i| dist(p, pts[i as usize]) <= reach);
+            let all = buf.clone();
+            within(buf, r);
+            if buf.len() < 4 {
+                *buf = all;
+                within(buf, 2.0 * r);
+            }
             if buf.len() < 4 {
                 return None;
             }
@@ -671,6 +681,22 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// A clean line sampled every 0.004, its last two samples 0.012 past the others
+    /// (farther than `r` = 0.01, as a random sampling leaves a stroke's end): they have
+    /// too few neighbours within `r` but enough within `2 r`, and the stroke runs on to
+    /// them, not stopping 0.016 short.
+    #[test]
+    fn a_stroke_runs_on_to_its_samples_past_a_gap_at_its_end() {
+        let mut pts: Vec<Point> = (0..=100).map(|i| [0.004 * i as f64, 0.0]).collect();
+        pts.extend([[0.412, 0.0], [0.416, 0.0]]);
+        let (lines, junctions) = strokes(&pts, 0.01);
+        assert_eq!(lines.len(), 1, "{lines:?}");
+        assert!(junctions.is_empty());
+        let ends = [lines[0].points[0][0], lines[0].points.last().unwrap()[0]];
+        let (lo, hi) = (ends[0].min(ends[1]), ends[0].max(ends[1]));
+        assert!(lo < 1e-9 && hi > 0.416 - 1e-9, "{ends:?}");
     }
 
     #[test]
