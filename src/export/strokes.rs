@@ -275,14 +275,12 @@ fn thin(field: &DistanceField, r: f64) -> Vec<Option<Point>> {
             // A sample with too few neighbours within `r` (a stroke's end past a gap in
             // a sparse clean sampling) takes those within `2 r`; one without them there
             // either is an outlier.
-            let within =
-                |buf: &mut Vec<u32>, reach: f64| buf.retain(|&i| dist(p, pts[i as usize]) <= reach);
-            let all = buf.clone();
-            within(buf, r);
-            if buf.len() < 4 {
-                *buf = all;
-                within(buf, 2.0 * r);
-            }
+            let close = buf
+                .iter()
+                .filter(|&&i| dist(p, pts[i as usize]) <= r)
+                .count();
+            let reach = if close < 4 { 2.0 * r } else { r };
+            buf.retain(|&i| dist(p, pts[i as usize]) <= reach);
             if buf.len() < 4 {
                 return None;
             }

@@ -157,12 +157,12 @@ pub fn cold_start(
                     .filter(|&v| u[v].abs() > dist[v] + 0.25 * tube_radius)
                     .count()
             };
-            let near = (0..dist.len())
-                .filter(|&v| dist[v] < 0.25 * tube_radius)
-                .count();
             wrong * 100 > away
                 || regions(space, u) != regions(space, offsets)
                 || (clean && {
+                    let near = (0..dist.len())
+                        .filter(|&v| dist[v] < 0.25 * tube_radius)
+                        .count();
                     let missed = passed_by(u);
                     missed * 100 > near && passed_by(offsets) * 2 < missed
                 })
