@@ -95,7 +95,7 @@ fn corner(
 
 /// The total-least-squares line through `pts` as (a point on it, its unit normal), if
 /// there are enough points and every one lies within `band` of it.
-fn fit_line(pts: &[Point], band: f64) -> Option<(Point, Point)> {
+pub(crate) fn fit_line(pts: &[Point], band: f64) -> Option<(Point, Point)> {
     if pts.len() < 4 {
         return None;
     }
@@ -120,7 +120,7 @@ fn fit_line(pts: &[Point], band: f64) -> Option<(Point, Point)> {
 }
 
 /// Where two lines (point, unit normal) meet; `None` when nearly parallel.
-fn intersect(l1: (Point, Point), l2: (Point, Point)) -> Option<Point> {
+pub(crate) fn intersect(l1: (Point, Point), l2: (Point, Point)) -> Option<Point> {
     let ((p1, n1), (p2, n2)) = (l1, l2);
     let det = n1[0] * n2[1] - n1[1] * n2[0];
     if det.abs() < 1e-9 {
