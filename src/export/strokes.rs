@@ -513,15 +513,16 @@ fn chains(
             let arms: Vec<Vec<Point>> = lines
                 .iter()
                 .flat_map(|(pl, ends)| {
-                    ends.iter().enumerate().filter_map(move |(k, &e)| {
-                        (fork(e) && junction_of[e] == id).then(|| {
+                    ends.iter()
+                        .enumerate()
+                        .filter(move |&(_, &e)| fork(e) && junction_of[e] == id)
+                        .map(move |(k, _)| {
                             let mut pts = pl.points.clone();
                             if k == 1 {
                                 pts.reverse();
                             }
                             pts
                         })
-                    })
                 })
                 .collect();
             crossing(at, &arms, r).unwrap_or(at)
