@@ -510,19 +510,12 @@ fn chains(
         .map(|(id, (f, _))| {
             let at = snap(centre(f));
             let junction_of = &junction_of;
-            let arms: Vec<Vec<Point>> = lines
+            let arms: Vec<&[Point]> = lines
                 .iter()
                 .flat_map(|(pl, ends)| {
                     ends.iter()
-                        .enumerate()
-                        .filter(move |&(_, &e)| fork(e) && junction_of[e] == id)
-                        .map(move |(k, _)| {
-                            let mut pts = pl.points.clone();
-                            if k == 1 {
-                                pts.reverse();
-                            }
-                            pts
-                        })
+                        .filter(move |&&e| fork(e) && junction_of[e] == id)
+                        .map(move |_| &pl.points[..])
                 })
                 .collect();
             crossing(at, &arms, r).unwrap_or(at)
@@ -564,13 +557,13 @@ fn chains(
     (out, junctions)
 }
 
-/// Where the arms of a junction at `at` cross (each arm's points from the junction
-/// out): the line through the two most opposite arms (within 25 degrees of one line)
+/// Where the arms of a junction at `at` cross (each arm a polyline ending there; its
+/// points are taken by their distance from `at`, so either way along): the line through the two most opposite arms (within 25 degrees of one line)
 /// crossed with the line through the others, each fitted to the arm points between `r`
 /// and `3 r` from `at` (nearer, the thinning saw two arms) and straight there to `r / 4`;
 /// `None` when they are not, or cross more than `r` from `at`.
-fn crossing(at: Point, arms: &[Vec<Point>], r: f64) -> Option<Point> {
-    let part = |arm: &Vec<Point>| -> Vec<Point> {
+fn crossing(at: Point, arms: &[&[Point]], r: f64) -> Option<Point> {
+    let part = |arm: &&[Point]| -> Vec<Point> {
         arm.iter()
             .copied()
             .filter(|&p| (r..=3.0 * r).contains(&dist(p, at)))
