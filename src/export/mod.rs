@@ -9,6 +9,7 @@ pub mod gaps;
 pub mod strokes;
 pub mod support;
 pub mod svg;
+pub mod through;
 pub mod writers;
 
 use crate::geom::{Placement, Polyline};
