@@ -156,34 +156,50 @@ fn onto_circle(p: Point, field: &DistanceField, fit_tol: f64, ids: &mut Vec<u32>
     if before.len() < EACH_SIDE || after.len() < EACH_SIDE {
         return None;
     }
-    // The two nearest on each side and the next nearest of either: a sample far out
-    // on a sparse side would stretch the circle over a stretch whose curvature changes.
+    // The two nearest on each side and a fifth: a sample far out on a sparse side would
+    // stretch the circle over a stretch whose curvature changes. Four samples lie on
+    // some circle too often by chance (two of each wall round a corner, a zigzag of
+    // noise): a fifth leaves two degrees of freedom over. The nearer of the two next
+    // first; the other where the nearer's wall is not this one (by a corner, the next
+    // sample on one side may lie round it).
     let far = |v: &(f64, f64)| v.0.hypot(v.1);
-    let mut local: Vec<(f64, f64)> = before[..EACH_SIDE]
+    let core: Vec<(f64, f64)> = before[..EACH_SIDE]
         .iter()
         .chain(&after[..EACH_SIDE])
         .copied()
         .collect();
-    // Four samples lie on some circle too often by chance (two of each wall round a
-    // corner, a zigzag of noise): a fifth leaves two degrees of freedom over.
-    let fifth = before[EACH_SIDE..]
+    let mut fifths: Vec<(f64, f64)> = before[EACH_SIDE..]
         .iter()
         .chain(&after[EACH_SIDE..])
-        .min_by(|u, v| far(u).total_cmp(&far(v)))?;
-    local.push(*fifth);
-    let rho = local.iter().map(far).fold(0.0, f64::max);
+        .copied()
+        .collect();
+    fifths.sort_by(|u, v| far(u).total_cmp(&far(v)));
+    let mut local = Vec::with_capacity(core.len() + 1);
+    fifths.into_iter().find_map(|fifth| {
+        local.clear();
+        local.extend_from_slice(&core);
+        local.push(fifth);
+        let (x, y) = onto_fit(&mut local, fit_tol)?;
+        Some(add(p, add(scale(t, x), scale(nrm, y))))
+    })
+}
+
+/// The move from the frame's origin onto the circle (or line) through `local` (samples
+/// in the frame, scaled in place), if they lie on it to within `fit_tol`.
+fn onto_fit(local: &mut [(f64, f64)], fit_tol: f64) -> Option<(f64, f64)> {
+    let rho = local.iter().map(|v| v.0.hypot(v.1)).fold(0.0, f64::max);
     if rho <= 0.0 {
         return None;
     }
     // Scaled by the span for the normal equations' conditioning.
-    for v in &mut local {
+    for v in local.iter_mut() {
         *v = (v.0 / rho, v.1 / rho);
     }
     // The circle (or line) c (x² + y²) + b x - y + a = 0, linear in (a, b, c): a line
     // is c = 0, so a straight wall is as well conditioned as a bend.
     let mut ata = Matrix3::zeros();
     let mut aty = Vector3::zeros();
-    for &(x, y) in &local {
+    for &(x, y) in local.iter() {
         let row = Vector3::new(1.0, x, x * x + y * y);
         ata += row * row.transpose();
         aty += row * y;
@@ -206,16 +222,15 @@ fn onto_circle(p: Point, field: &DistanceField, fit_tol: f64, ids: &mut Vec<u32>
     if off * rho > fit_tol {
         return None;
     }
-    // Along grad f at p (through the circle's centre), f(s g) = c s² + s √(1+b²) + a:
-    // the nearer root, rationalized so that it holds as c goes to 0.
+    // Along grad f at the origin (through the circle's centre), f(s g) = c s² +
+    // s √(1+b²) + a: the nearer root, rationalized so that it holds as c goes to 0.
     let w = (1.0 + b * b).sqrt();
     let disc = 1.0 + b * b - 4.0 * a * c;
     if disc < 0.0 {
         return None;
     }
-    let s = -2.0 * a / (w + disc.sqrt());
-    let (gx, gy) = (b / w, -1.0 / w);
-    Some(add(p, scale(add(scale(t, gx), scale(nrm, gy)), s * rho)))
+    let s = -2.0 * a / (w + disc.sqrt()) * rho;
+    Some((s * b / w, -s / w))
 }
 
 #[cfg(test)]
