@@ -21,7 +21,9 @@ use nalgebra::{Matrix3, Vector3};
 
 use crate::distance::DistanceField;
 use crate::eval::SegmentIndex;
-use crate::geom::{add, cross, dist, dot, mid, norm, scale, sub, Point, Polyline, Sym2};
+use crate::geom::{
+    add, cross, dist, dot, mid, norm, point_segment_dist2, scale, sub, Point, Polyline, Sym2,
+};
 
 /// A turn between the ends' tangents beyond this (radians) leaves no way to tell a bend
 /// from a fold: the stretch stays as it is.
@@ -106,7 +108,7 @@ pub fn span_gaps(
                     })
                 };
                 let skipped = skipped_samples(&loop_, gap, field, &index, k, tol, step);
-                if let Some(arc) = loop_.span(gap, &skipped, &fit, step, clear) {
+                if let Some(arc) = loop_.span(gap, &skipped, &fit, tol, step, clear) {
                     spans.push((k, gap, arc));
                 }
             }
@@ -352,6 +354,7 @@ impl<'a> Loop<'a> {
         gap: Gap,
         skipped: &[Point],
         fit: &Fit<'_>,
+        tol: f64,
         step: f64,
         clear: impl Fn((usize, usize), Point) -> bool,
     ) -> Option<Vec<Point>> {
@@ -416,12 +419,11 @@ impl<'a> Loop<'a> {
             )
             .or_else(|| run(run_b))?,
         );
-        let mut arc = Vec::new();
-        for i in 0..k - 1 {
-            let (p, q) = (knots[i], knots[i + 1]);
-            if i > 0 {
-                arc.push(p);
-            }
+        // A corner between the knots `i` and `j` (each side judged by its own samples, as
+        // below), as the path's inner points.
+        let sides = |i: usize, j: usize, by_run: bool| {
+            let (p, q) = (knots[i], knots[j]);
+            let c = dist(p, q);
             // A corner is judged by each side's own samples (the knots' tangents, fitted
             // round them, would bend round it), within half a chord: the few samples
             // nearest a sparse wall's end are too few to tell a line from a circle.
@@ -429,16 +431,52 @@ impl<'a> Loop<'a> {
             // first knot a quarter chord away, or the loop's (the chord may run nearly
             // across a side, as at a corner's steep piece, and two samples a rounding
             // apart give no direction).
-            let far = |j: &usize| dist(knots[*j], p).min(dist(knots[*j], q)) >= 0.25 * chord(i);
-            let before = (0..i).rev().find(far).map_or(run_a, |j| sub(p, knots[j]));
-            let after = (i + 2..k).find(far).map_or(run_b, |j| sub(knots[j], q));
-            let sides = || {
-                let (d, r) = (sub(q, p), 2.0 * reach(chord(i)));
-                let a = fit.tangent(p, r, &[before, d], Some(d))?;
-                let b = fit.tangent(q, r, &[after, d], Some(scale(d, -1.0)))?;
-                corner(p, q, a, b, step)
+            let far = |m: &usize| dist(knots[*m], p).min(dist(knots[*m], q)) >= 0.25 * c;
+            let before = (0..i).rev().find(far).map_or(run_a, |m| sub(p, knots[m]));
+            let after = (j + 1..k).find(far).map_or(run_b, |m| sub(knots[m], q));
+            // Each side's samples are those behind its end: across the chord's
+            // half-plane, or (across a knot at a corner, whose chord may run at an acute
+            // angle to the walls, past which the other wall's samples lie) against the
+            // path's run.
+            let (d, r) = (sub(q, p), 2.0 * reach(c));
+            let (behind_p, behind_q) = if by_run {
+                (before, scale(after, -1.0))
+            } else {
+                (d, scale(d, -1.0))
             };
-            match sides() {
+            let a = fit.tangent(p, r, &[before, d], Some(behind_p))?;
+            let b = fit.tangent(q, r, &[after, d], Some(behind_q))?;
+            corner(p, q, a, b, step)
+        };
+        let mut arc = Vec::new();
+        let mut i = 0;
+        while i < k - 1 {
+            let (p, q) = (knots[i], knots[i + 1]);
+            if i > 0 {
+                arc.push(p);
+            }
+            // A sample passed by whose own samples hold no curve lies where two walls
+            // meet, near their corner but on one of them: the corner is where the sides
+            // of the knots on either side of it meet, if that passes it within `tol`
+            // (a smooth arc through it would swing out past the corner).
+            if i + 2 < k && tangents[i + 1].curvature.is_none() {
+                let through = sides(i, i + 2, true).filter(|path| {
+                    let mut path_ = vec![p];
+                    path_.extend_from_slice(path);
+                    path_.push(knots[i + 2]);
+                    path_
+                        .windows(2)
+                        .map(|w| point_segment_dist2(q, w[0], w[1]).0)
+                        .fold(f64::INFINITY, f64::min)
+                        <= tol * tol
+                });
+                if let Some(path) = through {
+                    arc.extend(path);
+                    i += 2;
+                    continue;
+                }
+            }
+            match sides(i, i + 1, false) {
                 Some(path) => arc.extend(path),
                 None => hermite(
                     p,
@@ -449,6 +487,7 @@ impl<'a> Loop<'a> {
                     &mut arc,
                 )?,
             }
+            i += 1;
         }
         if arc.len() > MAX_ARC_VERTICES || arc.iter().any(|&p| !clear((from, to), p)) {
             return None;
@@ -880,6 +919,59 @@ mod tests {
             .points
             .iter()
             .map(|p| p[0].min(p[1]).min(1.0 - p[0]).min(1.0 - p[1]).abs())
+            .fold(0.0, f64::max);
+        assert!(off < 1e-9, "{off}");
+    }
+
+    /// A triangle whose corner at the origin is acute (70 degrees), sampled every
+    /// 0.01 but within 0.07 of that corner on one wall and 0.1 on the other, which
+    /// keeps one sample 0.02 from it; the loop cuts the corner by a chord. That
+    /// sample is a knot of the arc whose samples round it lie on both walls and hold no
+    /// curve: the corner comes back where the sides of the knots on either side meet,
+    /// through it, exactly but for rounding (before, a smooth arc through it swung out
+    /// past the corner).
+    #[test]
+    fn a_sample_near_an_acute_corner_keeps_the_corner() {
+        let (c, s) = (70f64.to_radians().cos(), 70f64.to_radians().sin());
+        let apex_b = [c, s];
+        // Counter-clockwise: along wall A from the origin, across, back down wall B.
+        let walk = |step: f64, keep: &dyn Fn(Point) -> bool| -> Vec<Point> {
+            let n = (1.0 / step).round() as usize;
+            let across = dist([1.0, 0.0], apex_b);
+            let m = (across / step).round() as usize;
+            (0..n)
+                .map(|i| [i as f64 / n as f64, 0.0])
+                .chain((0..m).map(|i| {
+                    let t = i as f64 / m as f64;
+                    [1.0 + t * (c - 1.0), t * s]
+                }))
+                .chain((0..n).map(|i| {
+                    let t = 1.0 - i as f64 / n as f64;
+                    [t * c, t * s]
+                }))
+                .filter(|&p| keep(p))
+                .collect()
+        };
+        let on_b = |p: Point| (p[1] - p[0] * s / c).abs() < 1e-9;
+        let keep = |p: Point| norm(p) > if on_b(p) { 0.07 } else { 0.1 };
+        let mut samples = walk(0.01, &keep);
+        samples.push([0.02, 0.0]);
+        let mut curves = vec![Polyline {
+            closed: true,
+            points: walk(0.0025, &keep),
+        }];
+        assert_eq!(
+            span_gaps(&mut curves, &field(&samples), 0.0, 0.01, 0.005),
+            [0]
+        );
+        let corner = nearest(&curves[0].points, [0.0, 0.0]);
+        assert!(corner < 1e-9, "{corner}");
+        // Near the corner every point stays on one of its walls.
+        let off = curves[0]
+            .points
+            .iter()
+            .filter(|&&p| norm(p) < 0.3)
+            .map(|&p| p[1].abs().min((p[1] * c - p[0] * s).abs()))
             .fold(0.0, f64::max);
         assert!(off < 1e-9, "{off}");
     }
