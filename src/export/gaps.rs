@@ -461,10 +461,10 @@ impl<'a> Loop<'a> {
             // (a smooth arc through it would swing out past the corner).
             if i + 2 < k && tangents[i + 1].curvature.is_none() {
                 let through = sides(i, i + 2, true).filter(|path| {
-                    let mut path_ = vec![p];
-                    path_.extend_from_slice(path);
-                    path_.push(knots[i + 2]);
-                    path_
+                    let mut whole = vec![p];
+                    whole.extend_from_slice(path);
+                    whole.push(knots[i + 2]);
+                    whole
                         .windows(2)
                         .map(|w| point_segment_dist2(q, w[0], w[1]).0)
                         .fold(f64::INFINITY, f64::min)
