@@ -6,9 +6,10 @@
 //! (or line) through its nearest samples: the curve they imply to third order, as a
 //! moving-least-squares projection would place it.
 //!
-//! A vertex moves only where its samples say so without doubt: they lie on both sides
-//! of it along the loop, on one circle to within `fit_tol` (noisy samples never do, nor
-//! those round a corner or across two walls), and the move is shorter than `tol`. A
+//! A vertex moves only where its samples say so without doubt: five of them, on both
+//! sides of it along their own tangent, lie on one circle to within `fit_tol` (noisy
+//! samples never do, nor those round a corner or across two walls), and the move is
+//! shorter than `tol`. A
 //! bulge of the loop farther than that from the samples' circle stays whole: the moves
 //! next to it end where they are small, never in a step.
 
