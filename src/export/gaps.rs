@@ -904,22 +904,32 @@ mod tests {
     fn a_cut_corner_of_two_straight_sides_comes_back() {
         let away = |p: Point| dist(p, [1.0, 1.0]) > 0.15;
         let samples = square(100, away);
+        // Every point stays on the square's boundary.
+        corner_comes_back(square(400, away), &samples, [1.0, 1.0], |p| {
+            p[0].min(p[1]).min(1.0 - p[0]).min(1.0 - p[1]).abs()
+        });
+    }
+
+    /// Spans the loop `points` round `samples` (tolerance 0.01, step 0.005) and checks
+    /// that a vertex lands on `corner`, and that every vertex lies on the shape: `off`
+    /// (its distance from the shape's sides) is zero but for rounding.
+    fn corner_comes_back(
+        points: Vec<Point>,
+        samples: &[Point],
+        corner: Point,
+        off: impl Fn(Point) -> f64,
+    ) {
         let mut curves = vec![Polyline {
             closed: true,
-            points: square(400, away),
+            points,
         }];
         assert_eq!(
-            span_gaps(&mut curves, &field(&samples), 0.0, 0.01, 0.005),
+            span_gaps(&mut curves, &field(samples), 0.0, 0.01, 0.005),
             [0]
         );
-        let corner = nearest(&curves[0].points, [1.0, 1.0]);
-        assert!(corner < 1e-9, "{corner}");
-        // Every point stays on the square's boundary.
-        let off = curves[0]
-            .points
-            .iter()
-            .map(|p| p[0].min(p[1]).min(1.0 - p[0]).min(1.0 - p[1]).abs())
-            .fold(0.0, f64::max);
+        let to_corner = nearest(&curves[0].points, corner);
+        assert!(to_corner < 1e-9, "{to_corner}");
+        let off = curves[0].points.iter().map(|&p| off(p)).fold(0.0, f64::max);
         assert!(off < 1e-9, "{off}");
     }
 
@@ -956,24 +966,15 @@ mod tests {
         let keep = |p: Point| norm(p) > if on_b(p) { 0.07 } else { 0.1 };
         let mut samples = walk(0.01, &keep);
         samples.push([0.02, 0.0]);
-        let mut curves = vec![Polyline {
-            closed: true,
-            points: walk(0.0025, &keep),
-        }];
-        assert_eq!(
-            span_gaps(&mut curves, &field(&samples), 0.0, 0.01, 0.005),
-            [0]
-        );
-        let corner = nearest(&curves[0].points, [0.0, 0.0]);
-        assert!(corner < 1e-9, "{corner}");
-        // Near the corner every point stays on one of its walls.
-        let off = curves[0]
-            .points
-            .iter()
-            .filter(|&&p| norm(p) < 0.3)
-            .map(|&p| p[1].abs().min((p[1] * c - p[0] * s).abs()))
-            .fold(0.0, f64::max);
-        assert!(off < 1e-9, "{off}");
+        // Near the corner every point stays on one of its walls (the third side, far
+        // from it, is the loop's own).
+        corner_comes_back(walk(0.0025, &keep), &samples, [0.0, 0.0], |p| {
+            if norm(p) < 0.3 {
+                p[1].abs().min((p[1] * c - p[0] * s).abs())
+            } else {
+                0.0
+            }
+        });
     }
 
     /// A half disc of radius 1 (its base from (-1, 0) to (1, 0), then the half circle
