@@ -487,6 +487,17 @@ fn export_with(
                 );
                 tracing::debug!(loops = onto.len(), "loops moved onto clean samples");
                 changed.extend(onto);
+                // Then between them: the vertices round a corner, whose nearest samples
+                // span both walls, are not moved above.
+                let pieces = crate::export::between::between_samples(
+                    &mut local,
+                    &prepared.metric.field,
+                    4.0 * hmin,
+                    fit_tol,
+                    hmin,
+                );
+                tracing::debug!(loops = pieces.len(), "loops drawn between clean samples");
+                changed.extend(pieces);
             }
             changed.sort_unstable();
             changed.dedup();

@@ -37,11 +37,11 @@ const MIN_FIT: usize = 5;
 
 /// A knot's direction, from the samples' fit there.
 #[derive(Clone, Copy, Debug)]
-struct End {
+pub(super) struct End {
     /// Unit tangent along the loop.
-    tangent: Point,
+    pub(super) tangent: Point,
     /// The fitted curve's curvature (zero for a line), where it holds the samples.
-    curvature: Option<f64>,
+    pub(super) curvature: Option<f64>,
 }
 
 /// The samples' local fits that give an arc its ends' tangents.
@@ -281,15 +281,15 @@ struct Gap {
 }
 
 /// A closed polyline's vertices with their arc lengths.
-struct Loop<'a> {
+pub(super) struct Loop<'a> {
     points: &'a [Point],
     /// Arc length from vertex 0 to each vertex.
-    at: Vec<f64>,
-    total: f64,
+    pub(super) at: Vec<f64>,
+    pub(super) total: f64,
 }
 
 impl<'a> Loop<'a> {
-    fn new(points: &'a [Point]) -> Loop<'a> {
+    pub(super) fn new(points: &'a [Point]) -> Loop<'a> {
         let mut at = Vec::with_capacity(points.len());
         let mut s = 0.0;
         for (i, &p) in points.iter().enumerate() {
@@ -446,7 +446,7 @@ impl<'a> Loop<'a> {
             };
             let a = fit.tangent(p, r, &[before, d], Some(behind_p))?;
             let b = fit.tangent(q, r, &[after, d], Some(behind_q))?;
-            corner(p, q, a, b, step)
+            corner(p, q, a, b, MIN_CORNER, step)
         };
         let mut arc = Vec::new();
         let mut i = 0;
@@ -560,7 +560,7 @@ fn skipped_samples(
 /// radians (40 degrees). Circles fitted across a bend and its straight (a spiral's caps)
 /// misjudge its curvature and cross at up to 0.56 rad on clean spirals; the bays' walls
 /// meet their circles at 1.1 and 1.7.
-const MIN_CORNER: f64 = 0.7;
+pub(super) const MIN_CORNER: f64 = 0.7;
 /// How far a side's fitted curve is continued to a corner, in radians of its turn: at
 /// most a chord, and at most a radian round its osculating circle.
 const MAX_SIDE_TURN: f64 = 1.0;
@@ -568,11 +568,18 @@ const MAX_SIDE_TURN: f64 = 1.0;
 /// The inner points of the path from `p` to `q` round the corner where the samples'
 /// curves on each side (`a` at `p`, `b` at `q`: their lines, or their osculating
 /// circles where a quadratic was fitted) meet, when they meet within a chord ahead of
-/// `p` and behind `q` and turn there by [`MIN_CORNER`] at least: the corner the samples
+/// `p` and behind `q` and turn there by `min_turn` at least: the corner the samples
 /// imply, which no smooth arc between them keeps. A smooth curve between `p` and `q`
 /// gives none: osculating circles of a curve of monotone curvature are nested (Tait and
 /// Kneser), and two circles fitted to the same one meet, if at all, at a small angle.
-fn corner(p: Point, q: Point, a: End, b: End, step: f64) -> Option<Vec<Point>> {
+pub(super) fn corner(
+    p: Point,
+    q: Point,
+    a: End,
+    b: End,
+    min_turn: f64,
+    step: f64,
+) -> Option<Vec<Point>> {
     let c = dist(p, q);
     let (ka, kb) = (a.curvature?, b.curvature?);
     if c <= 0.0 || ka.abs() * c > MAX_SIDE_TURN || kb.abs() * c > MAX_SIDE_TURN {
@@ -580,9 +587,9 @@ fn corner(p: Point, q: Point, a: End, b: End, step: f64) -> Option<Vec<Point>> {
     }
     // Sampled a step at a time (the output's resolution), at most 512 pieces a side.
     let step = step.max(c / 512.0);
-    let side_a = continued(p, a.tangent, ka, c, step);
+    let side_a = continued(p, a.tangent, ka, 1.5 * c, step);
     // Behind `q`: the same curve walked backwards turns the other way.
-    let side_b = continued(q, scale(b.tangent, -1.0), -kb, c, step);
+    let side_b = continued(q, scale(b.tangent, -1.0), -kb, 1.5 * c, step);
     // The crossing nearest the ends, by the arc length from both.
     let mut best: Option<(usize, usize, Point)> = None;
     for i in 0..side_a.len() - 1 {
@@ -601,7 +608,7 @@ fn corner(p: Point, q: Point, a: End, b: End, step: f64) -> Option<Vec<Point>> {
     let turn = (dot(ta, tb) / (norm(ta) * norm(tb)))
         .clamp(-1.0, 1.0)
         .acos();
-    if !(MIN_CORNER..=MAX_TURN).contains(&turn) {
+    if !(min_turn..=MAX_TURN).contains(&turn) {
         return None;
     }
     let mut path: Vec<Point> = side_a[1..=i].to_vec();
@@ -615,7 +622,7 @@ fn corner(p: Point, q: Point, a: End, b: End, step: f64) -> Option<Vec<Point>> {
 
 /// The curve from `p` along the unit tangent `t` with the constant curvature `k` (left
 /// positive), `length` long, as points a `step` or less apart, `p` first.
-fn continued(p: Point, t: Point, k: f64, length: f64, step: f64) -> Vec<Point> {
+pub(super) fn continued(p: Point, t: Point, k: f64, length: f64, step: f64) -> Vec<Point> {
     let pieces = ((length / step).ceil() as usize).clamp(1, MAX_ARC_VERTICES);
     let n = [-t[1], t[0]];
     (0..=pieces)
@@ -649,7 +656,7 @@ fn crossing(a0: Point, a1: Point, b0: Point, b1: Point) -> Option<Point> {
 /// The inner points of the Hermite arc from `p` to `q` with unit tangents `tp` and `tq`,
 /// at most `step` apart, appended to `out`: `None` when the tangents turn by more than
 /// [`MAX_TURN`] or the arc strays more than [`MAX_BULGE`] chords from its chord.
-fn hermite(
+pub(super) fn hermite(
     p: Point,
     q: Point,
     tp: Point,

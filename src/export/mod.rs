@@ -1,6 +1,7 @@
 //! Export (paper section 1.1, the last stage): the zero isoline as polylines, and writers
 //! for results (NDJSON, JSON, GeoJSON, CSV, SVG, and MCAP or a live view for Foxglove).
 
+pub mod between;
 pub mod contour;
 pub mod corners;
 pub mod fit;

@@ -186,41 +186,10 @@ fn onto_circle(p: Point, field: &DistanceField, fit_tol: f64, ids: &mut Vec<u32>
 }
 
 /// The move from the frame's origin onto the circle (or line) through `local` (samples
-/// in the frame, scaled in place), if they lie on it to within `fit_tol`.
+/// in the frame), if they lie on it to within `fit_tol`.
 fn onto_fit(local: &mut [(f64, f64)], fit_tol: f64) -> Option<(f64, f64)> {
-    let rho = local.iter().map(|v| v.0.hypot(v.1)).fold(0.0, f64::max);
-    if rho <= 0.0 {
-        return None;
-    }
-    // Scaled by the span for the normal equations' conditioning.
-    for v in local.iter_mut() {
-        *v = (v.0 / rho, v.1 / rho);
-    }
-    // The circle (or line) c (x² + y²) + b x - y + a = 0, linear in (a, b, c): a line
-    // is c = 0, so a straight wall is as well conditioned as a bend.
-    let mut ata = Matrix3::zeros();
-    let mut aty = Vector3::zeros();
-    for &(x, y) in local.iter() {
-        let row = Vector3::new(1.0, x, x * x + y * y);
-        ata += row * row.transpose();
-        aty += row * y;
-    }
-    let sol = ata.lu().solve(&aty)?;
-    let (a, b, c) = (sol[0], sol[1], sol[2]);
-    if !(a.is_finite() && b.is_finite() && c.is_finite()) || b.abs() > MAX_SLOPE {
-        return None;
-    }
-    // Each sample's distance to the curve, to first order (|f| / |grad f|), which for
-    // a circle is exact to second order in that distance.
-    let off = local
-        .iter()
-        .map(|&(x, y)| {
-            let f = c * (x * x + y * y) + b * x - y + a;
-            let g = [2.0 * c * x + b, 2.0 * c * y - 1.0];
-            f.abs() / norm(g)
-        })
-        .fold(0.0, f64::max);
-    if off * rho > fit_tol {
+    let (a, b, c, off) = implicit_circle(local)?;
+    if b.abs() > MAX_SLOPE || off > fit_tol {
         return None;
     }
     // Along grad f at the origin (through the circle's centre), f(s g) = c s² +
@@ -230,8 +199,48 @@ fn onto_fit(local: &mut [(f64, f64)], fit_tol: f64) -> Option<(f64, f64)> {
     if disc < 0.0 {
         return None;
     }
-    let s = -2.0 * a / (w + disc.sqrt()) * rho;
+    let s = -2.0 * a / (w + disc.sqrt());
     Some((s * b / w, -s / w))
+}
+
+/// The circle (or line) `c (x² + y²) + b x - y + a = 0` nearest `local` (points in a
+/// frame whose x axis runs roughly along them; scaled in place) by least squares, as
+/// `(a, b, c)`, with the largest of their distances to it. Linear in `(a, b, c)`, and a
+/// line is `c = 0`: a straight wall is as well conditioned as a bend. Fails only on a
+/// circle whose centre lies on the x axis (a half turn), or fewer than three distinct
+/// points.
+pub(super) fn implicit_circle(local: &mut [(f64, f64)]) -> Option<(f64, f64, f64, f64)> {
+    let rho = local.iter().map(|v| v.0.hypot(v.1)).fold(0.0, f64::max);
+    if !(rho > 0.0 && rho.is_finite()) {
+        return None;
+    }
+    // Scaled by the span for the normal equations' conditioning.
+    for v in local.iter_mut() {
+        *v = (v.0 / rho, v.1 / rho);
+    }
+    let mut ata = Matrix3::zeros();
+    let mut aty = Vector3::zeros();
+    for &(x, y) in local.iter() {
+        let row = Vector3::new(1.0, x, x * x + y * y);
+        ata += row * row.transpose();
+        aty += row * y;
+    }
+    let sol = ata.lu().solve(&aty)?;
+    let (a, b, c) = (sol[0], sol[1], sol[2]);
+    if !(a.is_finite() && b.is_finite() && c.is_finite()) {
+        return None;
+    }
+    // Each point's distance to the curve, to first order (|f| / |grad f|), which for
+    // a circle is exact to second order in that distance.
+    let off = local
+        .iter()
+        .map(|&(x, y)| {
+            let f = c * (x * x + y * y) + b * x - y + a;
+            let g = [2.0 * c * x + b, 2.0 * c * y - 1.0];
+            f.abs() / norm(g)
+        })
+        .fold(0.0, f64::max);
+    Some((a * rho, b, c / rho, off * rho))
 }
 
 #[cfg(test)]
