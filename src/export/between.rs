@@ -29,6 +29,11 @@ const RUN: usize = 5;
 /// most; clean runs that each lie on their circle to a quarter of `hmin` do not cross
 /// by chance (the spiral's inner end turns by 23 degrees).
 const MIN_TURN: f64 = 0.2;
+/// How far a run's circle is continued to a corner, in radians of its turn over the
+/// samples' distance: twice what [`gaps`](super::gaps) allows its sides' fits, since a
+/// circle that holds five clean samples to `hmin / 4` is the curve's own (the spiral's
+/// inner cap, of radius 0.04, meets its wall between samples 0.07 apart).
+const MAX_SIDE_TURN: f64 = 2.0;
 /// The largest slope of a run's circle at its first sample, against the chord from its
 /// first sample to its last: steeper, the run turns by over 127 degrees and is no
 /// stretch of one wall.
@@ -255,10 +260,10 @@ pub fn between_samples(
 ///   these two among them, the two in its middle first.
 /// - One holds the other sample and the other not: a corner at a sample, the arc on
 ///   the first's circle.
-/// - Each lies on its own circle and holds not the other sample: where a curve's
-///   curvature jumps (a bend's end) or it turns by less than a corner, the Hermite arc
-///   between the two circles' tangents; any circle through samples of both is one by
-///   chance.
+/// - Neither holds the other sample, each lying on its own circle (or, a side too
+///   short for five, four samples of it): where a curve's curvature jumps (a bend's
+///   end) or it turns by less than a corner, the Hermite arc between the two circles'
+///   tangents; any circle through samples of both is one by chance.
 fn between(
     s: impl Fn(isize) -> Point,
     corner: impl Fn(isize) -> bool,
@@ -289,7 +294,15 @@ fn between(
         // The run through both that holds nothing past them, else the side's own.
         (Some(true), _) => curve(2 - n).or(before)?,
         (_, Some(true)) => curve(0).or(after)?,
-        (Some(false), Some(false)) => {
+        // Neither holds the other's sample.
+        _ => {
+            // A side too short for five samples (a cap's end): four on a circle.
+            let short = |first: isize| {
+                let run: Vec<Point> = (first..first + n - 1).map(&s).collect();
+                Curve::through(&run, fit_tol)
+            };
+            let before = before.or_else(|| short(2 - n));
+            let after = after.or_else(|| short(1));
             let a = before?.end(p, sub(p, s(-1)))?;
             let b = after?.end(q, sub(s(2), q))?;
             // A turn of a corner's size is one that `corner` could not place.
@@ -300,7 +313,6 @@ fn between(
             hermite(p, q, a.tangent, b.tangent, step, &mut arc)?;
             return Some(arc);
         }
-        _ => return None,
     };
     let end = on.end(p, sub(q, p))?;
     let k = end.curvature.unwrap_or(0.0);
@@ -335,7 +347,7 @@ fn corner_piece(s: impl Fn(isize) -> Point, fit_tol: f64, step: f64) -> Option<V
     }
     let before = before.end(p, sub(p, s(-1)))?;
     let after = after.end(q, sub(s(2), q))?;
-    corner(p, q, before, after, MIN_TURN, step)
+    corner(p, q, before, after, (MIN_TURN, MAX_SIDE_TURN), step)
 }
 
 /// The largest distance of a point of `a` to the polyline `b`.
@@ -579,6 +591,113 @@ mod tests {
             .map(|p| (norm(*p) - 0.3).abs())
             .fold(0.0, f64::max);
         assert!(off < 1e-12, "{off:e}");
+    }
+
+    /// The distance from `p` to the stadium of half-length `l` and radius `r` about the
+    /// origin (its straight sides `y = ±r`).
+    fn off_stadium(p: Point, l: f64, r: f64) -> f64 {
+        (dist([p[0].clamp(-l, l), 0.0], p) - r).abs()
+    }
+
+    /// A half disc of radius 0.1: its diameter sampled every 0.01 up to 0.005 from the
+    /// corners, its arc only from 1.2 radians off them (the corners' pairs 0.11 apart,
+    /// over which the arc's circle turns by 1.1 radians), and a loop 1e-3 inside that
+    /// cuts the corners by chords 0.02 long. The arc's five-sample runs hold their circle to
+    /// rounding, so the corners come back where it crosses the diameter's line: every
+    /// vertex lies on the half disc's boundary to within the sagitta of a step on the
+    /// circle (1e-3² / 0.8 = 1.25e-6), one at each corner. Run on by one radian over a
+    /// chord at most, as the gaps' fits are, the circle left the loop as it was there
+    /// (1e-3 inside, the corners cut).
+    #[test]
+    fn a_circle_runs_on_round_to_its_corner() {
+        let r = 0.1;
+        let on_arc = |a: f64, r: f64| [r * a.cos(), r * a.sin()];
+        let mut samples: Vec<Point> = (0..20).map(|i| [-0.095 + 0.01 * i as f64, 0.0]).collect();
+        let (a0, a1) = (1.2, std::f64::consts::PI - 1.2);
+        let arcs = ((a1 - a0) * r / 0.01).round() as usize;
+        samples.extend((0..=arcs).map(|i| on_arc(a0 + (a1 - a0) * i as f64 / arcs as f64, r)));
+        // The loop, counter-clockwise: the diameter, a chord to the arc, the arc, a chord.
+        let e = 1e-3;
+        let mut points: Vec<Point> = (0..=196).map(|i| [-0.098 + 0.001 * i as f64, e]).collect();
+        let (b0, b1) = (0.2, std::f64::consts::PI - 0.2);
+        points.extend((0..=200).map(|i| on_arc(b0 + (b1 - b0) * i as f64 / 200.0, r - e)));
+        let mut curves = vec![Polyline {
+            closed: true,
+            points,
+        }];
+        between_samples(&mut curves, &field(&samples), 4e-3, 2.5e-4, 1e-3);
+        let off = |p: Point| {
+            let to_arc = (norm(p) - r).abs();
+            if p[1] <= 0.0 || p[0].abs() > r {
+                dist([p[0].clamp(-r, r), 0.0], p).min(to_arc)
+            } else {
+                p[1].min(to_arc)
+            }
+        };
+        let out = &curves[0].points;
+        let worst = out.iter().map(|&p| off(p)).fold(0.0, f64::max);
+        assert!(worst <= 1.25e-6, "{worst:e}");
+        for c in [[r, 0.0], [-r, 0.0]] {
+            let d = out
+                .iter()
+                .map(|&p| dist(p, c))
+                .fold(f64::INFINITY, f64::min);
+            assert!(d <= 1.25e-6, "{c:?}: {d:e}");
+        }
+    }
+
+    /// A stadium (half-length 0.2, radius 0.02) sampled every 0.01 along its sides and
+    /// its left cap, its right cap at four points only, and a loop 1e-3 inside it.
+    /// Between the last sample of a side and the first of the right cap the curvature
+    /// jumps; the cap's five-sample run reaches the other side and lies on no circle,
+    /// its four samples do, and the Hermite arc between the side's line and that
+    /// circle keeps within the fit tolerance (2.5e-4) of the stadium, where the loop
+    /// was left 1e-3 inside without it.
+    #[test]
+    fn a_short_cap_meets_its_sides_smoothly() {
+        let (l, r) = (0.2, 0.02);
+        let mut samples: Vec<Point> = Vec::new();
+        for i in 0..40 {
+            let x = -l + 0.005 + 0.01 * i as f64;
+            samples.extend([[x, -r], [x, r]]);
+        }
+        let cap = |a: f64, r: f64, x: f64| [x + r * a.cos(), r * a.sin()];
+        let half = std::f64::consts::FRAC_PI_2;
+        samples.extend((1..6).map(|i| cap(half + 0.5 * i as f64, r, -l)));
+        samples.extend((0..4).map(|i| cap(-half + 0.6 + 0.65 * i as f64, r, l)));
+        let e = 1e-3;
+        let mut points: Vec<Point> = (0..=400)
+            .map(|i| [-l + 0.001 * i as f64, -(r - e)])
+            .collect();
+        points.extend(
+            (1..100).map(|i| cap(-half + std::f64::consts::PI * i as f64 / 100.0, r - e, l)),
+        );
+        points.extend((0..=400).map(|i| [l - 0.001 * i as f64, r - e]));
+        points.extend(
+            (1..100).map(|i| cap(half + std::f64::consts::PI * i as f64 / 100.0, r - e, -l)),
+        );
+        let mut curves = vec![Polyline {
+            closed: true,
+            points,
+        }];
+        between_samples(&mut curves, &field(&samples), 4e-3, 2.5e-4, 1e-3);
+        // Between the bottom side's last sample and the cap's first, and between the
+        // cap's last and the top side's first (short of the feet of the cap's samples,
+        // past which the loop between them, which no run of five holds, stays).
+        let (first, last) = (cap(-half + 0.6, r, l), cap(-half + 2.55, r, l));
+        let junction = |p: &&Point| {
+            (p[1] < 0.0 && p[0] > l - 0.005 && p[0] < first[0] - 2e-3)
+                || (p[1] > 0.0 && p[0] > l - 0.005 && p[0] < last[0] - 2e-3)
+        };
+        let near: Vec<f64> = curves[0]
+            .points
+            .iter()
+            .filter(junction)
+            .map(|&p| off_stadium(p, l, r))
+            .collect();
+        assert!(near.len() > 10, "{}", near.len());
+        let worst = near.iter().copied().fold(0.0, f64::max);
+        assert!(worst <= 2.5e-4, "{worst:e}");
     }
 
     proptest::proptest! {

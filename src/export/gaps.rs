@@ -446,7 +446,7 @@ impl<'a> Loop<'a> {
             };
             let a = fit.tangent(p, r, &[before, d], Some(behind_p))?;
             let b = fit.tangent(q, r, &[after, d], Some(behind_q))?;
-            corner(p, q, a, b, MIN_CORNER, step)
+            corner(p, q, a, b, (MIN_CORNER, MAX_SIDE_TURN), step)
         };
         let mut arc = Vec::new();
         let mut i = 0;
@@ -561,14 +561,16 @@ fn skipped_samples(
 /// misjudge its curvature and cross at up to 0.56 rad on clean spirals; the bays' walls
 /// meet their circles at 1.1 and 1.7.
 pub(super) const MIN_CORNER: f64 = 0.7;
-/// How far a side's fitted curve is continued to a corner, in radians of its turn: at
-/// most a chord, and at most a radian round its osculating circle.
+/// How far a side's fitted curve is continued to a corner, in radians of its turn over a
+/// chord: at most a radian round its osculating circle.
 const MAX_SIDE_TURN: f64 = 1.0;
 
 /// The inner points of the path from `p` to `q` round the corner where the samples'
 /// curves on each side (`a` at `p`, `b` at `q`: their lines, or their osculating
-/// circles where a quadratic was fitted) meet, when they meet within a chord ahead of
-/// `p` and behind `q` and turn there by `min_turn` at least: the corner the samples
+/// circles where a quadratic was fitted) meet, when they meet within one and a half
+/// chords ahead of `p` and behind `q` (an acute corner lies past one chord from the
+/// sample farther from it), each turning by at most `max_side_turn` radians over a
+/// chord, and turn there by `min_turn` at least: the corner the samples
 /// imply, which no smooth arc between them keeps. A smooth curve between `p` and `q`
 /// gives none: osculating circles of a curve of monotone curvature are nested (Tait and
 /// Kneser), and two circles fitted to the same one meet, if at all, at a small angle.
@@ -577,12 +579,12 @@ pub(super) fn corner(
     q: Point,
     a: End,
     b: End,
-    min_turn: f64,
+    (min_turn, max_side_turn): (f64, f64),
     step: f64,
 ) -> Option<Vec<Point>> {
     let c = dist(p, q);
     let (ka, kb) = (a.curvature?, b.curvature?);
-    if c <= 0.0 || ka.abs() * c > MAX_SIDE_TURN || kb.abs() * c > MAX_SIDE_TURN {
+    if c <= 0.0 || ka.abs() * c > max_side_turn || kb.abs() * c > max_side_turn {
         return None;
     }
     // Sampled a step at a time (the output's resolution), at most 512 pieces a side.
