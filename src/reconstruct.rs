@@ -478,7 +478,10 @@ fn export_with(
             // shapes estimate a few 1e-5 of the diagonal: the fits' own error.)
             let fit_tol = 0.25 * hmin;
             let mut changed = changed;
-            if sigma <= fit_tol {
+            // Clean by the fits over one wall's window too: the k neighbours' fits span
+            // a small bay's bend (and measure it as noise) where it is about their
+            // reach across.
+            if sigma.min(adapted.one_wall_noise) <= fit_tol {
                 let onto = crate::export::through::through_samples(
                     &mut local,
                     &prepared.metric.field,

@@ -236,6 +236,10 @@ pub struct AdaptedMesh {
     pub warm: bool,
     /// Median local-fit residual of the data: a noise estimate.
     pub noise_estimate: f64,
+    /// The residual over windows that see one wall (see
+    /// [`NoiseScale::one_wall`](crate::mesh::metric::NoiseScale::one_wall)): whether the
+    /// samples are clean where `noise_estimate` measures a shape's bends.
+    pub one_wall_noise: f64,
     /// What adaptation did.
     pub report: AdaptReport,
     /// Size and quality in the metric.
@@ -281,6 +285,7 @@ pub fn adapt_to_points(points: &[Point], params: &MeshParams) -> Result<AdaptedM
     m.params.eps = len(m.params.eps);
     m.params.band = len(m.params.band);
     m.noise_estimate = len(m.noise_estimate);
+    m.one_wall_noise = len(m.one_wall_noise);
     Ok(m)
 }
 
@@ -329,6 +334,8 @@ pub struct MetricField {
     pub params: MetricParams,
     /// Median local-fit residual: a noise estimate.
     pub noise_estimate: f64,
+    /// The residual over windows that see one wall: at most `noise_estimate`.
+    pub one_wall_noise: f64,
     /// The points' bounding box.
     pub bbox: BBox,
     /// Margin around the bounding box, as a fraction of its diagonal.
@@ -399,6 +406,7 @@ impl MetricField {
             chain_offsets: Vec::new(),
             params: metric_params,
             noise_estimate: noise,
+            one_wall_noise: noise_scale.one_wall,
             bbox,
             padding: params.padding,
             max_passes: params.max_passes,
@@ -459,6 +467,7 @@ impl MetricField {
                 neighbours: params.neighbours,
             },
             noise_estimate: 0.0,
+            one_wall_noise: 0.0,
             bbox,
             padding: params.padding,
             max_passes: params.max_passes,
@@ -480,6 +489,7 @@ impl MetricField {
         me.params.eps = params.eps.unwrap_or(hmin);
         me.params.band = params.band.unwrap_or(8.0 * hmin);
         me.noise_estimate = noise;
+        me.one_wall_noise = noise;
         me.refit_along_chains(chains, window, end_size(hmin), end_reach);
         let ms = |d: std::time::Duration| d.as_secs_f64() * 1e3;
         me.ms = MeshTimings {
@@ -660,6 +670,7 @@ impl MetricField {
             domain: local_box,
             warm,
             noise_estimate: self.noise_estimate,
+            one_wall_noise: self.one_wall_noise,
             report,
             stats,
             ms: MeshTimings {

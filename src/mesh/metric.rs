@@ -371,6 +371,7 @@ pub fn consistent_noise(
             noise,
             window: 0.0,
             neighbours: 0.0,
+            one_wall: noise,
         };
     }
     let step = n.div_ceil(NOISE_CENTRES).max(1);
@@ -394,9 +395,11 @@ pub fn consistent_noise(
         .collect();
     let mid_small = small.len() / 2;
     let mut s = *small.select_nth_unstable_by(mid_small, f64::total_cmp).1;
+    let mut one_wall = noise;
     while s < 0.8 * knn {
         let at_s = median_residual(&fits_within(field, &centre_pts, s));
         if s >= NOISE_WINDOW * at_s {
+            one_wall = one_wall.min(at_s);
             if at_s < 0.5 * noise && noise > knn / 16.0 {
                 (r, noise) = (s, at_s);
             }
@@ -416,6 +419,7 @@ pub fn consistent_noise(
         noise,
         window: r,
         neighbours: knn,
+        one_wall: one_wall.min(noise),
     }
 }
 
@@ -428,6 +432,11 @@ pub struct NoiseScale {
     pub window: f64,
     /// The median radius of the `k` nearest neighbours.
     pub neighbours: f64,
+    /// The residual of the smallest window that sees one wall (spanning four times its
+    /// own residual), where that is less than `noise`: the `k` neighbours' fits see a
+    /// bend or a second wall as noise where they span it, and a clean shape with bays
+    /// of about their reach measures as noisy. At most `noise`.
+    pub one_wall: f64,
 }
 
 /// A frame fitted to the sheet of samples through `center`: `pts` are its nearest
@@ -679,6 +688,24 @@ mod tests {
         let ratio = scale.noise / sigma;
         assert!((0.85..=1.15).contains(&ratio), "{ratio} (k-NN {knn})");
         assert!(scale.window < 0.5 * scale.neighbours, "{scale:?}");
+    }
+
+    /// A clean circle of radius 0.09 sampled every 0.008 (a bay of the simulator's
+    /// bays, sampled as their gap table samples them): the 32 nearest samples span
+    /// most of a half turn, and their parabolas miss it by a few 1e-3, which the noise
+    /// estimate takes for noise. A window of one wall's ten or so samples spans a
+    /// fifth of that turn, and a parabola's miss grows with the fourth power of the
+    /// turn: `one_wall` is under a hundredth of the estimate (2.2e-5 against 3.9e-3).
+    #[test]
+    fn a_clean_bend_as_tight_as_the_neighbours_reach_is_clean_over_one_wall() {
+        let n = 71;
+        let pts: Vec<Point> = (0..n)
+            .map(|i| std::f64::consts::TAU * i as f64 / n as f64)
+            .map(|a| [0.09 * a.cos(), 0.09 * a.sin()])
+            .collect();
+        let (_, knn, scale) = measured_noise(&pts);
+        assert!(scale.noise > 1e-3, "{scale:?} (k-NN {knn})");
+        assert!(100.0 * scale.one_wall < scale.noise, "{scale:?}");
     }
 
     /// The field of `pts`, the median residual of its 32-neighbour frames and the
