@@ -395,11 +395,16 @@ pub fn consistent_noise(
         .collect();
     let mid_small = small.len() / 2;
     let mut s = *small.select_nth_unstable_by(mid_small, f64::total_cmp).1;
-    let mut one_wall = noise;
+    let mut one_wall = None;
     while s < 0.8 * knn {
         let at_s = median_residual(&fits_within(field, &centre_pts, s));
         if s >= NOISE_WINDOW * at_s {
-            one_wall = one_wall.min(at_s);
+            // Only where the k neighbours' fits see a curve (spanning sixteen times
+            // their residual): narrower than the noise band, a window's residual
+            // shrinks with it, and a smaller one's says nothing of the samples.
+            if noise <= knn / 16.0 {
+                one_wall = Some(at_s);
+            }
             if at_s < 0.5 * noise && noise > knn / 16.0 {
                 (r, noise) = (s, at_s);
             }
@@ -419,7 +424,7 @@ pub fn consistent_noise(
         noise,
         window: r,
         neighbours: knn,
-        one_wall: one_wall.min(noise),
+        one_wall: one_wall.map_or(noise, |w| w.min(noise)),
     }
 }
 
@@ -433,9 +438,10 @@ pub struct NoiseScale {
     /// The median radius of the `k` nearest neighbours.
     pub neighbours: f64,
     /// The residual of the smallest window that sees one wall (spanning four times its
-    /// own residual), where that is less than `noise`: the `k` neighbours' fits see a
-    /// bend or a second wall as noise where they span it, and a clean shape with bays
-    /// of about their reach measures as noisy. At most `noise`.
+    /// own residual), where that is less than `noise` and the `k` neighbours' fits span
+    /// sixteen times theirs: those fits see a bend or a second wall as noise where they
+    /// span it, and a clean shape with bays of about their reach measures as noisy. At
+    /// most `noise`.
     pub one_wall: f64,
 }
 
@@ -630,7 +636,8 @@ mod tests {
     /// the standard error of a principal axis of `m` samples with variances `r²/3`
     /// along and `σ²` across: `sqrt(r²σ²/3m) / (r²/3 - σ²)`, 1.5° for the 400 to 512
     /// samples of a window here, so fewer than 1% of them are off by 5° (3.3 standard
-    /// errors), away from the line's ends (a window there holds half a band).
+    /// errors), away from the line's ends (a window there holds half a band). The
+    /// residual over one wall's window is the noise itself: nothing looks cleaner.
     #[test]
     fn the_noise_estimate_does_not_fall_as_the_density_rises() {
         use rand::SeedableRng;
@@ -651,6 +658,9 @@ mod tests {
                 (0.8..=1.05).contains(&ratio),
                 "n = {n}: {ratio} (k-NN {knn})"
             );
+            // Nor does the one-wall residual: windows narrower than the band measure
+            // their own width, not the samples' cleanness.
+            assert_eq!(scale.one_wall, scale.noise, "n = {n}");
             if scale.window > 2.0 * scale.neighbours {
                 let frames = frames_at_scale(&field, scale).unwrap();
                 let tilted = frames
