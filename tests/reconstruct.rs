@@ -338,7 +338,7 @@ fn every_output_format_is_written_and_parses() {
     let csv = dir.path().join("e.csv");
     ok(&["reconstruct", &input, "-o", p(&csv)]);
     let text = std::fs::read_to_string(&csv).unwrap();
-    assert!(text.starts_with("stream,frame,polyline,closed,vertex,x,y\n"));
+    assert!(text.starts_with("stream,frame,polyline,closed,vertex,x,y,junction\n"));
     assert!(text.lines().count() > 100);
     let svg = dir.path().join("e.svg");
     ok(&["reconstruct", &input, "-o", p(&svg), "--mesh"]);

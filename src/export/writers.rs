@@ -1,7 +1,7 @@
 //! Result writers. The format follows the output file's extension: `.ndjson` (one
 //! result record per line, the contract of DESIGN.md), `.json` (the same records as an
 //! array, pretty-printed), `.geojson` (a FeatureCollection of LineStrings), `.csv`
-//! (`frame,polyline,closed,vertex,x,y`) and `.svg` (see [`super::svg`]).
+//! (`stream,frame,polyline,closed,vertex,x,y,junction`) and `.svg` (see [`super::svg`]).
 
 use std::fmt::Write as _;
 use std::io::Write;
@@ -9,7 +9,8 @@ use std::path::Path;
 
 use serde_json::json;
 
-use crate::format::ResultRecord;
+use crate::format::{PolylineJson, ResultRecord};
+use crate::geom::dist;
 
 /// A result file format.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -144,18 +145,53 @@ pub fn to_geojson(recs: &[ResultRecord]) -> String {
         + "\n"
 }
 
-/// The curves as CSV rows `stream,frame,polyline,closed,vertex,x,y`.
+/// The curves as CSV rows `stream,frame,polyline,closed,vertex,x,y,junction`: the last
+/// column, at an open polyline's end vertex where strokes meet, is the index of that
+/// junction in the record (empty elsewhere), so that a reader of rows alone knows which
+/// polylines meet there (those whose ends carry the same index).
 pub fn to_csv(recs: &[ResultRecord]) -> String {
-    let mut s = String::from("stream,frame,polyline,closed,vertex,x,y\n");
+    let mut s = String::from(
+        "stream,frame,polyline,closed,vertex,x,y,junction
+",
+    );
     for r in recs {
         let stream = r.stream.as_deref().unwrap_or("");
         let frame = r.frame.map_or(String::new(), |f| f.to_string());
-        for (k, pl) in r.polylines.iter().flatten().enumerate() {
+        let polylines: Vec<&PolylineJson> = r.polylines.iter().flatten().collect();
+        // Each junction at the end of each polyline it names that lies nearer it (both
+        // ends where they lie equally near: a stroke from the junction back to it).
+        let mut at_end: Vec<[Option<usize>; 2]> = vec![[None, None]; polylines.len()];
+        for (j, junction) in r.junctions.iter().flatten().enumerate() {
+            for &k in &junction.polylines {
+                let Some(pl) = polylines.get(k).filter(|pl| !pl.points.is_empty()) else {
+                    continue;
+                };
+                let (first, last) = (pl.points[0], pl.points[pl.points.len() - 1]);
+                let (d0, d1) = (dist(first, junction.at), dist(last, junction.at));
+                if d0 <= d1 {
+                    at_end[k][0] = Some(j);
+                }
+                if d1 <= d0 {
+                    at_end[k][1] = Some(j);
+                }
+            }
+        }
+        for (k, pl) in polylines.iter().enumerate() {
+            let n = pl.points.len();
             for (i, p) in pl.points.iter().enumerate() {
+                let junction = match i {
+                    _ if pl.closed => None,
+                    0 => at_end[k][0],
+                    _ if i + 1 == n => at_end[k][1],
+                    _ => None,
+                };
                 let _ = writeln!(
                     s,
-                    "{stream},{frame},{k},{},{i},{},{}",
-                    pl.closed, p[0], p[1]
+                    "{stream},{frame},{k},{},{i},{},{},{}",
+                    pl.closed,
+                    p[0],
+                    p[1],
+                    junction.map_or(String::new(), |j| j.to_string())
                 );
             }
         }
@@ -201,7 +237,39 @@ mod tests {
         assert_eq!(j["properties"]["polylines"], serde_json::json!([0]));
         let csv = to_csv(&[rec()]);
         assert_eq!(csv.lines().count(), 4);
-        assert!(csv.contains("s,3,0,true,1,1,0"));
+        assert!(csv.contains("s,3,0,true,1,1,0,\n"));
+        // Three strokes meeting at (1, 0): each end there names junction 0, the far
+        // ends and the inner vertices nothing.
+        let mut strokes = rec();
+        strokes.polylines = Some(
+            [
+                [[0.0, 0.0], [0.5, 0.0], [1.0, 0.0]],
+                [[1.0, 0.0], [2.0, 0.0], [3.0, 0.0]],
+                [[1.0, 1.0], [1.0, 0.5], [1.0, 0.0]],
+            ]
+            .into_iter()
+            .map(|points| PolylineJson {
+                closed: false,
+                points: points.to_vec(),
+            })
+            .collect(),
+        );
+        strokes.junctions = Some(vec![crate::format::JunctionJson {
+            at: [1.0, 0.0],
+            polylines: vec![0, 1, 2],
+        }]);
+        let csv = to_csv(&[strokes]);
+        let ends: Vec<&str> = csv.lines().filter(|l| l.ends_with(",0")).collect();
+        assert_eq!(
+            ends,
+            [
+                "s,3,0,false,2,1,0,0",
+                "s,3,1,false,0,1,0,0",
+                "s,3,2,false,2,1,0,0"
+            ],
+            "{csv}"
+        );
+        assert_eq!(csv.lines().filter(|l| l.ends_with(',')).count(), 6);
         assert_eq!(
             Format::from_path(Path::new("a/b.GeoJSON")),
             Some(Format::GeoJson)
