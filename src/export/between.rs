@@ -119,17 +119,16 @@ impl Curve {
 
 /// Replaces each stretch of the closed polylines of `curves` between two consecutive
 /// samples of `field` along it (those within `tol` of it, this loop their nearest
-/// curve) by the curve they imply, sampled every `step`: where the [`RUN`] samples up
-/// to the first and the [`RUN`] from the second each lie on a circle (or line) to
-/// within `fit_tol` and neither holds the other's sample, the corner where the two
-/// circles run on to cross (as [`corner`] finds it, turning by [`MIN_TURN`] at least);
-/// else the arc of a circle through a run with both samples among it and no corner,
-/// or the Hermite arc between two runs' circles where the curvature jumps between the
-/// samples (see [`between`]). A stretch is replaced only by a piece within `2 tol` of
-/// it both ways (a corner: within `tol`, or the samples' distance where that is more),
-/// and only if it is at most four times as long as that distance and the reach
-/// together. Open polylines and loops with fewer than `2 RUN` samples stay.
-/// Returns the indices of the polylines changed.
+/// curve) by the curve they imply, sampled every `step`: where the five samples up to
+/// the first and the five from the second each lie on a circle (or line) to within
+/// `fit_tol` and neither holds the other's sample, the corner where the two circles
+/// run on to cross, turning by 11 degrees at least; else the arc of a circle through
+/// five consecutive samples with both among them and no corner, or the Hermite arc
+/// between two runs' circles where the curvature jumps between the samples. A stretch
+/// is replaced only by a piece within `2 tol` of it both ways (a corner: within `tol`,
+/// or the samples' distance where that is more), and only if it is at most four times
+/// as long as that distance and the reach together. Open polylines and loops with
+/// fewer than ten samples stay. Returns the indices of the polylines changed.
 pub fn between_samples(
     curves: &mut [Polyline],
     field: &DistanceField,

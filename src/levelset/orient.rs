@@ -88,9 +88,9 @@ fn dist2(a: Point, b: Point) -> f64 {
 ///
 /// Normals: fits over the nearest few samples, or over eight times the noise where that
 /// is wider. Sheets: samples joined to their nearest that lie along both tangents,
-/// and ends joined across gaps in the sampling (see [`sheet_edges`]); their normals
-/// turned to agree along the surest edges first (see [`turn_along`]). Then each sheet
-/// must close, and is turned outward (see [`outward`]).
+/// and ends joined across gaps in the sampling (see `sheet_edges`); their normals
+/// turned to agree along the surest edges first (see `turn_along`). Then each sheet
+/// must close, and is turned outward (see `outward`).
 pub fn orient(field: &DistanceField, sigma: f64) -> Option<Vec<(Point, Point)>> {
     let all = field.points();
     let stride = all.len().div_ceil(ORIENT_MAX).max(1);

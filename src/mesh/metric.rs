@@ -351,7 +351,7 @@ const SHEET_SAMPLES: usize = 10;
 
 /// The data's noise, measured at a scale that does not shrink with the sampling: the
 /// median residual of fits over the samples within a radius `r` of evenly spread
-/// centres, with `r` grown until it spans [`NOISE_WINDOW`] times the residual it
+/// centres, with `r` grown until it spans four times the residual it
 /// measures. A fit over a fixed number of neighbours (`frames`, `k` per sample in
 /// `neighbours`) spans less of the curve the denser the sampling; once it is narrower
 /// than the noise band it sees a blob, whose residual scales with the window, not the
@@ -546,7 +546,7 @@ pub fn fit_one_sheet(center: Point, pts: &mut Vec<Point>) -> LocalFrame {
 }
 
 /// A frame fitted at each of `centres` to the samples of `field` within `r` of it (an
-/// even subsample of at most [`NOISE_FIT_MAX`] of them).
+/// even subsample of at most 512 of them).
 pub fn fits_within(field: &DistanceField, centres: &[Point], r: f64) -> Vec<LocalFrame> {
     let pts = field.points();
     centres
