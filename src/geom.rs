@@ -77,6 +77,14 @@ pub fn area(a: Point, b: Point, c: Point) -> f64 {
     0.5 * cross(sub(b, a), sub(c, a))
 }
 
+/// Distance from `p` to the open polyline through `pts` (infinite with fewer than two).
+pub fn polyline_dist(p: Point, pts: &[Point]) -> f64 {
+    pts.windows(2)
+        .map(|w| point_segment_dist2(p, w[0], w[1]).0)
+        .fold(f64::INFINITY, f64::min)
+        .sqrt()
+}
+
 /// Squared distance from `p` to the segment `[a, b]`, and the parameter in [0, 1] of the
 /// closest point.
 #[inline]

@@ -19,7 +19,7 @@ use super::gaps::{continued, corner, hermite, End, Loop, MIN_CORNER};
 use super::through::implicit_circle;
 use crate::distance::DistanceField;
 use crate::eval::SegmentIndex;
-use crate::geom::{add, cross, dist, dot, norm, point_segment_dist2, scale, sub, Point, Polyline};
+use crate::geom::{add, cross, dist, dot, norm, polyline_dist, scale, sub, Point, Polyline};
 
 /// Consecutive samples a circle goes through: one more than a circle needs, so that
 /// lying on it is a test.
@@ -80,6 +80,16 @@ impl Curve {
             centre: add(o, add(scale(x, -b / (2.0 * c)), scale(y, 1.0 / (2.0 * c)))),
             r: disc.sqrt() / (2.0 * c.abs()),
         })
+    }
+
+    /// [`Curve::through`] the samples `s(j)` for `j` in `run`.
+    fn of_run(
+        s: impl Fn(isize) -> Point,
+        run: std::ops::Range<isize>,
+        fit_tol: f64,
+    ) -> Option<Curve> {
+        let points: Vec<Point> = run.map(s).collect();
+        Curve::through(&points, fit_tol)
     }
 
     /// The distance from `p` to the curve.
@@ -160,8 +170,9 @@ pub fn between_samples(
             Some((k, along, p, add(a, scale(sub(b, a), t))))
         })
         .collect();
-    let totals: Vec<f64> = loops.iter().map(|l| l.total).collect();
-    drop(loops);
+    // Owned, since the loops' points are about to be replaced.
+    let (ats, totals): (Vec<Vec<f64>>, Vec<f64>) =
+        loops.into_iter().map(|l| (l.at, l.total)).unzip();
     let mut chains: Vec<Vec<(f64, Point, Point)>> = vec![Vec::new(); curves.len()];
     for (k, along, p, foot) in near {
         chains[k].push((along, p, foot));
@@ -174,7 +185,7 @@ pub fn between_samples(
             continue;
         }
         let old = curves[k].points.clone();
-        let at = Loop::new(&old).at;
+        let at = &ats[k];
         let m = chain.len();
         let sample = |i: usize, j: isize| chain[(i as isize + j).rem_euclid(m as isize) as usize].1;
         // The loop's vertices after sample `i`'s foot, up to sample `i + 1`'s.
@@ -279,8 +290,7 @@ fn between(
         if (first..first + n - 1).any(&corner) {
             return None;
         }
-        let run: Vec<Point> = (first..first + n).map(&s).collect();
-        Curve::through(&run, fit_tol)
+        Curve::of_run(&s, first..first + n, fit_tol)
     };
     let (before, after) = (curve(1 - n), curve(1));
     let holds = |c: Option<Curve>, x: Point| c.map(|c| c.off(x) <= fit_tol);
@@ -296,10 +306,7 @@ fn between(
         // Neither holds the other's sample.
         _ => {
             // A side too short for five samples (a cap's end): four on a circle.
-            let short = |first: isize| {
-                let run: Vec<Point> = (first..first + n - 1).map(&s).collect();
-                Curve::through(&run, fit_tol)
-            };
+            let short = |first: isize| Curve::of_run(&s, first..first + n - 1, fit_tol);
             let before = before.or_else(|| short(2 - n));
             let after = after.or_else(|| short(1));
             let a = before?.end(p, sub(p, s(-1)))?;
@@ -334,10 +341,7 @@ fn between(
 fn corner_piece(s: impl Fn(isize) -> Point, fit_tol: f64, step: f64) -> Option<Vec<Point>> {
     let (p, q) = (s(0), s(1));
     let n = RUN as isize;
-    let curve = |first: isize| {
-        let run: Vec<Point> = (first..first + n).map(&s).collect();
-        Curve::through(&run, fit_tol)
-    };
+    let curve = |first: isize| Curve::of_run(&s, first..first + n, fit_tol);
     let (before, after) = (curve(1 - n)?, curve(1)?);
     // Either side's curve running on through the other's first sample: a smooth
     // stretch whose curvature changes fast (two runs' circles may cross there).
@@ -351,14 +355,7 @@ fn corner_piece(s: impl Fn(isize) -> Point, fit_tol: f64, step: f64) -> Option<V
 
 /// The largest distance of a point of `a` to the polyline `b`.
 fn apart(a: &[Point], b: &[Point]) -> f64 {
-    a.iter()
-        .map(|&x| {
-            b.windows(2)
-                .map(|w| point_segment_dist2(x, w[0], w[1]).0)
-                .fold(f64::INFINITY, f64::min)
-                .sqrt()
-        })
-        .fold(0.0, f64::max)
+    a.iter().map(|&x| polyline_dist(x, b)).fold(0.0, f64::max)
 }
 
 #[cfg(test)]
@@ -701,7 +698,10 @@ mod tests {
 
     proptest::proptest! {
         /// Samples round a circle, clean or not, among scattered others, and a loop
-        /// wandering across them: every loop stays closed with finite vertices.
+        /// wandering across them (or any samples and any loop), through both clean
+        /// passes in the pipeline's order: onto the samples (every vertex stays finite
+        /// and moves by less than `tol`, none added or lost), then between them (the
+        /// loop stays closed with finite vertices).
         #[test]
         fn loops_stay_whole_whatever_the_input(
             r in 0.05f64..0.5,
@@ -731,8 +731,15 @@ mod tests {
                     [(r + o) * a.cos(), (r + o) * a.sin()]
                 })
                 .collect();
-            let mut curves = vec![Polyline { closed: true, points }];
-            between_samples(&mut curves, &field(&samples), tol, fit_tol, 0.1 * tol);
+            let field = field(&samples);
+            let mut curves = vec![Polyline { closed: true, points: points.clone() }];
+            crate::export::through::through_samples(&mut curves, &field, tol, fit_tol);
+            proptest::prop_assert_eq!(curves[0].points.len(), n);
+            for (p, q) in curves[0].points.iter().zip(&points) {
+                proptest::prop_assert!(p[0].is_finite() && p[1].is_finite());
+                proptest::prop_assert!(dist(*p, *q) < tol);
+            }
+            between_samples(&mut curves, &field, tol, fit_tol, 0.1 * tol);
             proptest::prop_assert!(curves[0].closed && curves[0].points.len() >= 3);
             for p in &curves[0].points {
                 proptest::prop_assert!(p[0].is_finite() && p[1].is_finite());

@@ -22,7 +22,7 @@ use nalgebra::{Matrix3, Vector3};
 use crate::distance::DistanceField;
 use crate::eval::SegmentIndex;
 use crate::geom::{
-    add, cross, dist, dot, mid, norm, point_segment_dist2, scale, sub, Point, Polyline, Sym2,
+    add, cross, dist, dot, mid, norm, polyline_dist, scale, sub, Point, Polyline, Sym2,
 };
 
 /// A turn between the ends' tangents beyond this (radians) leaves no way to tell a bend
@@ -464,11 +464,7 @@ impl<'a> Loop<'a> {
                     let mut whole = vec![p];
                     whole.extend_from_slice(path);
                     whole.push(knots[i + 2]);
-                    whole
-                        .windows(2)
-                        .map(|w| point_segment_dist2(q, w[0], w[1]).0)
-                        .fold(f64::INFINITY, f64::min)
-                        <= tol * tol
+                    polyline_dist(q, &whole) <= tol
                 });
                 if let Some(path) = through {
                     arc.extend(path);

@@ -418,48 +418,4 @@ mod tests {
             }
         }
     }
-
-    proptest::proptest! {
-        /// Samples round a circle, clean or not, and a loop wandering across them (or
-        /// any samples and any loop): every vertex stays finite, moves by less than
-        /// `tol`, and none is added or lost.
-        #[test]
-        fn moves_are_bounded_whatever_the_input(
-            r in 0.05f64..0.5,
-            angles in proptest::collection::vec(0.0f64..std::f64::consts::TAU, 5..80),
-            noise in proptest::collection::vec(-1e-3f64..1e-3, 80),
-            clean in proptest::bool::ANY,
-            offsets in proptest::collection::vec(-0.01f64..0.01, 3..200),
-            scattered in proptest::collection::vec([-1.0f64..1.0, -1.0f64..1.0], 0..20),
-            tol in 1e-3f64..0.05,
-            fit_tol in 1e-5f64..1e-2,
-        ) {
-            let mut samples: Vec<Point> = angles
-                .iter()
-                .zip(&noise)
-                .map(|(&a, &e)| {
-                    let r = r + if clean { 0.0 } else { e };
-                    [r * a.cos(), r * a.sin()]
-                })
-                .collect();
-            samples.extend(&scattered);
-            let n = offsets.len();
-            let points: Vec<Point> = offsets
-                .iter()
-                .enumerate()
-                .map(|(i, &o)| {
-                    let a = std::f64::consts::TAU * i as f64 / n as f64;
-                    [(r + o) * a.cos(), (r + o) * a.sin()]
-                })
-                .collect();
-            let field = DistanceField::new(&samples).unwrap();
-            let mut curves = vec![Polyline { closed: true, points: points.clone() }];
-            through_samples(&mut curves, &field, tol, fit_tol);
-            proptest::prop_assert_eq!(curves[0].points.len(), n);
-            for (p, q) in curves[0].points.iter().zip(&points) {
-                proptest::prop_assert!(p[0].is_finite() && p[1].is_finite());
-                proptest::prop_assert!(dist(*p, *q) < tol);
-            }
-        }
-    }
 }
