@@ -174,15 +174,17 @@ fn clean_walls_keep_their_bends_and_corners_across_sampling_gaps() {
 
 /// The simulator's drawing of five open strokes (a baseline with a stem and a hook
 /// standing on it, a wave crossing the stem, a free arc whose ends come within 0.065 of
-/// the baseline) at sigma = 0.002 and 0.005: one open polyline per stroke, split only
-/// where strokes meet (the baseline in three, the stem and the wave in two: 9 in all),
-/// no loop (at 0.005 the tube closes the arc onto the baseline, a loop through empty
-/// space that is left to the strokes), junctions of 4 (the crossing) and 3 (the two
-/// T's) where they meet, and every curve and every truth point within 3 sigma + 2 hmin.
+/// the baseline) at sigma = 0.002, 0.005 and 0.00707 (0.5% of the unit box's diagonal):
+/// one open polyline per stroke, split only where strokes meet (the baseline in three,
+/// the stem and the wave in two: 9 in all), no loop (at 0.005 the tube closes the arc
+/// onto the baseline, a loop through empty space that is left to the strokes), the
+/// arc's ends not joined to the baseline 9 sigma away at 0.00707, junctions of 4 (the
+/// crossing) and 3 (the two T's) where they meet, and every curve and every truth point
+/// within 3 sigma + 2 hmin.
 #[test]
 fn open_strokes_come_out_as_open_polylines_meeting_at_junctions() {
     let dir = tempfile::tempdir().unwrap();
-    for sigma in [0.002, 0.005] {
+    for sigma in [0.002, 0.005, 0.00707] {
         let (s, acc) = shape_run(dir.path(), "strokes", 2000, sigma, 7, 0.05);
         let record: Value = serde_json::from_str(
             std::fs::read_to_string(
