@@ -180,16 +180,28 @@ fn clean_walls_keep_their_bends_and_corners_across_sampling_gaps() {
 /// onto the baseline, a loop through empty space that is left to the strokes), the
 /// arc's ends not joined to the baseline 9 sigma away at 0.00707, junctions of 4 (the
 /// crossing) and 3 (the two T's) where they meet, and every curve and every truth point
-/// within 3 sigma + 2 hmin.
+/// within 3 sigma + 2 hmin. Clean too (seeds 3 and 10 had an arm of the crossing end
+/// short of it, seed 4 a T's foot), where every curve lies within 2 hmin of the truth;
+/// the truth's free ends lie up to 7e-3 (over four sample spacings, three times
+/// 2 hmin) beyond the last samples, which no curve of the samples reaches, so that way
+/// is not held to 2 hmin.
 #[test]
 fn open_strokes_come_out_as_open_polylines_meeting_at_junctions() {
     let dir = tempfile::tempdir().unwrap();
-    for sigma in [0.002, 0.005, 0.00707] {
-        let (s, acc) = shape_run(dir.path(), "strokes", 2000, sigma, 7, 0.05);
+    let runs = [
+        (0.0, 3),
+        (0.0, 4),
+        (0.0, 10),
+        (0.002, 7),
+        (0.005, 7),
+        (0.00707, 7),
+    ];
+    for (sigma, seed) in runs {
+        let (s, acc) = shape_run(dir.path(), "strokes", 2000, sigma, seed, 0.05);
         let record: Value = serde_json::from_str(
             std::fs::read_to_string(
                 dir.path()
-                    .join(format!("strokes2000-{sigma}-7.recon.ndjson")),
+                    .join(format!("strokes2000-{sigma}-{seed}.recon.ndjson")),
             )
             .unwrap()
             .lines()
@@ -198,8 +210,11 @@ fn open_strokes_come_out_as_open_polylines_meeting_at_junctions() {
         )
         .unwrap();
         let polylines = record["polylines"].as_array().unwrap();
-        assert_eq!(polylines.len(), 9, "{sigma}: {acc}");
-        assert!(polylines.iter().all(|p| p["closed"] == false), "{sigma}");
+        assert_eq!(polylines.len(), 9, "{sigma} {seed}: {acc}");
+        assert!(
+            polylines.iter().all(|p| p["closed"] == false),
+            "{sigma} {seed}"
+        );
         let mut degrees: Vec<usize> = record["junctions"]
             .as_array()
             .unwrap()
@@ -207,11 +222,21 @@ fn open_strokes_come_out_as_open_polylines_meeting_at_junctions() {
             .map(|j| j["polylines"].as_array().unwrap().len())
             .collect();
         degrees.sort_unstable();
-        assert_eq!(degrees, [3, 3, 4], "{sigma}: {}", record["junctions"]);
+        assert_eq!(
+            degrees,
+            [3, 3, 4],
+            "{sigma} {seed}: {}",
+            record["junctions"]
+        );
         let bound = 3.0 * sigma + 2.0 * s["hmin"].as_f64().unwrap();
-        for side in ["recon_to_truth", "truth_to_recon"] {
+        let sides: &[&str] = if sigma == 0.0 {
+            &["recon_to_truth"]
+        } else {
+            &["recon_to_truth", "truth_to_recon"]
+        };
+        for side in sides {
             let d = acc[side].as_f64().unwrap();
-            assert!(d <= bound, "{sigma}: {side} {d} > {bound}: {acc}");
+            assert!(d <= bound, "{sigma} {seed}: {side} {d} > {bound}: {acc}");
         }
     }
 }

@@ -287,7 +287,7 @@ fn thin(field: &DistanceField, r: f64) -> Vec<Option<Point>> {
             if buf.len() < 4 {
                 return None;
             }
-            let (c, cov) = principal(pts, buf);
+            let (c, cov) = principal(buf.iter().map(|&i| pts[i as usize]));
             let t = cov.eigen().2;
             let s = (p[0] - c[0]) * t[0] + (p[1] - c[1]) * t[1];
             Some([c[0] + s * t[0], c[1] + s * t[1]])
@@ -295,18 +295,15 @@ fn thin(field: &DistanceField, r: f64) -> Vec<Option<Point>> {
         .collect()
 }
 
-/// The centroid of `pts[idx]` and their covariance (unnormalized).
-fn principal(pts: &[Point], idx: &[u32]) -> (Point, Sym2) {
-    let n = idx.len() as f64;
-    let c = idx.iter().fold([0.0, 0.0], |s, &i| {
-        let q = pts[i as usize];
-        [s[0] + q[0] / n, s[1] + q[1] / n]
+/// The centroid of `pts` and their covariance (unnormalized).
+fn principal(pts: impl Iterator<Item = Point> + Clone) -> (Point, Sym2) {
+    let (n, sum) = pts.clone().fold((0.0, [0.0, 0.0]), |(n, s), q| {
+        (n + 1.0, [s[0] + q[0], s[1] + q[1]])
     });
-    let mut cov = Sym2::default();
-    for &i in idx {
-        let q = pts[i as usize];
-        cov = cov.plus(Sym2::outer([q[0] - c[0], q[1] - c[1]]));
-    }
+    let c = [sum[0] / n, sum[1] / n];
+    let cov = pts.fold(Sym2::default(), |cov, q| {
+        cov.plus(Sym2::outer([q[0] - c[0], q[1] - c[1]]))
+    });
     (c, cov)
 }
 
@@ -375,8 +372,7 @@ fn spanning_tree(
     // the nodes within `r` at both its ends (within 30 degrees). A leaf of the tree's
     // zigzag along a noisy sheet is an end too, and a stroke's end that points at a
     // sheet's side across empty space is not continued by it.
-    let mut line = Vec::new();
-    let along = |i: usize, j: usize, line: &mut Vec<u32>| {
+    let runs_on = |i: usize, j: usize| {
         let (a, b) = (nodes[i], nodes[j]);
         let d = dist(a, b);
         // Steps of a quarter of the reach; a join of over 64 reaches is never run on.
@@ -389,11 +385,19 @@ fn spanning_tree(
                     let q = [a[0] + (b[0] - a[0]) * f, a[1] + (b[1] - a[1]) * f];
                     samples.nearest(q).dist <= 0.5 * reach
                 }))
-            || [a, b].iter().all(|&e| {
-                tree.within(e, r, line);
-                let t = principal(&nodes, line).1.eigen().2;
-                ((b[0] - a[0]) * t[0] + (b[1] - a[1]) * t[1]).abs() >= ALONG_COS * d
-            })
+    };
+    let mut line = Vec::new();
+    let on_line = |i: usize, j: usize, line: &mut Vec<u32>| {
+        let (a, b) = (nodes[i], nodes[j]);
+        let d = dist(a, b);
+        [a, b].iter().all(|&e| {
+            tree.within(e, r, line);
+            let t = principal(line.iter().map(|&i| nodes[i as usize]))
+                .1
+                .eigen()
+                .2;
+            ((b[0] - a[0]) * t[0] + (b[1] - a[1]) * t[1]).abs() >= ALONG_COS * d
+        })
     };
     let mut pairs = Vec::new();
     for (i, &p) in nodes.iter().enumerate().filter(|&(i, _)| degree[i] <= 1) {
@@ -403,7 +407,28 @@ fn spanning_tree(
         pairs.extend(
             near.iter()
                 .map(|&j| j as usize)
-                .filter(|&j| j != i && degree[j] <= 1 && along(i, j, &mut line))
+                .filter(|&j| {
+                    j != i && degree[j] <= 1 && (runs_on(i, j) || on_line(i, j, &mut line))
+                })
+                .map(|j| (dist(p, nodes[j]), i, j)),
+        );
+    }
+    join(pairs, &mut edges);
+    // Then an end to another stroke's side where the samples run on between them: an
+    // arm of a crossing or the foot of a T whose moved samples the thinning pulled
+    // apart from the others' (the fits there see two arms).
+    let mut degree = vec![0u32; nodes.len()];
+    for &(a, b) in &edges {
+        degree[a] += 1;
+        degree[b] += 1;
+    }
+    let mut pairs = Vec::new();
+    for (i, &p) in nodes.iter().enumerate().filter(|&(i, _)| degree[i] <= 1) {
+        tree.within(p, 2.0 * r, &mut near);
+        pairs.extend(
+            near.iter()
+                .map(|&j| j as usize)
+                .filter(|&j| j != i && runs_on(i, j))
                 .map(|j| (dist(p, nodes[j]), i, j)),
         );
     }
@@ -572,10 +597,20 @@ fn chains(
         for (k, &e) in ends.iter().enumerate() {
             if fork(e) {
                 let at = centres[junction_of[e]];
-                if k == 0 {
-                    pl.points[0] = at;
-                } else {
-                    *pl.points.last_mut().unwrap() = at;
+                if k == 1 {
+                    pl.points.reverse();
+                }
+                pl.points[0] = at;
+                // The moved samples within `r` of the junction come from fits that saw
+                // two arms, and the smoothing carries them a quarter of `r` on: the
+                // chain runs straight from the junction to its first point beyond.
+                let n = pl.points.len();
+                let beyond = (1..n)
+                    .find(|&i| i + 1 == n || dist(pl.points[i], at) > 1.25 * r)
+                    .unwrap_or(n);
+                pl.points.drain(1..beyond.max(1));
+                if k == 1 {
+                    pl.points.reverse();
                 }
             }
         }
@@ -609,25 +644,36 @@ fn chains(
 /// and `3 r` from `at` (nearer, the thinning saw two arms) and straight there to `r / 4`;
 /// `None` when they are not, or cross more than `r` from `at`.
 fn crossing(at: Point, arms: &[&[Point]], r: f64) -> Option<Point> {
+    // At least the four nearest beyond `r`, where the arm has fewer within `3 r` (its
+    // chain's vertices may be as sparse as the samples).
     let part = |arm: &&[Point]| -> Vec<Point> {
-        arm.iter()
-            .copied()
-            .filter(|&p| (r..=3.0 * r).contains(&dist(p, at)))
-            .collect()
+        let mut beyond: Vec<(f64, Point)> = arm
+            .iter()
+            .map(|&p| (dist(p, at), p))
+            .filter(|&(d, _)| d >= r)
+            .collect();
+        beyond.sort_unstable_by(|a, b| a.0.total_cmp(&b.0));
+        let within = beyond.iter().take_while(|&&(d, _)| d <= 3.0 * r).count();
+        beyond.truncate(within.max(4));
+        beyond.into_iter().map(|(_, p)| p).collect()
     };
     let parts: Vec<Vec<Point>> = arms.iter().map(part).collect();
     if parts.len() < 3 || parts.iter().any(|p| p.len() < 2) {
         return None;
     }
+    // Each arm's own direction, away from `at`: not the direction from `at` to the arm,
+    // which tilts both arms of a line towards `at` when `at` (a sample near the forks'
+    // centre) lies off that line.
     let out: Vec<Point> = parts
         .iter()
         .map(|p| {
-            let m = p.len() as f64;
-            let c = p
-                .iter()
-                .fold([0.0, 0.0], |s, q| [s[0] + q[0] / m, s[1] + q[1] / m]);
-            let d = dist(c, at).max(f64::MIN_POSITIVE);
-            [(c[0] - at[0]) / d, (c[1] - at[1]) / d]
+            let (c, cov) = principal(p.iter().copied());
+            let t = cov.eigen().2;
+            if (c[0] - at[0]) * t[0] + (c[1] - at[1]) * t[1] < 0.0 {
+                [-t[0], -t[1]]
+            } else {
+                t
+            }
         })
         .collect();
     let mut through = None;
@@ -647,9 +693,61 @@ fn crossing(at: Point, arms: &[&[Point]], r: f64) -> Option<Point> {
         .filter(|&k| k != i && k != j)
         .flat_map(|k| parts[k].iter().copied())
         .collect();
-    let line_b = crate::export::corners::fit_line(&rest, band)?;
-    let p = crate::export::corners::intersect(line_a, line_b)?;
+    // A T's stem may bend (a hook standing on a line): its circle meets the line, where
+    // a line fitted to the bend and run on would miss the foot by the bend's sagitta.
+    let p = match (parts.len() == 3).then(|| arm_meets(line_a, &rest, band, at)) {
+        Some(Some(p)) => p,
+        _ => {
+            let line_b = crate::export::corners::fit_line(&rest, band)?;
+            crate::export::corners::intersect(line_a, line_b)?
+        }
+    };
     (dist(p, at) <= r).then_some(p)
+}
+
+/// Where the circle (or line) fitted to `arm` within `band` meets `line` (a point on it
+/// and its unit normal): of the two crossings, the one nearer `at`.
+fn arm_meets(line: (Point, Point), arm: &[Point], band: f64, at: Point) -> Option<Point> {
+    if arm.len() < 6 {
+        return None;
+    }
+    let (c, cov) = principal(arm.iter().copied());
+    let t = cov.eigen().2;
+    let frame = |p: Point| {
+        let d = [p[0] - c[0], p[1] - c[1]];
+        (d[0] * t[0] + d[1] * t[1], d[1] * t[0] - d[0] * t[1])
+    };
+    let mut local: Vec<(f64, f64)> = arm.iter().map(|&p| frame(p)).collect();
+    let (a, b, k, off) = super::through::implicit_circle(&mut local)?;
+    if off.is_nan() || off > band {
+        return None;
+    }
+    // The line in the arm's frame: q + s e.
+    let (q, n) = (frame(line.0), line.1);
+    let e = (n[1] * t[0] - n[0] * t[1], -(n[0] * t[0] + n[1] * t[1]));
+    // k |q + s e|² + b (q + s e).x - (q + s e).y + a = 0, with |e| = 1.
+    let qa = k;
+    let qb = 2.0 * k * (q.0 * e.0 + q.1 * e.1) + b * e.0 - e.1;
+    let qc = k * (q.0 * q.0 + q.1 * q.1) + b * q.0 - q.1 + a;
+    let roots = if qa.abs() < 1e-12 {
+        vec![-qc / qb]
+    } else {
+        let disc = qb * qb - 4.0 * qa * qc;
+        if disc < 0.0 {
+            return None;
+        }
+        let sq = disc.sqrt();
+        vec![(-qb - sq) / (2.0 * qa), (-qb + sq) / (2.0 * qa)]
+    };
+    let back = |s: f64| {
+        let (x, y) = (q.0 + s * e.0, q.1 + s * e.1);
+        [c[0] + x * t[0] - y * t[1], c[1] + x * t[1] + y * t[0]]
+    };
+    roots
+        .into_iter()
+        .filter(|s| s.is_finite())
+        .map(back)
+        .min_by(|p, q| dist(*p, at).total_cmp(&dist(*q, at)))
 }
 
 /// The chain `path` through `nodes` as a polyline, each inner point the mean of the
@@ -781,16 +879,38 @@ mod tests {
             };
             assert!(dist(j.at, expected) < 0.05, "{j:?}");
         }
-        // Clean samples on straight arms: away from the junctions (where the fits see
-        // two arms) the polylines lie on them.
+        // Clean samples on straight arms: the polylines lie on them, up to the
+        // junctions, where the arms' lines cross (the moved samples within `r` of a
+        // junction, whose fits saw two arms, are left out, with the quarter of `r`
+        // the smoothing carries them on).
+        for j in &junctions {
+            let expected = if j.polylines.len() == 3 { 1.0 } else { 5.0 };
+            assert!(dist(j.at, [expected, 0.0]) < 2e-4, "{j:?}");
+        }
         for l in &lines {
             for &p in &l.points {
-                if junctions.iter().all(|j| dist(j.at, p) > 0.1) {
-                    let off = p[1].abs().min((p[0] - 1.0).abs()).min((p[0] - 5.0).abs());
-                    assert!(off < 1e-9, "{p:?}");
-                }
+                let off = p[1].abs().min((p[0] - 1.0).abs()).min((p[0] - 5.0).abs());
+                assert!(off < 2e-4, "{p:?}");
             }
         }
+    }
+
+    /// A hook standing on a bar: a quarter circle of radius 0.2 whose foot meets the bar
+    /// at right angles at (1, 0), all sampled every 0.005, at `r = 0.025`. The junction
+    /// is where the hook's circle meets the bar, to `r / 25`; a line fitted to the hook
+    /// between `r` and `3 r` from the junction and run on to the bar misses it by 7.3e-3.
+    #[test]
+    fn a_bent_stem_meets_its_bar_where_its_circle_does() {
+        let mut pts = line([0.0, 0.0], [2.0, 0.0], 400);
+        pts.extend((1..=62).map(|i| {
+            let a = i as f64 * 0.005 / 0.2;
+            [1.2 - 0.2 * a.cos(), 0.2 * a.sin()]
+        }));
+        let (lines, junctions) = strokes(&pts, 0.025);
+        assert_eq!(lines.len(), 3, "{junctions:?}");
+        assert_eq!(junctions.len(), 1);
+        let off = dist(junctions[0].at, [1.0, 0.0]);
+        assert!(off < 1e-3, "{junctions:?}");
     }
 
     /// A cross of a level bar and an upright one, sampled every 0.01 but for the level
