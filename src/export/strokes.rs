@@ -79,6 +79,10 @@ pub fn with_strokes(
         return (closed, Vec::new());
     }
     let (closed, away) = without_bridges(closed, data, tol);
+    let (closed, away) = match away {
+        Some(away) => without_joined_strokes(closed, data, away, tol, sigma, hmin),
+        None => (closed, None),
+    };
     if closed.is_empty() {
         return find(nowhere());
     }
@@ -109,6 +113,11 @@ const BRIDGE: f64 = 20.0;
 /// at a closed curve's sampling gap stop where the gap starts. Three, so that a sample
 /// in the noise's tail is not one.
 const LEFT_BEHIND: usize = 3;
+/// The loop's samples within this many times the tolerance of the samples beside it
+/// are the ones [`without_joined_strokes`] thins.
+const JOINED_WINDOW: f64 = 8.0;
+/// The samples [`without_joined_strokes`] thins for a loop, at most.
+const JOINED_SAMPLES: usize = 8192;
 /// Gaps on either side a gap is compared with.
 const BRIDGE_CONTEXT: usize = 10;
 
@@ -230,6 +239,141 @@ fn without_bridges(
     (kept, away)
 }
 
+/// The loops of `closed` that are no strokes joined through empty space too narrow for
+/// [`without_bridges`]' test (an arc whose ends stop 9 σ short of a line: the space
+/// between the two bands of samples is narrower than twice the tolerance, so the loop
+/// has a sample within `tol` all along). A loop goes, its samples to the strokes, where
+/// the strokes of its own samples (those within `tol` of it, at the scale `r` of
+/// [`with_strokes`]) have two free ends, each with no other within `r`, past each of
+/// which [`LEFT_BEHIND`] samples off the loops lie within `r` and 30 degrees of the
+/// stroke's direction: the line runs on past both places where the loop left it. A
+/// closed curve's own samples make one stroke whose two ends face each other across a
+/// sampling gap, and nothing runs on past them. Only loops with [`LEFT_BEHIND`] samples
+/// off the loops within `2 tol` are tried, and only their samples within
+/// [`JOINED_WINDOW`] `tol` of those are thinned, at most [`JOINED_SAMPLES`] of them.
+/// `away`: each sample's distance to the loops; with the loops kept, and the distances
+/// when every loop stays.
+fn without_joined_strokes(
+    closed: Vec<Polyline>,
+    data: &[Point],
+    away: Vec<f64>,
+    tol: f64,
+    sigma: f64,
+    hmin: f64,
+) -> (Vec<Polyline>, Option<Vec<f64>>) {
+    let index = crate::eval::SegmentIndex::new(&closed);
+    // Each segment's loop, in the index's order.
+    let seg_loop: Vec<usize> = closed
+        .iter()
+        .enumerate()
+        .flat_map(|(k, pl)| {
+            let n = pl.segments().count();
+            std::iter::repeat_n(k, if n == 0 { pl.points.len() } else { n })
+        })
+        .collect();
+    // The loop nearest a sample (every sample's, with one loop).
+    let loop_of = |p: Point| match closed.len() {
+        1 => Some(0),
+        _ => index.nearest(p).map(|(_, seg, _)| seg_loop[seg]),
+    };
+    let mut off_near: Vec<Vec<Point>> = vec![Vec::new(); closed.len()];
+    let mut off = Vec::new();
+    for (&p, &d) in data.iter().zip(&away) {
+        if d > tol {
+            off.push(p);
+            if d <= 2.0 * tol {
+                if let Some(k) = loop_of(p) {
+                    off_near[k].push(p);
+                }
+            }
+        }
+    }
+    if off_near.iter().all(|n| n.len() < LEFT_BEHIND) {
+        return (closed, Some(away));
+    }
+    let Ok(off) = DistanceField::new(&off) else {
+        return (closed, Some(away));
+    };
+    // Only the loop's samples round those off it are thinned, and at most
+    // JOINED_SAMPLES of them (every k-th): the cost stays bounded on dense data, whose
+    // noise's tail leaves a few samples off every loop.
+    let tried: Vec<Point> = off_near
+        .iter()
+        .filter(|n| n.len() >= LEFT_BEHIND)
+        .flatten()
+        .copied()
+        .collect();
+    let Ok(beside) = DistanceField::new(&tried) else {
+        return (closed, Some(away));
+    };
+    let mut on: Vec<Vec<Point>> = vec![Vec::new(); closed.len()];
+    for (&p, &d) in data.iter().zip(&away) {
+        if d <= tol && beside.nearest(p).dist <= JOINED_WINDOW * tol {
+            if let Some(k) = loop_of(p) {
+                on[k].push(p);
+            }
+        }
+    }
+    let mut near = Vec::new();
+    let before = closed.len();
+    let kept: Vec<Polyline> = closed
+        .into_iter()
+        .zip(on.iter().zip(&off_near))
+        .filter(|(_, (on, off_near))| {
+            if off_near.len() < LEFT_BEHIND {
+                return true;
+            }
+            let stride = on.len().div_ceil(JOINED_SAMPLES).max(1);
+            let on: Vec<Point> = on.iter().copied().step_by(stride).collect();
+            let Ok(field) = DistanceField::new(&on) else {
+                return true;
+            };
+            let delta = crate::levelset::init::tube_radius(&field, 2.0 * hmin);
+            let r = (2.0 * delta).max(6.0 * sigma);
+            let (lines, junctions) = strokes(&on, r);
+            // Each free end with its outward direction, from the line's point `r` back.
+            let ends: Vec<(Point, Point)> = lines
+                .iter()
+                .flat_map(|l| [l.points.clone(), l.points.iter().rev().copied().collect()])
+                .filter_map(|pts: Vec<Point>| {
+                    let e = *pts.first()?;
+                    if junctions.iter().any(|j| dist(j.at, e) == 0.0) {
+                        return None;
+                    }
+                    let back = pts.iter().find(|&&q| dist(q, e) >= r).copied()?;
+                    let d = dist(e, back);
+                    Some((e, [(e[0] - back[0]) / d, (e[1] - back[1]) / d]))
+                })
+                .collect();
+            let runs_on = ends
+                .iter()
+                .enumerate()
+                .filter(|&(i, &(e, t))| {
+                    let alone = ends
+                        .iter()
+                        .enumerate()
+                        .all(|(j, &(f, _))| j == i || dist(e, f) > r);
+                    // Ahead of the end, within 30 degrees of its direction: the sheet runs
+                    // on, not a wall beside it.
+                    alone && {
+                        off.within(e, r, &mut near);
+                        let pts = off.points();
+                        let ahead = near.iter().filter(|&&q| {
+                            let w = [pts[q as usize][0] - e[0], pts[q as usize][1] - e[1]];
+                            w[0] * t[0] + w[1] * t[1] >= ALONG_COS * w[0].hypot(w[1])
+                        });
+                        ahead.count() >= LEFT_BEHIND
+                    }
+                })
+                .count();
+            runs_on < 2
+        })
+        .map(|(pl, _)| pl)
+        .collect();
+    let away = (kept.len() == before).then_some(away);
+    (kept, away)
+}
+
 /// The point of the closed polyline `pl` at arc length `s` from its first vertex.
 fn point_at(pl: &Polyline, mut s: f64) -> Point {
     for (a, b) in pl.segments() {
@@ -333,10 +477,12 @@ fn spanning_tree(
         i
     }
     let mut edges = Vec::new();
-    let mut join = |mut pairs: Vec<(f64, usize, usize)>, edges: &mut Vec<(usize, usize)>| {
+    let join = |mut pairs: Vec<(f64, usize, usize)>,
+                parent: &mut [usize],
+                edges: &mut Vec<(usize, usize)>| {
         pairs.sort_unstable_by(|a, b| a.0.total_cmp(&b.0));
         for (_, i, j) in pairs {
-            let (a, b) = (find(&mut parent, i), find(&mut parent, j));
+            let (a, b) = (find(parent, i), find(parent, j));
             if a != b {
                 parent[a] = b;
                 edges.push((i, j));
@@ -354,7 +500,7 @@ fn spanning_tree(
                 .map(|j| (dist(p, nodes[j]), i, j)),
         );
     }
-    join(pairs, &mut edges);
+    join(pairs, &mut parent, &mut edges);
     let mut degree = vec![0u32; nodes.len()];
     for &(a, b) in &edges {
         degree[a] += 1;
@@ -399,6 +545,12 @@ fn spanning_tree(
             ((b[0] - a[0]) * t[0] + (b[1] - a[1]) * t[1]).abs() >= ALONG_COS * d
         })
     };
+    // Pairs within one component never join: they are left out before the tests
+    // (the leaves of a dense noisy sheet's tree are many and close together).
+    let components = |parent: &mut [usize]| -> Vec<usize> {
+        (0..parent.len()).map(|i| find(parent, i)).collect()
+    };
+    let comp = components(&mut parent);
     let mut pairs = Vec::new();
     for (i, &p) in nodes.iter().enumerate().filter(|&(i, _)| degree[i] <= 1) {
         tree.within(p, 2.0 * r, &mut near);
@@ -408,12 +560,14 @@ fn spanning_tree(
             near.iter()
                 .map(|&j| j as usize)
                 .filter(|&j| {
-                    j != i && degree[j] <= 1 && (runs_on(i, j) || on_line(i, j, &mut line))
+                    comp[i] != comp[j]
+                        && degree[j] <= 1
+                        && (runs_on(i, j) || on_line(i, j, &mut line))
                 })
                 .map(|j| (dist(p, nodes[j]), i, j)),
         );
     }
-    join(pairs, &mut edges);
+    join(pairs, &mut parent, &mut edges);
     // Then an end to another stroke's side where the samples run on between them: an
     // arm of a crossing or the foot of a T whose moved samples the thinning pulled
     // apart from the others' (the fits there see two arms).
@@ -422,17 +576,18 @@ fn spanning_tree(
         degree[a] += 1;
         degree[b] += 1;
     }
+    let comp = components(&mut parent);
     let mut pairs = Vec::new();
     for (i, &p) in nodes.iter().enumerate().filter(|&(i, _)| degree[i] <= 1) {
         tree.within(p, 2.0 * r, &mut near);
         pairs.extend(
             near.iter()
                 .map(|&j| j as usize)
-                .filter(|&j| j != i && runs_on(i, j))
+                .filter(|&j| comp[i] != comp[j] && runs_on(i, j))
                 .map(|j| (dist(p, nodes[j]), i, j)),
         );
     }
-    join(pairs, &mut edges);
+    join(pairs, &mut parent, &mut edges);
     (nodes, edges)
 }
 
@@ -846,6 +1001,75 @@ mod tests {
             .map(|a| [0.3 * a.cos(), 0.3 * a.sin()])
             .collect();
         assert_eq!(without_bridges(vec![circle], &data, 0.001).0.len(), 1);
+    }
+
+    /// The strokes drawing's bowl at sigma 0.007: a noisy line, and below it a noisy
+    /// half circle whose ends stop 0.0635 (9 sigma) short of it, and the loop the tube
+    /// makes of them: along the line between the arc's ends, down to them and round the
+    /// arc. The gap between the two bands of samples is narrower than twice the
+    /// tolerance, so the bridge test keeps the loop; the line's samples run on past
+    /// both places where the loop leaves it, and the loop goes. A noisy circle and its
+    /// loop stay, with outliers scattered round it.
+    #[test]
+    fn a_loop_between_strokes_too_close_for_the_bridge_test_goes() {
+        use rand::{Rng, SeedableRng};
+        use rand_distr::{Distribution, Normal};
+        let (sigma, hmin) = (0.007, 0.007);
+        let tol = 3.0 * sigma + 2.0 * hmin;
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(2);
+        let noise = Normal::new(0.0, sigma).unwrap();
+        let mut jitter = |p: Point| [p[0] + noise.sample(&mut rng), p[1] + noise.sample(&mut rng)];
+        let arc = |a: f64| [0.25 * a.cos(), -0.0635 + 0.25 * a.sin()];
+        let steps: Vec<f64> = (0..=400).map(|i| i as f64 / 400.0).collect();
+        let mut data: Vec<Point> = steps
+            .iter()
+            .map(|f| jitter([-0.45 + 0.9 * f, 0.0]))
+            .collect();
+        data.extend(
+            steps
+                .iter()
+                .map(|f| jitter(arc(std::f64::consts::PI * (1.0 + f)))),
+        );
+        let mut ring: Vec<Point> = (0..=50).map(|i| [0.25 - 0.01 * i as f64, 0.0]).collect();
+        ring.extend((0..=100).map(|i| arc(std::f64::consts::PI * (1.0 + i as f64 / 100.0))));
+        let bowl = Polyline {
+            closed: true,
+            points: ring,
+        };
+        let away = |loops: &[Polyline], data: &[Point]| -> Vec<f64> {
+            let index = crate::eval::SegmentIndex::new(loops);
+            data.iter().map(|&p| index.distance(p)).collect()
+        };
+        let (kept, _) = without_bridges(vec![bowl.clone()], &data, tol);
+        assert_eq!(kept.len(), 1, "the bridge test alone keeps the bowl");
+        let a = away(std::slice::from_ref(&bowl), &data);
+        let (kept, _) = without_joined_strokes(vec![bowl], &data, a, tol, sigma, hmin);
+        assert!(kept.is_empty());
+
+        let angles: Vec<f64> = (0..800)
+            .map(|_| rng.random_range(0.0..std::f64::consts::TAU))
+            .collect();
+        let mut data: Vec<Point> = angles
+            .iter()
+            .map(|a| [0.3 * a.cos(), 0.3 * a.sin()])
+            .collect();
+        let noise = Normal::new(0.0, sigma).unwrap();
+        for p in &mut data {
+            *p = [p[0] + noise.sample(&mut rng), p[1] + noise.sample(&mut rng)];
+        }
+        data.extend((0..40).map(|_| [rng.random_range(-0.5..0.5), rng.random_range(-0.5..0.5)]));
+        let circle = Polyline {
+            closed: true,
+            points: (0..300)
+                .map(|i| {
+                    let a = std::f64::consts::TAU * i as f64 / 300.0;
+                    [0.3 * a.cos(), 0.3 * a.sin()]
+                })
+                .collect(),
+        };
+        let a = away(std::slice::from_ref(&circle), &data);
+        let (kept, _) = without_joined_strokes(vec![circle], &data, a, tol, sigma, hmin);
+        assert_eq!(kept.len(), 1);
     }
 
     fn line(a: Point, b: Point, n: usize) -> Vec<Point> {
