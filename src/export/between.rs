@@ -41,7 +41,7 @@ const MAX_SLOPE: f64 = 2.0;
 
 /// A run of samples' curve.
 #[derive(Clone, Copy, Debug, PartialEq)]
-enum Curve {
+pub(super) enum Curve {
     /// The line through `at` along the unit vector `dir`.
     Line { at: Point, dir: Point },
     /// The circle about `centre` of radius `r`.
@@ -51,7 +51,7 @@ enum Curve {
 impl Curve {
     /// The circle (or line) through `run` (in order along it), if they lie on it to
     /// within `fit_tol`.
-    fn through(run: &[Point], fit_tol: f64) -> Option<Curve> {
+    pub(super) fn through(run: &[Point], fit_tol: f64) -> Option<Curve> {
         let (o, last) = (run[0], run[run.len() - 1]);
         let span = dist(o, last);
         if span <= 0.0 {
@@ -90,6 +90,35 @@ impl Curve {
     ) -> Option<Curve> {
         let points: Vec<Point> = run.map(s).collect();
         Curve::through(&points, fit_tol)
+    }
+
+    /// Where the curve crosses the line through `p` with unit normal `n`: none, one or
+    /// two points.
+    pub(super) fn meets_line(&self, p: Point, n: Point) -> Vec<Point> {
+        let e = [-n[1], n[0]];
+        match *self {
+            Curve::Line { at, dir } => {
+                let along = dot(n, dir);
+                if along.abs() < 1e-12 {
+                    return Vec::new();
+                }
+                vec![add(at, scale(dir, dot(n, sub(p, at)) / along))]
+            }
+            Curve::Circle { centre, r } => {
+                // |p + s e - centre|² = r², with |e| = 1.
+                let w = sub(p, centre);
+                let half_b = dot(e, w);
+                let disc = half_b * half_b - (dot(w, w) - r * r);
+                if disc < 0.0 {
+                    return Vec::new();
+                }
+                let sq = disc.sqrt();
+                vec![
+                    add(p, scale(e, -half_b - sq)),
+                    add(p, scale(e, -half_b + sq)),
+                ]
+            }
+        }
     }
 
     /// The distance from `p` to the curve.
@@ -361,6 +390,26 @@ fn apart(a: &[Point], b: &[Point]) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_curve_meets_a_line_where_they_cross() {
+        let circle = Curve::Circle {
+            centre: [1.0, 2.0],
+            r: 1.0,
+        };
+        let mut xs: Vec<Point> = circle.meets_line([5.0, 2.5], [0.0, 1.0]);
+        xs.sort_by(|a, b| a[0].total_cmp(&b[0]));
+        let h = 0.75f64.sqrt();
+        assert!(dist(xs[0], [1.0 - h, 2.5]) < 1e-12 && dist(xs[1], [1.0 + h, 2.5]) < 1e-12);
+        assert!(circle.meets_line([0.0, 3.5], [0.0, 1.0]).is_empty());
+        let line = Curve::Line {
+            at: [0.0, 0.0],
+            dir: [0.6, 0.8],
+        };
+        let x = line.meets_line([0.0, 4.0], [0.0, 1.0]);
+        assert!(x.len() == 1 && dist(x[0], [3.0, 4.0]) < 1e-12, "{x:?}");
+        assert!(line.meets_line([1.0, 0.0], [0.8, -0.6]).is_empty());
+    }
 
     fn field(samples: &[Point]) -> DistanceField {
         DistanceField::new(samples).unwrap()

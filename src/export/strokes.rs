@@ -860,48 +860,17 @@ fn crossing(at: Point, arms: &[&[Point]], r: f64) -> Option<Point> {
     (dist(p, at) <= r).then_some(p)
 }
 
-/// Where the circle (or line) fitted to `arm` within `band` meets `line` (a point on it
-/// and its unit normal): of the two crossings, the one nearer `at`.
+/// Where the circle (or line) fitted to `arm` (its points in order along it) within
+/// `band` meets `line` (a point on it and its unit normal): of the two crossings, the
+/// one nearer `at`.
 fn arm_meets(line: (Point, Point), arm: &[Point], band: f64, at: Point) -> Option<Point> {
     if arm.len() < 6 {
         return None;
     }
-    let (c, cov) = principal(arm.iter().copied());
-    let t = cov.eigen().2;
-    let frame = |p: Point| {
-        let d = [p[0] - c[0], p[1] - c[1]];
-        (d[0] * t[0] + d[1] * t[1], d[1] * t[0] - d[0] * t[1])
-    };
-    let mut local: Vec<(f64, f64)> = arm.iter().map(|&p| frame(p)).collect();
-    let (a, b, k, off) = super::through::implicit_circle(&mut local)?;
-    if off.is_nan() || off > band {
-        return None;
-    }
-    // The line in the arm's frame: q + s e.
-    let (q, n) = (frame(line.0), line.1);
-    let e = (n[1] * t[0] - n[0] * t[1], -(n[0] * t[0] + n[1] * t[1]));
-    // k |q + s e|² + b (q + s e).x - (q + s e).y + a = 0, with |e| = 1.
-    let qa = k;
-    let qb = 2.0 * k * (q.0 * e.0 + q.1 * e.1) + b * e.0 - e.1;
-    let qc = k * (q.0 * q.0 + q.1 * q.1) + b * q.0 - q.1 + a;
-    let roots = if qa.abs() < 1e-12 {
-        vec![-qc / qb]
-    } else {
-        let disc = qb * qb - 4.0 * qa * qc;
-        if disc < 0.0 {
-            return None;
-        }
-        let sq = disc.sqrt();
-        vec![(-qb - sq) / (2.0 * qa), (-qb + sq) / (2.0 * qa)]
-    };
-    let back = |s: f64| {
-        let (x, y) = (q.0 + s * e.0, q.1 + s * e.1);
-        [c[0] + x * t[0] - y * t[1], c[1] + x * t[1] + y * t[0]]
-    };
-    roots
+    super::between::Curve::through(arm, band)?
+        .meets_line(line.0, line.1)
         .into_iter()
-        .filter(|s| s.is_finite())
-        .map(back)
+        .filter(|p| p.iter().all(|v| v.is_finite()))
         .min_by(|p, q| dist(*p, at).total_cmp(&dist(*q, at)))
 }
 
