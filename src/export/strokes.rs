@@ -469,13 +469,6 @@ fn spanning_tree(
     // The tree merges equal points and orders them: work on its points.
     let nodes = tree.points().to_vec();
     let mut parent: Vec<usize> = (0..nodes.len()).collect();
-    fn find(parent: &mut [usize], mut i: usize) -> usize {
-        while parent[i] != i {
-            parent[i] = parent[parent[i]];
-            i = parent[i];
-        }
-        i
-    }
     let mut edges = Vec::new();
     let join = |mut pairs: Vec<(f64, usize, usize)>,
                 parent: &mut [usize],
@@ -501,11 +494,6 @@ fn spanning_tree(
         );
     }
     join(pairs, &mut parent, &mut edges);
-    let mut degree = vec![0u32; nodes.len()];
-    for &(a, b) in &edges {
-        degree[a] += 1;
-        degree[b] += 1;
-    }
     // A gap along a stroke is one of its sampling, which the noise does not widen: the
     // reach is twice the thinned samples' tube radius (four times their 95th
     // percentile neighbour distance, over ten times a random sampling's mean gap), and
@@ -545,50 +533,66 @@ fn spanning_tree(
             ((b[0] - a[0]) * t[0] + (b[1] - a[1]) * t[1]).abs() >= ALONG_COS * d
         })
     };
-    // Pairs within one component never join: they are left out before the tests
-    // (the leaves of a dense noisy sheet's tree are many and close together).
-    let components = |parent: &mut [usize]| -> Vec<usize> {
-        (0..parent.len()).map(|i| find(parent, i)).collect()
-    };
-    let comp = components(&mut parent);
-    let mut pairs = Vec::new();
-    for (i, &p) in nodes.iter().enumerate().filter(|&(i, _)| degree[i] <= 1) {
-        tree.within(p, 2.0 * r, &mut near);
-        // End to end: a stroke that stops more than `r` short of another's side does
-        // not touch it.
-        pairs.extend(
-            near.iter()
-                .map(|&j| j as usize)
-                .filter(|&j| {
-                    comp[i] != comp[j]
-                        && degree[j] <= 1
-                        && (runs_on(i, j) || on_line(i, j, &mut line))
-                })
-                .map(|j| (dist(p, nodes[j]), i, j)),
-        );
-    }
+    // End to end: a stroke that stops more than `r` short of another's side does not
+    // touch it.
+    let pairs = end_pairs(
+        &nodes,
+        &tree,
+        &edges,
+        &mut parent,
+        2.0 * r,
+        |i, j, degree| degree[j] <= 1 && (runs_on(i, j) || on_line(i, j, &mut line)),
+    );
     join(pairs, &mut parent, &mut edges);
     // Then an end to another stroke's side where the samples run on between them: an
     // arm of a crossing or the foot of a T whose moved samples the thinning pulled
     // apart from the others' (the fits there see two arms).
+    let pairs = end_pairs(&nodes, &tree, &edges, &mut parent, 2.0 * r, |i, j, _| {
+        runs_on(i, j)
+    });
+    join(pairs, &mut parent, &mut edges);
+    (nodes, edges)
+}
+
+/// The pairs (distance, end, node) of an end of the tree `edges` (a node of degree at
+/// most 1) and a node within `reach` of it in another component (`parent`: the
+/// union-find of the components) that `accept` takes, given the nodes' degrees. Pairs
+/// within one component never join: they are left out before `accept` (the leaves of a
+/// dense noisy sheet's tree are many and close together).
+fn end_pairs(
+    nodes: &[Point],
+    tree: &DistanceField,
+    edges: &[(usize, usize)],
+    parent: &mut [usize],
+    reach: f64,
+    mut accept: impl FnMut(usize, usize, &[u32]) -> bool,
+) -> Vec<(f64, usize, usize)> {
     let mut degree = vec![0u32; nodes.len()];
-    for &(a, b) in &edges {
+    for &(a, b) in edges {
         degree[a] += 1;
         degree[b] += 1;
     }
-    let comp = components(&mut parent);
+    let comp: Vec<usize> = (0..parent.len()).map(|i| find(parent, i)).collect();
+    let mut near = Vec::new();
     let mut pairs = Vec::new();
     for (i, &p) in nodes.iter().enumerate().filter(|&(i, _)| degree[i] <= 1) {
-        tree.within(p, 2.0 * r, &mut near);
-        pairs.extend(
-            near.iter()
-                .map(|&j| j as usize)
-                .filter(|&j| comp[i] != comp[j] && runs_on(i, j))
-                .map(|j| (dist(p, nodes[j]), i, j)),
-        );
+        tree.within(p, reach, &mut near);
+        for j in near.iter().map(|&j| j as usize) {
+            if comp[i] != comp[j] && accept(i, j, &degree) {
+                pairs.push((dist(p, nodes[j]), i, j));
+            }
+        }
     }
-    join(pairs, &mut parent, &mut edges);
-    (nodes, edges)
+    pairs
+}
+
+/// The root of `i`'s set in the union-find `parent`, halving the path on the way.
+fn find(parent: &mut [usize], mut i: usize) -> usize {
+    while parent[i] != i {
+        parent[i] = parent[parent[i]];
+        i = parent[i];
+    }
+    i
 }
 
 /// The chain of the tree from `from` through its neighbour `first`, on through nodes of
