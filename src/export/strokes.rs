@@ -13,7 +13,7 @@
 //! forks closer than `2 r` are one junction (a crossing forks twice).
 
 use crate::distance::DistanceField;
-use crate::geom::{dist, Point, Polyline, Sym2};
+use crate::geom::{cross, dist, dot, scale, sub, Point, Polyline, Sym2};
 
 /// Samples a line is fitted to, at most (the nearest within `r`).
 const FIT: usize = 64;
@@ -78,18 +78,28 @@ pub fn with_strokes(
         }
         return (closed, Vec::new());
     }
-    let (closed, away) = without_bridges(closed, data, tol);
-    let (closed, away) = match away {
-        Some(away) => without_joined_strokes(closed, data, away, tol, sigma, hmin),
-        None => (closed, None),
+    let distances = |closed: &[Polyline]| -> Vec<f64> {
+        let index = crate::eval::SegmentIndex::new(closed);
+        data.iter().map(|&p| index.distance(p)).collect()
     };
+    // Again after a loop goes: the samples it held are off the loops now, and may show
+    // a line running on past another loop (a T's foot wrapped by a small loop, beside
+    // the baseline that a loop through empty space held).
+    let mut closed = closed;
+    let mut away = None;
+    for _ in 0..PRUNE_ROUNDS {
+        let before = closed.len();
+        let (kept, held) = without_bridges(closed, data, tol);
+        let held = held.unwrap_or_else(|| distances(&kept));
+        (closed, away) = without_joined_strokes(kept, data, held, tol, sigma, hmin);
+        if closed.len() == before || closed.is_empty() {
+            break;
+        }
+    }
     if closed.is_empty() {
         return find(nowhere());
     }
-    let away = away.unwrap_or_else(|| {
-        let index = crate::eval::SegmentIndex::new(&closed);
-        data.iter().map(|&p| index.distance(p)).collect()
-    });
+    let away = away.unwrap_or_else(|| distances(&closed));
     let (lines, mut junctions) = find(away);
     let offset = closed.len();
     for j in &mut junctions {
@@ -118,6 +128,9 @@ const LEFT_BEHIND: usize = 3;
 const JOINED_WINDOW: f64 = 8.0;
 /// The samples [`without_joined_strokes`] thins for a loop, at most.
 const JOINED_SAMPLES: usize = 8192;
+/// Rounds of the loop tests, at most: each after one that dropped a loop. Bounded, so
+/// that the cost stays linear in the samples whatever the number of loops.
+const PRUNE_ROUNDS: usize = 4;
 /// Gaps on either side a gap is compared with.
 const BRIDGE_CONTEXT: usize = 10;
 
@@ -245,8 +258,9 @@ fn without_bridges(
 /// has a sample within `tol` all along). A loop goes, its samples to the strokes, where
 /// the strokes of its own samples (those within `tol` of it, at the scale `r` of
 /// [`with_strokes`]) have two free ends, each with no other within `r`, past each of
-/// which [`LEFT_BEHIND`] samples off the loops lie within `r` and 30 degrees of the
-/// stroke's direction: the line runs on past both places where the loop left it. A
+/// which [`LEFT_BEHIND`] samples off the loops lie ahead on its line (within `tol` of
+/// the line, `r + tol` of the end): the line runs on past both places where the loop
+/// left it. A
 /// closed curve's own samples make one stroke whose two ends face each other across a
 /// sampling gap, and nothing runs on past them. Only loops with [`LEFT_BEHIND`] samples
 /// off the loops within `2 tol` are tried, and only their samples within
@@ -331,8 +345,11 @@ fn without_joined_strokes(
             let delta = crate::levelset::init::tube_radius(&field, 2.0 * hmin);
             let r = (2.0 * delta).max(6.0 * sigma);
             let (lines, junctions) = strokes(&on, r);
-            // Each free end with its outward direction, from the line's point `r` back.
-            let ends: Vec<(Point, Point)> = lines
+            // Each free end with its line: the principal line of the stroke's points
+            // `r` to `3 r` back (nearer ones may curl into the loop's turn, by 24
+            // degrees at sigma 0.005), or within `3 r` where fewer lie there,
+            // oriented outwards.
+            let ends: Vec<(Point, Point, Point)> = lines
                 .iter()
                 .flat_map(|l| [l.points.clone(), l.points.iter().rev().copied().collect()])
                 .filter_map(|pts: Vec<Point>| {
@@ -340,27 +357,46 @@ fn without_joined_strokes(
                     if junctions.iter().any(|j| dist(j.at, e) == 0.0) {
                         return None;
                     }
-                    let back = pts.iter().find(|&&q| dist(q, e) >= r).copied()?;
-                    let d = dist(e, back);
-                    Some((e, [(e[0] - back[0]) / d, (e[1] - back[1]) / d]))
+                    let within: Vec<Point> = pts
+                        .iter()
+                        .copied()
+                        .take_while(|&q| dist(q, e) <= 3.0 * r)
+                        .collect();
+                    let beyond = within.iter().filter(|&&q| dist(q, e) >= r);
+                    let (c, cov) = if beyond.clone().count() >= 2 {
+                        principal(beyond.copied())
+                    } else if within.len() >= 2 {
+                        // A short chain, straight from a junction.
+                        principal(within.iter().copied())
+                    } else {
+                        return None;
+                    };
+                    let t = cov.eigen().2;
+                    let out = if dot(sub(e, c), t) < 0.0 {
+                        scale(t, -1.0)
+                    } else {
+                        t
+                    };
+                    Some((e, c, out))
                 })
                 .collect();
             let runs_on = ends
                 .iter()
                 .enumerate()
-                .filter(|&(i, &(e, t))| {
+                .filter(|&(i, &(e, c, t))| {
                     let alone = ends
                         .iter()
                         .enumerate()
-                        .all(|(j, &(f, _))| j == i || dist(e, f) > r);
-                    // Ahead of the end, within 30 degrees of its direction: the sheet runs
-                    // on, not a wall beside it.
+                        .all(|(j, &(f, _, _))| j == i || dist(e, f) > r);
+                    // Ahead of the end on its line, within the noise's band: the sheet
+                    // runs on, not a wall beside it. Off the loop means `tol` from it,
+                    // so the band reaches that much further than `r`.
                     alone && {
-                        off.within(e, r, &mut near);
+                        off.within(e, r + tol, &mut near);
                         let pts = off.points();
                         let ahead = near.iter().filter(|&&q| {
-                            let w = [pts[q as usize][0] - e[0], pts[q as usize][1] - e[1]];
-                            w[0] * t[0] + w[1] * t[1] >= ALONG_COS * w[0].hypot(w[1])
+                            let q = pts[q as usize];
+                            dot(sub(q, e), t) > 0.0 && cross(t, sub(q, c)).abs() <= tol
                         });
                         ahead.count() >= LEFT_BEHIND
                     }
@@ -455,8 +491,10 @@ fn principal(pts: impl Iterator<Item = Point> + Clone) -> (Point, Sym2) {
 /// [`LINKS`] nearest within `r`, then over the pairs of the ends that left across a gap
 /// along a stroke (the nearest of a sample at its edge all lie on its own side): within
 /// the moved samples' reach, or up to `2 r` where the `samples` run on across it or it
-/// runs along the line at both its ends. The nodes and the tree's edges as index pairs
-/// into them.
+/// runs along the line at both its ends; then over the pairs of an end and another
+/// stroke's side where the samples run on between them, or, within twice the reach,
+/// where the join runs along the end's line. The nodes and the tree's edges as index
+/// pairs into them.
 fn spanning_tree(
     moved: &[Option<Point>],
     samples: &DistanceField,
@@ -520,18 +558,23 @@ fn spanning_tree(
                     samples.nearest(q).dist <= 0.5 * reach
                 }))
     };
+    // The line of the nodes within `r` of an end; within `2 r` where fewer than three
+    // lie within `r` (a lone sample between two sampling gaps).
     let mut line = Vec::new();
-    let on_line = |i: usize, j: usize, line: &mut Vec<u32>| {
-        let (a, b) = (nodes[i], nodes[j]);
-        let d = dist(a, b);
-        [a, b].iter().all(|&e| {
-            tree.within(e, r, line);
-            let t = principal(line.iter().map(|&i| nodes[i as usize]))
+    let mut line_at = |e: Point| {
+        tree.within(e, r, &mut line);
+        if line.len() < 3 {
+            tree.within(e, 2.0 * r, &mut line);
+        }
+        (line.len() >= 2).then(|| {
+            principal(line.iter().map(|&i| nodes[i as usize]))
                 .1
                 .eigen()
-                .2;
-            ((b[0] - a[0]) * t[0] + (b[1] - a[1]) * t[1]).abs() >= ALONG_COS * d
+                .2
         })
+    };
+    let mut along = |e: Point, a: Point, b: Point| {
+        line_at(e).is_some_and(|t| dot(sub(b, a), t).abs() >= ALONG_COS * dist(a, b))
     };
     // End to end: a stroke that stops more than `r` short of another's side does not
     // touch it.
@@ -541,14 +584,21 @@ fn spanning_tree(
         &edges,
         &mut parent,
         2.0 * r,
-        |i, j, degree| degree[j] <= 1 && (runs_on(i, j) || on_line(i, j, &mut line)),
+        |i, j, degree| {
+            let (a, b) = (nodes[i], nodes[j]);
+            degree[j] <= 1 && (runs_on(i, j) || (along(a, a, b) && along(b, a, b)))
+        },
     );
     join(pairs, &mut parent, &mut edges);
     // Then an end to another stroke's side where the samples run on between them: an
     // arm of a crossing or the foot of a T whose moved samples the thinning pulled
-    // apart from the others' (the fits there see two arms).
+    // apart from the others' (the fits there see two arms). Or where the end's own line
+    // runs on to the side across a gap the sampling leaves (up to twice the reach): a
+    // T's foot, whose last samples the thinning moved onto the bar. Not across a gap
+    // the noise sets: an arc's end that points at a line 9 sigma away stays free.
     let pairs = end_pairs(&nodes, &tree, &edges, &mut parent, 2.0 * r, |i, j, _| {
-        runs_on(i, j)
+        let (a, b) = (nodes[i], nodes[j]);
+        runs_on(i, j) || (dist(a, b) <= 2.0 * reach && along(a, a, b))
     });
     join(pairs, &mut parent, &mut edges);
     (nodes, edges)
@@ -1174,6 +1224,41 @@ mod tests {
         let (lines, junctions) = strokes(&pts, 6.0 * 0.004);
         assert_eq!(lines.len(), 1, "{junctions:?}");
         assert!(junctions.is_empty());
+    }
+
+    /// A slanted bar sampled every 0.01 but for one lone sample between two gaps of
+    /// 0.06 (past the moved samples' reach, short of `2 r`): one polyline. No other
+    /// sample lies within `r` of the lone one, so its line is that of the samples
+    /// within `2 r`; with its own alone (no direction) both joins were refused.
+    #[test]
+    fn a_lone_sample_between_two_gaps_joins_both_sides() {
+        let (a, b) = ([0.0, 0.0], [0.6, 0.8]);
+        let pts: Vec<Point> = line(a, b, 100)
+            .into_iter()
+            .enumerate()
+            .filter(|&(i, _)| !(41..=45).contains(&i) && !(47..=51).contains(&i))
+            .map(|(_, p)| p)
+            .collect();
+        let (lines, junctions) = strokes(&pts, 0.05);
+        assert_eq!(lines.len(), 1, "{lines:?}");
+        assert!(junctions.is_empty());
+        let ends = [lines[0].points[0], *lines[0].points.last().unwrap()];
+        assert!(ends.iter().any(|&e| dist(e, a) < 1e-9) && ends.iter().any(|&e| dist(e, b) < 1e-9));
+    }
+
+    /// A bar and a stem sampled every 0.01, the stem's last sample 0.06 above the bar
+    /// (past the moved samples' reach of 0.04, within twice it): a sampling gap at a
+    /// T's foot, across which the stem's own line meets the bar. A junction of three
+    /// where the stem stands; without the stem's line, two strokes and none.
+    #[test]
+    fn a_stem_whose_foot_is_unsampled_stands_on_its_bar() {
+        let mut pts = line([0.0, 0.0], [1.0, 0.0], 100);
+        pts.extend(line([0.5, 0.06], [0.5, 0.6], 54));
+        let (lines, junctions) = strokes(&pts, 0.05);
+        assert_eq!(lines.len(), 3, "{lines:?}");
+        assert_eq!(junctions.len(), 1, "{junctions:?}");
+        assert_eq!(junctions[0].polylines.len(), 3);
+        assert!(dist(junctions[0].at, [0.5, 0.0]) < 0.01, "{junctions:?}");
     }
 
     /// A noisy bar (sigma 0.007, as the strokes drawing at 0.5% of its diagonal) with a
