@@ -41,7 +41,9 @@ pub enum Shape {
     /// reached from outside through a straight inlet `gap` wide.
     Bays,
     /// A line drawing of five open strokes: two T-junctions, one crossing, and a free
-    /// stroke touching nothing.
+    /// stroke touching nothing. Each stroke's two ends are among the samples, as a
+    /// pen records where it touches down and lifts; the rest lie at random along the
+    /// strokes.
     Strokes,
 }
 
@@ -456,7 +458,18 @@ pub fn generate(params: &SynthParams) -> Result<Vec<SynthFrame>, String> {
         let mv = motion_of(k, params.motion, center);
         let n_out = (params.outliers * params.points as f64).round() as usize;
         let mut points = Vec::with_capacity(params.points);
-        while points.len() < params.points - n_out {
+        // A pen's stroke is recorded from where it touches down to where it lifts: the
+        // ends of open curves are samples, drawn after the random ones so that those
+        // stay the stream's first draws. Without them a stroke's last sample lies an
+        // exponential gap short of its end (7e-3 past it in the clean drawing), which
+        // no reconstruction from the samples can know.
+        let ends: Vec<Point> = base
+            .iter()
+            .filter(|pl| !pl.closed)
+            .flat_map(|pl| [pl.points[0], pl.points[pl.points.len() - 1]])
+            .take(params.points - n_out)
+            .collect();
+        while points.len() + ends.len() < params.points - n_out {
             let s = rng.random::<f64>() * total;
             // Density (1 + a sin(6 pi s / L)) / (1 + a), by rejection.
             if a > 0.0 && rng.random::<f64>() * (1.0 + a) > 1.0 + a * (3.0 * TAU * s / total).sin()
@@ -471,6 +484,14 @@ pub fn generate(params: &SynthParams) -> Result<Vec<SynthFrame>, String> {
             if params.noise > 0.0 {
                 x = add(x, [normal.sample(&mut rng), normal.sample(&mut rng)]);
             }
+            points.push(mv(x));
+        }
+        for &x in &ends {
+            let x = if params.noise > 0.0 {
+                add(x, [normal.sample(&mut rng), normal.sample(&mut rng)])
+            } else {
+                x
+            };
             points.push(mv(x));
         }
         for _ in 0..n_out {
@@ -555,6 +576,17 @@ mod tests {
         let strokes = Shape::Strokes.truth(0.05);
         assert!(Shape::Strokes.is_open() && strokes.iter().all(|s| !s.closed));
         assert_eq!(strokes.len(), 5);
+        // Every stroke's ends are samples; closed shapes' samples are all random.
+        let mut p = SynthParams::new(Shape::Strokes);
+        p.points = 100;
+        let points = &generate(&p).unwrap()[0].points;
+        assert_eq!(points.len(), 100);
+        for end in strokes
+            .iter()
+            .flat_map(|s| [s.points[0], *s.points.last().unwrap()])
+        {
+            assert!(points.iter().any(|&q| dist(q, end) < 1e-12), "{end:?}");
+        }
         let mut p = SynthParams::new(Shape::Square);
         p.frames = 5;
         p.motion = 0.02;
