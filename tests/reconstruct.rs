@@ -182,7 +182,8 @@ fn clean_walls_keep_their_bends_and_corners_across_sampling_gaps() {
 /// No loop: at 0.005 and 0.00707 the tube closes the arc onto the baseline, a loop
 /// through empty space that is left to the strokes, also where that space is narrower
 /// than the bridge test sees and the baseline runs on past both ends of the loop (its
-/// end curling into the loop's turn at 0.005, seeds 7 and 16), and where small loops
+/// end curling into the loop's turn at 0.005, seeds 7 and 16, or its chain straight
+/// from a T's foot, seed 49), and where small loops
 /// round a T's foot stay beside the baseline that the dropped loop held (0.00707, seeds
 /// 18, 29 and 37). Nor are the arc's ends joined to the baseline 9 sigma away (0.00707,
 /// seed 7). A stroke stays whole across a lone sample between two sampling gaps (clean
@@ -203,6 +204,7 @@ fn open_strokes_come_out_as_open_polylines_meeting_at_junctions() {
         (0.002, 30),
         (0.005, 7),
         (0.005, 16),
+        (0.005, 49),
         (0.00707, 7),
         (0.00707, 2),
         (0.00707, 18),
