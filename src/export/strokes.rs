@@ -573,8 +573,9 @@ fn spanning_tree(
                 .2
         })
     };
-    let mut along = |e: Point, a: Point, b: Point| {
-        line_at(e).is_some_and(|t| dot(sub(b, a), t).abs() >= ALONG_COS * dist(a, b))
+    // The join from `e` to `f` runs along the line at `e`.
+    let mut along = |e: Point, f: Point| {
+        line_at(e).is_some_and(|t| dot(sub(f, e), t).abs() >= ALONG_COS * dist(e, f))
     };
     // End to end: a stroke that stops more than `r` short of another's side does not
     // touch it.
@@ -586,7 +587,7 @@ fn spanning_tree(
         2.0 * r,
         |i, j, degree| {
             let (a, b) = (nodes[i], nodes[j]);
-            degree[j] <= 1 && (runs_on(i, j) || (along(a, a, b) && along(b, a, b)))
+            degree[j] <= 1 && (runs_on(i, j) || (along(a, b) && along(b, a)))
         },
     );
     join(pairs, &mut parent, &mut edges);
@@ -598,7 +599,7 @@ fn spanning_tree(
     // the noise sets: an arc's end that points at a line 9 sigma away stays free.
     let pairs = end_pairs(&nodes, &tree, &edges, &mut parent, 2.0 * r, |i, j, _| {
         let (a, b) = (nodes[i], nodes[j]);
-        runs_on(i, j) || (dist(a, b) <= 2.0 * reach && along(a, a, b))
+        runs_on(i, j) || (dist(a, b) <= 2.0 * reach && along(a, b))
     });
     join(pairs, &mut parent, &mut edges);
     (nodes, edges)
@@ -1002,15 +1003,7 @@ mod tests {
             .iter()
             .map(|a| [0.3 * a.cos(), 0.3 * a.sin()])
             .collect();
-        let circle = Polyline {
-            closed: true,
-            points: (0..600)
-                .map(|i| {
-                    let a = std::f64::consts::TAU * i as f64 / 600.0;
-                    [0.3 * a.cos(), 0.3 * a.sin()]
-                })
-                .collect(),
-        };
+        let circle = circle_loop(0.3, 600);
         assert_eq!(
             without_bridges(vec![circle.clone()], &data, 0.001).0.len(),
             1
@@ -1081,18 +1074,23 @@ mod tests {
             *p = [p[0] + noise.sample(&mut rng), p[1] + noise.sample(&mut rng)];
         }
         data.extend((0..40).map(|_| [rng.random_range(-0.5..0.5), rng.random_range(-0.5..0.5)]));
-        let circle = Polyline {
-            closed: true,
-            points: (0..300)
-                .map(|i| {
-                    let a = std::f64::consts::TAU * i as f64 / 300.0;
-                    [0.3 * a.cos(), 0.3 * a.sin()]
-                })
-                .collect(),
-        };
+        let circle = circle_loop(0.3, 300);
         let a = away(std::slice::from_ref(&circle), &data);
         let (kept, _) = without_joined_strokes(vec![circle], &data, a, tol, sigma, hmin);
         assert_eq!(kept.len(), 1);
+    }
+
+    /// The closed polyline of `n` points on the circle of radius `r` about the origin.
+    fn circle_loop(r: f64, n: usize) -> Polyline {
+        Polyline {
+            closed: true,
+            points: (0..n)
+                .map(|i| {
+                    let a = std::f64::consts::TAU * i as f64 / n as f64;
+                    [r * a.cos(), r * a.sin()]
+                })
+                .collect(),
+        }
     }
 
     fn line(a: Point, b: Point, n: usize) -> Vec<Point> {
