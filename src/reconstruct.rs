@@ -462,7 +462,25 @@ fn export_with(
                     points: pl.points.iter().map(|&p| at.to_local(p)).collect(),
                 })
                 .collect();
-            let changed = crate::export::gaps::span_gaps(
+            // Pinches before that: two loops each crossing one neck where both walls
+            // have a gap become one, whose joins along the walls are arcs to span.
+            let mut joined = vec![false; curves.len()];
+            for (kept, removed) in crate::export::pinches::join_pinches(
+                &mut local,
+                &prepared.metric.field,
+                sigma,
+                3.0 * sigma + 2.0 * hmin,
+                hmin,
+            ) {
+                joined[kept] = true;
+                joined.remove(removed);
+                curves.remove(removed);
+            }
+            tracing::debug!(
+                loops = joined.iter().filter(|&&j| j).count(),
+                "loops joined across pinches"
+            );
+            let mut changed = crate::export::gaps::span_gaps(
                 &mut local,
                 &prepared.metric.field,
                 sigma,
@@ -477,7 +495,7 @@ fn export_with(
             // noise exceeds that, nothing is tried. (Clean random samplings of curved
             // shapes estimate a few 1e-5 of the diagonal: the fits' own error.)
             let fit_tol = 0.25 * hmin;
-            let mut changed = changed;
+            changed.extend((0..joined.len()).filter(|&k| joined[k]));
             // Clean by the fits over one wall's window too: the k neighbours' fits span
             // a small bay's bend (and measure it as noise) where it is about their
             // reach across.
@@ -504,9 +522,24 @@ fn export_with(
             }
             changed.sort_unstable();
             changed.dedup();
-            for k in changed {
+            for &k in &changed {
                 curves[k].points = local[k].points.iter().map(|&p| at.to_data(p)).collect();
             }
+            // Holes that the noise opened in a band's interior go: a loop that no sample
+            // holds (none within the tolerance), and one that the arcs shrank below the
+            // smallest kept (its whole run within the tolerance of the samples round
+            // it, spanned by one short arc), as it would have gone before.
+            let min_area = params.min_area(hmin);
+            let tol = 3.0 * sigma + 2.0 * hmin;
+            let field = &prepared.metric.field;
+            let mut k = 0;
+            curves.retain(|pl| {
+                let shrunk = changed.binary_search(&k).is_ok()
+                    && local[k].signed_area().abs() < min_area;
+                let unheld = local[k].points.iter().all(|&p| field.distance(p) > tol);
+                k += 1;
+                !(pl.closed && (shrunk || unheld))
+            });
             crate::export::strokes::with_strokes(
                 curves,
                 &data,

@@ -45,9 +45,9 @@ pub(super) struct End {
 }
 
 /// The samples' local fits that give an arc its ends' tangents.
-struct Fit<'a> {
-    field: &'a DistanceField,
-    sigma: f64,
+pub(super) struct Fit<'a> {
+    pub(super) field: &'a DistanceField,
+    pub(super) sigma: f64,
 }
 
 /// Replaces every stretch of the closed polylines of `curves` whose vertices lie
@@ -79,40 +79,21 @@ pub fn span_gaps(
         if !pl.closed || pl.points.len() < 8 {
             continue;
         }
-        let near: Vec<bool> = pl
-            .points
-            .iter()
-            .map(|&p| field.distance(p) <= tol)
-            .collect();
-        let Some(start) = near.iter().position(|&b| b) else {
-            continue;
-        };
         let loop_ = Loop::new(&pl.points);
         let n = pl.points.len();
-        let mut a = start;
-        for ahead in 1..=n {
-            let b = (start + ahead) % n;
-            if !near[b] {
-                continue;
+        for gap in loop_.unsupported(field, tol, step) {
+            let clear = |window: (usize, usize), p: Point| {
+                index.nearest(p).is_none_or(|(d, seg, _)| {
+                    d > tol || {
+                        let local = seg.wrapping_sub(index.start(k));
+                        local < n && in_cyclic(local, window, n)
+                    }
+                })
+            };
+            let skipped = skipped_samples(&loop_, gap, field, &index, k, tol, step);
+            if let Some(arc) = loop_.span(gap, &skipped, &fit, tol, step, clear) {
+                spans.push((k, gap, arc));
             }
-            // A stretch with a vertex off the samples, or one long segment whose middle is.
-            let off = (b + n - a) % n > 1 || field.distance(mid(pl.points[a], pl.points[b])) > tol;
-            if off && loop_.arc(a, b) > 4.0 * step {
-                let gap = Gap { a, b };
-                let clear = |window: (usize, usize), p: Point| {
-                    index.nearest(p).is_none_or(|(d, seg, _)| {
-                        d > tol || {
-                            let local = seg.wrapping_sub(index.start(k));
-                            local < n && in_cyclic(local, window, n)
-                        }
-                    })
-                };
-                let skipped = skipped_samples(&loop_, gap, field, &index, k, tol, step);
-                if let Some(arc) = loop_.span(gap, &skipped, &fit, tol, step, clear) {
-                    spans.push((k, gap, arc));
-                }
-            }
-            a = b;
         }
     }
     let mut changed = Vec::new();
@@ -151,12 +132,24 @@ pub fn span_gaps(
 }
 
 impl Fit<'_> {
+    /// The reach of the samples an end's tangent is fitted to, for a chord `c`: a
+    /// quarter of it, and four noise deviations at least.
+    pub(super) fn reach(&self, c: f64) -> f64 {
+        (0.25 * c).max(4.0 * self.sigma)
+    }
+
     /// The unit tangent of the samples' curve at `p` (a curve vertex near them),
     /// fitted to the samples within `reach` of the nearest (at least [`MIN_FIT`]) and
     /// pointing along the first of `along` that is not across it, with the curvature
     /// where a quadratic was fitted. `None` when they give no direction, or every
     /// `along` runs across it.
-    fn tangent(&self, p: Point, reach: f64, along: &[Point], gap: Option<Point>) -> Option<End> {
+    pub(super) fn tangent(
+        &self,
+        p: Point,
+        reach: f64,
+        along: &[Point],
+        gap: Option<Point>,
+    ) -> Option<End> {
         let field = self.field;
         let centre = field.points()[field.nearest(p).index as usize];
         // At a gap's end, only the samples on this side: past the end, those of the
@@ -275,9 +268,9 @@ impl Fit<'_> {
 
 /// A stretch of a loop between two supported vertices, `a` before `b` along it.
 #[derive(Clone, Copy, Debug)]
-struct Gap {
-    a: usize,
-    b: usize,
+pub(super) struct Gap {
+    pub(super) a: usize,
+    pub(super) b: usize,
 }
 
 /// A closed polyline's vertices with their arc lengths.
@@ -303,6 +296,37 @@ impl<'a> Loop<'a> {
         }
     }
 
+    /// The stretches between two supported vertices (within `tol` of a sample of
+    /// `field`) with a vertex off the samples, or one long segment whose middle is, and
+    /// more than `4 step` long; in order round the loop.
+    pub(super) fn unsupported(&self, field: &DistanceField, tol: f64, step: f64) -> Vec<Gap> {
+        let points = self.points;
+        let n = points.len();
+        let near: Vec<bool> = points.iter().map(|&p| field.distance(p) <= tol).collect();
+        let Some(start) = near.iter().position(|&b| b) else {
+            return Vec::new();
+        };
+        let mut gaps = Vec::new();
+        let mut a = start;
+        for ahead in 1..=n {
+            let b = (start + ahead) % n;
+            if !near[b] {
+                continue;
+            }
+            let off = (b + n - a) % n > 1 || field.distance(mid(points[a], points[b])) > tol;
+            if off && self.arc(a, b) > 4.0 * step {
+                gaps.push(Gap { a, b });
+            }
+            a = b;
+        }
+        gaps
+    }
+
+    /// Vertex `i`.
+    pub(super) fn point(&self, i: usize) -> Point {
+        self.points[i]
+    }
+
     /// Arc length from vertex `a` forward to vertex `b`.
     fn arc(&self, a: usize, b: usize) -> f64 {
         (self.at[b] - self.at[a]).rem_euclid(self.total)
@@ -310,7 +334,7 @@ impl<'a> Loop<'a> {
 
     /// The points of the stretch `gap`, its segments walked at most `step` at a time
     /// (each segment's end, not its start: `a` itself is left out).
-    fn walk(&self, gap: Gap, step: f64) -> impl Iterator<Item = Point> + '_ {
+    pub(super) fn walk(&self, gap: Gap, step: f64) -> impl Iterator<Item = Point> + '_ {
         let n = self.points.len();
         (0..(gap.b + n - gap.a) % n).flat_map(move |k| {
             let (p, q) = (
@@ -326,7 +350,7 @@ impl<'a> Loop<'a> {
     /// within it), or farther where that lies less than `reach / 2` from `e` in a
     /// straight line: the level set's own curve may tangle, running back and forth over
     /// more arc length than it covers. At most `4 reach` of arc length.
-    fn reach(&self, e: usize, reach: f64, ahead: bool) -> usize {
+    pub(super) fn reach(&self, e: usize, reach: f64, ahead: bool) -> usize {
         let n = self.points.len();
         let mut last = e;
         for k in 1..n {
@@ -370,7 +394,7 @@ impl<'a> Loop<'a> {
         // less, its zigzag between sparse clean samples can run backwards; where it
         // tangles, on until it covers half that), or where it ran across (the chord of a
         // bend before), the chord.
-        let reach = |c: f64| (0.25 * c).max(4.0 * fit.sigma);
+        let reach = |c: f64| fit.reach(c);
         let run = c.max(16.0 * step);
         let (from, to) = (self.reach(gap.a, run, false), self.reach(gap.b, run, true));
         let mut knots: Vec<Point> = Vec::with_capacity(skipped.len() + 2);
@@ -639,7 +663,7 @@ pub(super) fn continued(p: Point, t: Point, k: f64, length: f64, step: f64) -> V
 }
 
 /// Where the segments `a0 a1` and `b0 b1` cross, if they do.
-fn crossing(a0: Point, a1: Point, b0: Point, b1: Point) -> Option<Point> {
+pub(super) fn crossing(a0: Point, a1: Point, b0: Point, b1: Point) -> Option<Point> {
     let (da, db) = (sub(a1, a0), sub(b1, b0));
     let den = cross(da, db);
     if den.abs() < 1e-300 {

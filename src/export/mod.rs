@@ -7,6 +7,7 @@ pub mod corners;
 pub mod fit;
 pub mod foxglove;
 pub mod gaps;
+pub mod pinches;
 pub mod strokes;
 pub mod support;
 pub mod svg;
@@ -30,6 +31,12 @@ pub struct ExportParams {
 }
 
 impl ExportParams {
+    /// The smallest area a closed loop keeps, for the mesh size `hmin`.
+    pub fn min_area(&self, hmin: f64) -> f64 {
+        self.min_area
+            .unwrap_or(std::f64::consts::PI * 9.0 * hmin * hmin)
+    }
+
     /// The same parameters with every length multiplied by `s` (into other units).
     pub fn scaled(&self, s: f64) -> ExportParams {
         ExportParams {
@@ -63,9 +70,7 @@ pub fn curves(
     // space between a few beams at the edge of the field of view): only slivers thinner
     // than half the mesh size (mean thickness twice the area over the perimeter), left
     // where the start's zigzag through noisy returns folded, are dropped.
-    let min_area = params
-        .min_area
-        .unwrap_or(std::f64::consts::PI * 9.0 * hmin * hmin);
+    let min_area = params.min_area(hmin);
     match scan {
         None => polylines.retain(|p| !p.closed || p.signed_area().abs() >= min_area),
         Some(_) => polylines
