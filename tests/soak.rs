@@ -197,10 +197,13 @@ fn churn_leaves_threads_and_memory_flat_and_every_line_read_one_record() {
     );
     // Finished clients are joined at once: the threads are the stages' and the
     // listener's, as before, and no dead thread's stack stays mapped (each cycle used to
-    // leave one, until the address space ran out).
+    // leave one, until the address space ran out: 3,000 stacks of 2 MiB are 6 GiB).
+    // glibc maps 64 MiB of address space per malloc arena, up to eight per core, as
+    // threads happen to contend: under a loaded machine the same run grew by 328 MB,
+    // so the bound is sixteen arenas, a sixth of the leak it guards against.
     assert!(after.0 <= before.0 + 2, "threads {before:?} -> {after:?}");
     assert!(
-        after.2 <= before.2 + 256_000,
+        after.2 <= before.2 + 16 * 65_536,
         "address space {} kB -> {} kB",
         before.2,
         after.2
