@@ -534,8 +534,8 @@ fn export_with(
             let field = &prepared.metric.field;
             let mut k = 0;
             curves.retain(|pl| {
-                let shrunk = changed.binary_search(&k).is_ok()
-                    && local[k].signed_area().abs() < min_area;
+                let shrunk =
+                    changed.binary_search(&k).is_ok() && local[k].signed_area().abs() < min_area;
                 let unheld = local[k].points.iter().all(|&p| field.distance(p) > tol);
                 k += 1;
                 !(pl.closed && (shrunk || unheld))

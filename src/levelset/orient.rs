@@ -360,6 +360,9 @@ struct End {
     at: Point,
     out: Point,
     runs_out: bool,
+    /// How far the end lies beyond the samples behind it (within the span along the
+    /// sheet): about half the span at an end, nearly nothing amid a sheet.
+    lead: f64,
 }
 
 /// `sheets` with the open ones joined end to end where a gap in the sampling wider than
@@ -370,6 +373,13 @@ struct End {
 /// [`JOIN_REACH`] `reach` facing it; a pair turns one sheet so that the curve runs out
 /// of one end and into the other. Only when every end pairs, consistently, are the
 /// sheets joined, and then judged closed or not by [`outward`] as any other.
+///
+/// A long sheet with a short gap has normals that sum to less than [`CLOSURE`] of their
+/// number, as a closed one's do, so its ends are not looked for at first. Where the open
+/// sheets' ends do not all pair, they are looked for on every sheet, and a sheet takes
+/// part with its two ends where both are ends (see [`End::lead`]): a disc whose inlet's
+/// wall has a gap where it meets the disc's circle leaves the inlet's walls and its bay
+/// an open sheet whose other end faces the long one's.
 fn join_open_sheets(
     pts: &[Point],
     normals: &mut [Point],
@@ -384,16 +394,57 @@ fn join_open_sheets(
     if open.is_empty() {
         return sheets;
     }
-    let mut in_open = vec![false; pts.len()];
-    for &s in &open {
+    let all: Vec<usize> = (0..sheets.len()).collect();
+    let Some(parent) = pair_ends(pts, normals, edges, &sheets, &open, reach, sigma)
+        .or_else(|| pair_ends(pts, normals, edges, &sheets, &all, reach, sigma))
+    else {
+        return sheets;
+    };
+    tracing::debug!(
+        open = open.len(),
+        "orientation: open sheets joined across gaps"
+    );
+    let mut merged: Vec<Vec<usize>> = Vec::new();
+    let mut slot = vec![usize::MAX; sheets.len()];
+    for (s, sheet) in sheets.into_iter().enumerate() {
+        let (root, turn) = parent[s];
+        if turn {
+            for &i in &sheet {
+                normals[i] = [-normals[i][0], -normals[i][1]];
+            }
+        }
+        if slot[root] == usize::MAX {
+            slot[root] = merged.len();
+            merged.push(Vec::new());
+        }
+        merged[slot[root]].extend(sheet);
+    }
+    merged
+}
+
+/// The pairing of [`join_open_sheets`] over the ends of the sheets `candidates` (of
+/// `sheets`; those not open by their normals take part only where both their ends are
+/// ends): each sheet's root and whether it turns to it, or `None` when an end is left
+/// unpaired or a chain comes back to a sheet turned the other way.
+fn pair_ends(
+    pts: &[Point],
+    normals: &[Point],
+    edges: &[(u32, u32)],
+    sheets: &[Vec<usize>],
+    candidates: &[usize],
+    reach: f64,
+    sigma: f64,
+) -> Option<Vec<(usize, bool)>> {
+    let mut in_candidate = vec![false; pts.len()];
+    for &s in candidates {
         for &i in &sheets[s] {
-            in_open[i] = true;
+            in_candidate[i] = true;
         }
     }
     let mut adj: Vec<Vec<(u32, f64)>> = vec![Vec::new(); pts.len()];
     for &(i, j) in edges {
         let (a, b) = (i as usize, j as usize);
-        if in_open[a] {
+        if in_candidate[a] {
             let len = dist2(pts[a], pts[b]).sqrt();
             adj[a].push((j, len));
             adj[b].push((i, len));
@@ -401,16 +452,30 @@ fn join_open_sheets(
     }
     let mut along = vec![f64::INFINITY; pts.len()];
     let mut ends: Vec<End> = Vec::new();
-    for &s in &open {
+    // The way out over half a reach, or the noise's width where that is longer: a whole
+    // reach lags behind a cap's bend.
+    let span = (0.5 * reach).max(4.0 * sigma);
+    let mut taking = 0;
+    for &s in candidates {
         let sheet = &sheets[s];
         let far = farthest(&adj, sheet, sheet[0], &mut along);
         let other = farthest(&adj, sheet, far, &mut along);
-        // The way out over half a reach, or the noise's width where that is longer: a
-        // whole reach lags behind a cap's bend.
-        let span = (0.5 * reach).max(4.0 * sigma);
-        ends.extend(end_of(pts, normals, s, sheet, far, &along, span));
+        let a = end_of(pts, normals, s, sheet, far, &along, span);
         farthest(&adj, sheet, other, &mut along);
-        ends.extend(end_of(pts, normals, s, sheet, other, &along, span));
+        let b = end_of(pts, normals, s, sheet, other, &along, span);
+        let (Some(a), Some(b)) = (a, b) else {
+            if is_open(normals, sheet) {
+                return None;
+            }
+            continue;
+        };
+        // A sheet closed by its normals has no end where the samples round its
+        // farthest lie on both sides of it.
+        if !is_open(normals, sheet) && a.lead.min(b.lead) < 0.25 * span {
+            continue;
+        }
+        ends.extend([a, b]);
+        taking += 1;
     }
     // Facing each other: neither looks away from the other, and together they look
     // along the chord by half its length (two walls' ends side by side look past it).
@@ -443,8 +508,8 @@ fn join_open_sheets(
     // Every end paired, or the sheets stay as they are: an end left over is where the
     // sampling leaves the pairing in doubt (three ends at a corner, one of them a stub
     // joined across an inlet's mouth), and a chain it ends is no closed curve.
-    if ends.len() != 2 * open.len() || pairs.len() != open.len() {
-        return sheets;
+    if taking == 0 || pairs.len() != taking {
+        return None;
     }
     // Union-find over the sheets whose links carry whether a sheet turns to its parent.
     let mut parent: Vec<(usize, bool)> = (0..sheets.len()).map(|s| (s, false)).collect();
@@ -465,29 +530,10 @@ fn join_open_sheets(
         if ra != rb {
             parent[rb] = (ra, ta ^ tb ^ turn);
         } else if ta ^ tb != turn {
-            return sheets;
+            return None;
         }
     }
-    tracing::debug!(
-        open = open.len(),
-        "orientation: open sheets joined across gaps"
-    );
-    let mut merged: Vec<Vec<usize>> = Vec::new();
-    let mut slot = vec![usize::MAX; sheets.len()];
-    for (s, sheet) in sheets.into_iter().enumerate() {
-        let (root, turn) = find(&parent, s);
-        if turn {
-            for &i in &sheet {
-                normals[i] = [-normals[i][0], -normals[i][1]];
-            }
-        }
-        if slot[root] == usize::MAX {
-            slot[root] = merged.len();
-            merged.push(Vec::new());
-        }
-        merged[slot[root]].extend(sheet);
-    }
-    merged
+    Some((0..sheets.len()).map(|s| find(&parent, s)).collect())
 }
 
 /// The end of sheet `s` (its samples `sheet`) at its sample `e`, `along` holding the
@@ -529,6 +575,7 @@ fn end_of(
             at: pts[e],
             out,
             runs_out: dot(tangent(n), out) > 0.0,
+            lead: len,
         }
     })
 }
@@ -631,6 +678,7 @@ fn outward(pts: &[Point], normals: &mut [Point], sheets: &[Vec<usize>]) -> Optio
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::geom::scale;
     use crate::synth::{generate, Shape, SynthParams};
     use std::f64::consts::TAU;
 
@@ -721,6 +769,45 @@ mod tests {
         let f = DistanceField::new(&circle).unwrap();
         let reach = median_reach(&f, FIT_NEIGHBOURS);
         assert!(2.0 * reach < 0.11 && 0.12 < JOIN_REACH * reach, "{reach}");
+        let oriented = orient(&f, 0.0).unwrap();
+        assert_eq!(oriented.len(), circle.len());
+        for (p, n) in oriented {
+            assert!(dot(p, n) > 0.0, "{p:?} {n:?}");
+        }
+    }
+
+    /// A circle of radius 0.5 sampled every 0.004 but for two gaps of 0.072 (18
+    /// spacings: past a sample's 16 nearest, within [`JOIN_REACH`] `reach`) with a
+    /// short arc of 0.08 between them: the short arc is an open sheet, and the long one,
+    /// whose ends lie 0.22 apart, has normals that sum to 0.08 of their number, below
+    /// [`CLOSURE`], so it is taken for closed and its ends are not looked for at first.
+    /// The short sheet's ends face the long one's: both join back into the circle, every
+    /// normal pointing out of it.
+    #[test]
+    fn a_short_sheet_joins_a_long_one_that_looks_closed() {
+        let (r, step) = (0.5, 0.004);
+        let n = (TAU * r / step) as usize;
+        // Arc lengths along the circle: a gap, the short arc, a gap.
+        let missing = |s: f64| (0.0..0.072).contains(&s) || (0.152..0.224).contains(&s);
+        let circle: Vec<Point> = (0..n)
+            .map(|i| TAU * i as f64 / n as f64)
+            .filter(|&a| !missing(a * r))
+            .map(|a| [r * a.cos(), r * a.sin()])
+            .collect();
+        let f = DistanceField::new(&circle).unwrap();
+        let reach = median_reach(&f, FIT_NEIGHBOURS);
+        assert!(0.072 < JOIN_REACH * reach, "{reach}");
+        let long: Vec<usize> = (0..circle.len())
+            .filter(|&i| {
+                let a = circle[i][1].atan2(circle[i][0]).rem_euclid(TAU);
+                a * r >= 0.2
+            })
+            .collect();
+        let normals: Vec<Point> = long.iter().map(|&i| scale(circle[i], 1.0 / r)).collect();
+        let sum = normals
+            .iter()
+            .fold([0.0, 0.0], |a, v| [a[0] + v[0], a[1] + v[1]]);
+        assert!(dot(sum, sum).sqrt() < CLOSURE * long.len() as f64);
         let oriented = orient(&f, 0.0).unwrap();
         assert_eq!(oriented.len(), circle.len());
         for (p, n) in oriented {
