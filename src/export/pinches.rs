@@ -20,16 +20,24 @@ use super::gaps::{crossing, Fit, Gap, Loop};
 /// How far a join may turn from an end's run and still run along its wall, radians (45
 /// degrees: more along it than across).
 const MAX_JOIN_TURN: f64 = std::f64::consts::FRAC_PI_4;
+/// Joins per frame, at most: each pass pairs every two stretches, so that the cost stays
+/// bounded whatever the number of loops.
+const MAX_JOINS: usize = 16;
+/// Stretches paired, at most (16 million pairs, most of them dismissed by their length
+/// alone): a level set that leaves the samples in more places than this is not pinched
+/// at a few necks.
+const MAX_STRETCHES: usize = 4096;
 
 /// Joins the closed loops of `curves` across pinches (see the module's text), one pair
-/// at a time, until none is left: each join replaces the pair by one loop at the lower
-/// index and removes the other. A stretch is a loop's run between two vertices within
-/// `tol` of the samples of `field`, with every vertex between them farther (walked
-/// `step` at a time), more than `4 step` long. Two stretches join when both walls' gaps
-/// are shorter than the neck is wide (the longer stretch's chord), each end's run
-/// (over the gap's length) turns less than 35 degrees from the join, the two stretches
-/// come within the longer join of each other, and no join crosses a curve or the other
-/// join. Returns the joins made, as (kept, removed) indices, in order.
+/// at a time, at most 16: each join replaces the pair by one loop at the
+/// lower index and removes the other. A stretch is a loop's run between two vertices
+/// within `tol` of the samples of `field`, with every vertex between them farther
+/// (walked `step` at a time), more than `4 step` long. Two stretches of two loops join
+/// when both walls' gaps are shorter than twice the wider stretch's chord, the samples'
+/// tangent at each of the four ends (`sigma` their noise) turns less than 45 degrees
+/// from its join, the two stretches come within the longer join of each other, and no
+/// join crosses a curve or the other join. More than 4,096 stretches are
+/// not paired at all. Returns the joins made, as (kept, removed) indices, in order.
 pub fn join_pinches(
     curves: &mut Vec<Polyline>,
     field: &DistanceField,
@@ -42,8 +50,10 @@ pub fn join_pinches(
         return joins;
     }
     let fit = Fit { field, sigma };
-    // Each join removes a loop, so this ends.
-    while let Some((k1, g1, k2, g2)) = best_pinch(curves, &fit, tol, step) {
+    while joins.len() < MAX_JOINS {
+        let Some((k1, g1, k2, g2)) = best_pinch(curves, &fit, tol, step) else {
+            break;
+        };
         let (p1, p2) = (&curves[k1].points, &curves[k2].points);
         let mut points = supported_run(p1, g1);
         points.extend(supported_run(p2, g2));
@@ -85,6 +95,13 @@ fn best_pinch(
                 .map(move |g| (*k, l, g))
         })
         .collect();
+    if stretches.len() > MAX_STRETCHES {
+        tracing::debug!(
+            stretches = stretches.len(),
+            "pinches: too many stretches off the samples to pair"
+        );
+        return None;
+    }
     let mut best: Option<(f64, usize, Gap, usize, Gap)> = None;
     for (i, &(k1, l1, g1)) in stretches.iter().enumerate() {
         for &(k2, l2, g2) in &stretches[i + 1..] {
