@@ -150,7 +150,9 @@ fn a_spiral_and_bays_behind_narrow_inlets_stay_open() {
 /// of five spacings (`export::pinches`). Bays seed 11 got no orientation and ran round
 /// its bays 0.05 inside their samples: an inlet's wall with a gap where it meets the
 /// disc's circle left its bay an open sheet, and the rest one long sheet whose normals
-/// sum to less than a closed one's may, so the two were not joined.
+/// sum to less than a closed one's may, so the two were not joined. Bays seed 32 bowed
+/// 0.01 into an inlet across a gap in its straight wall that reaches a sample beside
+/// the corner, whose fit spans the corner (a Hermite arc with that tangent).
 #[test]
 fn clean_walls_keep_their_bends_and_corners_across_sampling_gaps() {
     let dir = tempfile::tempdir().unwrap();
@@ -166,6 +168,7 @@ fn clean_walls_keep_their_bends_and_corners_across_sampling_gaps() {
         ("bays", 442, 8, 0.08, true),
         ("bays", 442, 6, 0.08, false),
         ("bays", 442, 11, 0.08, true),
+        ("bays", 442, 32, 0.08, true),
         ("bays", 604, 2, 0.06, true),
     ] {
         let (s, acc) = shape_run(dir.path(), shape, points, 0.0, seed, gap);

@@ -496,8 +496,22 @@ impl<'a> Loop<'a> {
                     continue;
                 }
             }
+            // A side whose samples lie on a line that runs on through the other knot
+            // (within the tolerance) is a straight wall across its gap: the chord. The
+            // other side's fit may span a corner just past its knot, and a Hermite arc
+            // with that tangent bulges off the wall.
+            let on_line = |a: usize, b: usize| {
+                tangents[a].curvature == Some(0.0)
+                    && cross(tangents[a].tangent, sub(knots[b], knots[a])).abs() <= tol
+            };
             match sides(i, i + 1, false) {
                 Some(path) => arc.extend(path),
+                None if on_line(i, i + 1) || on_line(i + 1, i) => {
+                    let pieces = ((dist(p, q) / step).ceil() as usize).clamp(1, MAX_ARC_VERTICES);
+                    arc.extend(
+                        (1..pieces).map(|k| add(p, scale(sub(q, p), k as f64 / pieces as f64))),
+                    );
+                }
                 None => hermite(
                     p,
                     q,
@@ -937,6 +951,36 @@ mod tests {
         corner_comes_back(square(400, away), &samples, [1.0, 1.0], |p| {
             p[0].min(p[1]).min(1.0 - p[0]).min(1.0 - p[1]).abs()
         });
+    }
+
+    /// A unit square sampled every 0.01 but on its left side from 0.78 to 0.96 up, so
+    /// that the gap's upper end is a sample 0.03 from the top left corner, and a loop
+    /// along it that steps 0.03 inwards across the gap. The samples behind the upper end
+    /// span the corner, and a Hermite arc with their tangent bows off the wall; the
+    /// lower end's samples lie on a line through the upper end: the wall is straight
+    /// across the gap, and every vertex lies on it, but for rounding.
+    #[test]
+    fn a_wall_straight_up_to_a_corner_stays_straight_across_its_gap() {
+        let gap = |p: Point| p[0] == 0.0 && p[1] > 0.775 && p[1] < 0.965;
+        let samples = square(100, |p| !gap(p));
+        let points: Vec<Point> = square(400, |_| true)
+            .into_iter()
+            .map(|p| if gap(p) { [0.03, p[1]] } else { p })
+            .collect();
+        let mut curves = vec![Polyline {
+            closed: true,
+            points,
+        }];
+        assert_eq!(
+            span_gaps(&mut curves, &field(&samples), 0.0, 0.01, 0.005),
+            [0]
+        );
+        let off = curves[0]
+            .points
+            .iter()
+            .map(|p| p[0].min(p[1]).min(1.0 - p[0]).min(1.0 - p[1]).abs())
+            .fold(0.0, f64::max);
+        assert!(off < 1e-9, "{off}");
     }
 
     /// Spans the loop `points` round `samples` (tolerance 0.01, step 0.005) and checks
