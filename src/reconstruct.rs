@@ -462,14 +462,30 @@ fn export_with(
                     points: pl.points.iter().map(|&p| at.to_local(p)).collect(),
                 })
                 .collect();
+            // Noisy samples lie on no circle to a quarter of hmin; clean ones do, by
+            // the fits over one wall's window too: the k neighbours' fits span a small
+            // bay's bend (and measure it as noise) where it is about their reach across.
+            // (Clean random samplings of curved shapes estimate a few 1e-5 of the
+            // diagonal: the fits' own error.) Where only the one-wall fits say clean,
+            // the neighbours' estimate is the bend's, not noise, and the mending below
+            // holds the curve to the one wall's residual: with the estimate, a loop that
+            // cuts an inlet's sharp corner by twice the spacing counts as held there.
+            let fit_tol = 0.25 * hmin;
+            let clean = sigma.min(adapted.one_wall_noise) <= fit_tol;
+            let mend_sigma = if sigma > fit_tol && clean {
+                adapted.one_wall_noise
+            } else {
+                sigma
+            };
+            let mend_tol = 3.0 * mend_sigma + 2.0 * hmin;
             // Pinches before that: two loops each crossing one neck where both walls
             // have a gap become one, whose joins along the walls are arcs to span.
             let mut joined = vec![false; curves.len()];
             for (kept, removed) in crate::export::pinches::join_pinches(
                 &mut local,
                 &prepared.metric.field,
-                sigma,
-                3.0 * sigma + 2.0 * hmin,
+                mend_sigma,
+                mend_tol,
                 hmin,
             ) {
                 joined[kept] = true;
@@ -483,23 +499,16 @@ fn export_with(
             let mut changed = crate::export::gaps::span_gaps(
                 &mut local,
                 &prepared.metric.field,
-                sigma,
-                3.0 * sigma + 2.0 * hmin,
+                mend_sigma,
+                mend_tol,
                 hmin,
             );
             tracing::debug!(loops = changed.len(), "sampling gaps spanned by arcs");
             // Then onto clean samples, which the level set passes by up to the capture's
             // tolerance (the arcs go through those they skipped, not onto the others),
             // and round which it kinks by up to twice that: moves of 4 hmin at most.
-            // Noisy samples lie on no circle to a quarter of hmin: where the estimated
-            // noise exceeds that, nothing is tried. (Clean random samplings of curved
-            // shapes estimate a few 1e-5 of the diagonal: the fits' own error.)
-            let fit_tol = 0.25 * hmin;
             changed.extend((0..joined.len()).filter(|&k| joined[k]));
-            // Clean by the fits over one wall's window too: the k neighbours' fits span
-            // a small bay's bend (and measure it as noise) where it is about their
-            // reach across.
-            if sigma.min(adapted.one_wall_noise) <= fit_tol {
+            if clean {
                 let onto = crate::export::through::through_samples(
                     &mut local,
                     &prepared.metric.field,
@@ -530,13 +539,15 @@ fn export_with(
             // smallest kept (its whole run within the tolerance of the samples round
             // it, spanned by one short arc), as it would have gone before.
             let min_area = params.min_area(hmin);
-            let tol = 3.0 * sigma + 2.0 * hmin;
             let field = &prepared.metric.field;
             let mut k = 0;
             curves.retain(|pl| {
                 let shrunk =
                     changed.binary_search(&k).is_ok() && local[k].signed_area().abs() < min_area;
-                let unheld = local[k].points.iter().all(|&p| field.distance(p) > tol);
+                let unheld = local[k]
+                    .points
+                    .iter()
+                    .all(|&p| field.distance(p) > mend_tol);
                 k += 1;
                 !(pl.closed && (shrunk || unheld))
             });
