@@ -13,7 +13,7 @@
 //! (two discs, a hole in a band) do not.
 
 use crate::distance::DistanceField;
-use crate::geom::{dist, dot, polyline_dist, scale, sub, Point, Polyline};
+use crate::geom::{dist, dot, scale, sub, Point, Polyline};
 
 use super::gaps::{crossing, Fit, Gap, Loop};
 
@@ -35,8 +35,7 @@ const MAX_STRETCHES: usize = 4096;
 /// (walked `step` at a time), more than `4 step` long. Two stretches of two loops join
 /// when both walls' gaps are shorter than twice the wider stretch's chord, the samples'
 /// tangent at each of the four ends (`sigma` their noise) turns less than 45 degrees
-/// from its join, the two stretches come within the longer join of each other, and no
-/// join crosses a curve or the other join. More than 4,096 stretches are
+/// from its join, and no join crosses a curve or the other join. More than 4,096 stretches are
 /// not paired at all. Returns the joins made, as (kept, removed) indices, in order.
 pub fn join_pinches(
     curves: &mut Vec<Polyline>,
@@ -119,10 +118,8 @@ fn best_pinch(
             {
                 continue;
             }
-            let longer = dist(from1, to1).max(dist(from2, to2));
             let total = dist(from1, to1) + dist(from2, to2);
             if best.is_some_and(|b| b.0 <= total)
-                || !near(l1, g1, p2, g2, longer, step)
                 || crossing(from1, to1, from2, to2).is_some()
                 || [(from1, to1), (from2, to2)]
                     .iter()
@@ -164,17 +161,6 @@ fn along_wall(
     let cos = MAX_JOIN_TURN.cos();
     ends.iter()
         .all(|e| e.is_some_and(|e| dot(d, e.tangent) >= cos * len))
-}
-
-/// Whether the stretch `g1` of `l1` passes within `reach` of the stretch `g2` of the
-/// loop `p2`, walked `step` at a time: both cross the one neck.
-fn near(l1: &Loop<'_>, g1: Gap, p2: &[Point], g2: Gap, reach: f64, step: f64) -> bool {
-    let n = p2.len();
-    let stretch: Vec<Point> = (0..=(g2.b + n - g2.a) % n)
-        .map(|i| p2[(g2.a + i) % n])
-        .collect();
-    l1.walk(g1, step)
-        .any(|p| polyline_dist(p, &stretch) <= reach)
 }
 
 /// Whether the segment from `a` to `b` crosses a segment of `curves` other than those
