@@ -534,22 +534,19 @@ fn export_with(
             for &k in &changed {
                 curves[k].points = local[k].points.iter().map(|&p| at.to_data(p)).collect();
             }
-            // Holes that the noise opened in a band's interior go: a loop that no sample
-            // holds (none within the tolerance), and one that the arcs shrank below the
-            // smallest kept (its whole run within the tolerance of the samples round
-            // it, spanned by one short arc), as it would have gone before.
+            // Holes the noise opened in a band's interior go.
             let min_area = params.min_area(hmin);
-            let field = &prepared.metric.field;
             let mut k = 0;
-            curves.retain(|pl| {
-                let shrunk =
-                    changed.binary_search(&k).is_ok() && local[k].signed_area().abs() < min_area;
-                let unheld = local[k]
-                    .points
-                    .iter()
-                    .all(|&p| field.distance(p) > mend_tol);
+            curves.retain(|_| {
+                let hole = crate::export::is_unheld_hole(
+                    &local[k],
+                    changed.binary_search(&k).is_ok(),
+                    &prepared.metric.field,
+                    mend_tol,
+                    min_area,
+                );
                 k += 1;
-                !(pl.closed && (shrunk || unheld))
+                !hole
             });
             crate::export::strokes::with_strokes(
                 curves,

@@ -14,6 +14,7 @@ pub mod svg;
 pub mod through;
 pub mod writers;
 
+use crate::distance::DistanceField;
 use crate::geom::{Placement, Polyline};
 use crate::mesh::Mesh;
 use crate::scan::Analysis;
@@ -100,4 +101,20 @@ pub fn curves(
         }
     }
     (polylines, features)
+}
+
+/// Whether the closed loop `pl` is a hole that the noise opened in a noisy band's
+/// interior: no vertex within `tol` of a sample of `field`, or, where the mending
+/// changed it (`mended`), enclosing less than `min_area` (its whole run lay within `tol`
+/// of the samples round it, and one short arc spanned it). Open polylines are none.
+pub fn is_unheld_hole(
+    pl: &Polyline,
+    mended: bool,
+    field: &DistanceField,
+    tol: f64,
+    min_area: f64,
+) -> bool {
+    pl.closed
+        && ((mended && pl.signed_area().abs() < min_area)
+            || pl.points.iter().all(|&p| field.distance(p) > tol))
 }
