@@ -478,6 +478,22 @@ fn export_with(
                 sigma
             };
             let mend_tol = 3.0 * mend_sigma + 2.0 * hmin;
+            // Loops round fewer than three samples go first: they hold those samples off
+            // the arcs below.
+            let kept: Vec<bool> = local
+                .iter()
+                .map(|pl| !crate::export::holds_no_curve(pl, &prepared.metric.field, mend_tol))
+                .collect();
+            let mut k = 0;
+            curves.retain(|_| {
+                k += 1;
+                kept[k - 1]
+            });
+            let mut k = 0;
+            local.retain(|_| {
+                k += 1;
+                kept[k - 1]
+            });
             // Pinches before that: two loops each crossing one neck where both walls
             // have a gap become one, whose joins along the walls are arcs to span.
             let mut joined = vec![false; curves.len()];

@@ -103,6 +103,30 @@ pub fn curves(
     (polylines, features)
 }
 
+/// Whether the closed loop `pl` holds fewer than three samples of `field` (within `tol`
+/// of a vertex): two samples show a segment, not a curve round anything. The level set
+/// leaves such a loop round a few samples of a wall it passed by, and in the way of the
+/// arc that spans the wall's gap ([`gaps::span_gaps`]) through them. Open polylines
+/// are none.
+pub fn holds_no_curve(pl: &Polyline, field: &DistanceField, tol: f64) -> bool {
+    if !pl.closed {
+        return false;
+    }
+    let (mut held, mut near) = (Vec::<u32>::new(), Vec::new());
+    for &p in &pl.points {
+        field.within(p, tol, &mut near);
+        for &j in &near {
+            if !held.contains(&j) {
+                held.push(j);
+                if held.len() >= 3 {
+                    return false;
+                }
+            }
+        }
+    }
+    true
+}
+
 /// Whether the closed loop `pl` is a hole that the noise opened in a noisy band's
 /// interior: no vertex within `tol` of a sample of `field`, or, where the mending
 /// changed it (`mended`), enclosing less than `min_area` (its whole run lay within `tol`
@@ -117,4 +141,40 @@ pub fn is_unheld_hole(
     pl.closed
         && ((mended && pl.signed_area().abs() < min_area)
             || pl.points.iter().all(|&p| field.distance(p) > tol))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geom::Point;
+
+    fn ring(c: Point, r: f64, n: usize) -> Vec<Point> {
+        (0..n)
+            .map(|i| {
+                let a = std::f64::consts::TAU * i as f64 / n as f64;
+                [c[0] + r * a.cos(), c[1] + r * a.sin()]
+            })
+            .collect()
+    }
+
+    /// A loop of radius 0.008 whose side lies on two samples of a wall 0.006 apart (as
+    /// the level set leaves one beside a wall it passed by) holds no curve; the same
+    /// loop through three samples does, and an open polyline is never dropped.
+    #[test]
+    fn a_loop_round_two_samples_holds_no_curve() {
+        let loop_ = Polyline {
+            closed: true,
+            points: ring([0.008, 0.0], 0.008, 64),
+        };
+        let two = DistanceField::new(&[[0.0, -0.003], [0.0, 0.003]]).unwrap();
+        let tol = 0.0023;
+        assert!(holds_no_curve(&loop_, &two, tol));
+        let three = DistanceField::new(&[[0.0, -0.003], [0.0, 0.003], [0.016, 0.0]]).unwrap();
+        assert!(!holds_no_curve(&loop_, &three, tol));
+        let open = Polyline {
+            closed: false,
+            ..loop_
+        };
+        assert!(!holds_no_curve(&open, &two, tol));
+    }
 }
