@@ -177,6 +177,7 @@ fn clean_walls_keep_their_bends_and_corners_across_sampling_gaps() {
         ("bays", 442, 18, 0.08, true),
         ("bays", 442, 24, 0.08, true),
         ("bays", 442, 38, 0.08, true),
+        ("bays", 442, 14, 0.08, true),
         ("bays", 604, 2, 0.06, true),
         ("bays", 604, 6, 0.06, true),
     ] {

@@ -13,13 +13,18 @@
 //! (two discs, a hole in a band) do not.
 
 use crate::distance::DistanceField;
-use crate::geom::{dist, dot, scale, sub, Point, Polyline};
+use crate::geom::{dist, dot, norm, scale, sub, Point, Polyline};
 
 use super::gaps::{crossing, Fit, Gap, Loop};
 
 /// How far a join may turn from an end's run and still run along its wall, radians (45
 /// degrees: more along it than across).
 const MAX_JOIN_TURN: f64 = std::f64::consts::FRAC_PI_4;
+/// Samples whose noise is at most this many mesh sizes are clean: two of them give a
+/// wall's direction (the export's test for drawing curves through the samples).
+const CLEAN: f64 = 0.25;
+/// Nearest samples the chord behind a join's end is looked for among.
+const CHORD_CANDIDATES: usize = 8;
 /// Joins per frame, at most: each pass pairs every two stretches, so that the cost stays
 /// bounded whatever the number of loops.
 const MAX_JOINS: usize = 16;
@@ -35,7 +40,9 @@ const MAX_STRETCHES: usize = 4096;
 /// (walked `step` at a time), more than `4 step` long. Two stretches of two loops join
 /// when both walls' gaps are shorter than twice the wider stretch's chord, the samples'
 /// tangent at each of the four ends (`sigma` their noise) turns less than 45 degrees
-/// from its join, and no join crosses a curve or the other join. More than 4,096 stretches are
+/// from its join (on clean samples, or the chord of the two samples behind it, where
+/// the fit takes in another wall round a corner), and no join crosses a curve or the
+/// other join. More than 4,096 stretches are
 /// not paired at all. Returns the joins made, as (kept, removed) indices, in order.
 pub fn join_pinches(
     curves: &mut Vec<Polyline>,
@@ -113,8 +120,8 @@ fn best_pinch(
             // 2 leaves the other wall at `g2.a` and loop 1 comes back at `g1.b`.
             let (from1, to1) = (p1[g1.a], p2[g2.b]);
             let (from2, to2) = (p2[g2.a], p1[g1.b]);
-            if !(along_wall(fit, (l1, g1.a), (l2, g2.b), neck)
-                && along_wall(fit, (l2, g2.a), (l1, g1.b), neck))
+            if !(along_wall(fit, (l1, g1.a), (l2, g2.b), neck, step)
+                && along_wall(fit, (l2, g2.a), (l1, g1.b), neck, step))
             {
                 continue;
             }
@@ -137,13 +144,16 @@ fn best_pinch(
 /// leaves the wall, to vertex `to` of `l_to`, where the other comes back to it, is
 /// shorter than twice `neck` and runs along the wall: the samples' tangent at each end
 /// (fitted to those behind it, as an arc across a gap takes it) turns less than
-/// [`MAX_JOIN_TURN`] from the join. Not the loops' runs: over a join's length those
+/// [`MAX_JOIN_TURN`] from the join, or, on clean samples (noise at most [`CLEAN`]
+/// `step`), the chord of the two samples behind it does ([`chord_behind`]): an end a
+/// spacing short of a corner has the other wall's samples among the fit's five. Not the loops' runs: over a join's length those
 /// are chords, which turn towards a disc beside the gap.
 fn along_wall(
     fit: &Fit<'_>,
     (l_from, from): (&Loop<'_>, usize),
     (l_to, to): (&Loop<'_>, usize),
     neck: f64,
+    step: f64,
 ) -> bool {
     let (p, q) = (l_from.point(from), l_to.point(to));
     let len = dist(p, q);
@@ -159,8 +169,39 @@ fn along_wall(
         fit.tangent(q, reach, &[run_out, d], Some(scale(d, -1.0))),
     ];
     let cos = MAX_JOIN_TURN.cos();
-    ends.iter()
-        .all(|e| e.is_some_and(|e| dot(d, e.tangent) >= cos * len))
+    let along = |t: Point| dot(d, t) >= cos * len * norm(t) && norm(t) > 0.0;
+    // On clean samples, where the fit runs round a corner, the chord of the two
+    // samples behind the end.
+    let clean = fit.sigma <= CLEAN * step;
+    let chords = [
+        chord_behind(fit.field, p, d),
+        chord_behind(fit.field, q, scale(d, -1.0)).map(|t| scale(t, -1.0)),
+    ];
+    ends.iter().zip(chords).all(|(e, chord)| {
+        e.is_some_and(|e| along(e.tangent)) || (clean && chord.is_some_and(along))
+    })
+}
+
+/// The direction from the second sample behind `p` to the first (the samples whose
+/// offset from `p` runs against `d`, each the nearest to the one before): the most
+/// local tangent there is, exact on a clean straight wall, where a fit over five
+/// samples may take in another wall's round a corner a spacing or two beyond.
+fn chord_behind(field: &DistanceField, p: Point, d: Point) -> Option<Point> {
+    let pts = field.points();
+    let mut ids = Vec::new();
+    field.nearest_k(p, CHORD_CANDIDATES, &mut ids);
+    let near: Vec<Point> = ids.iter().map(|&i| pts[i as usize]).collect();
+    let a = near
+        .iter()
+        .copied()
+        .filter(|&s| dot(sub(s, p), d) <= 0.0)
+        .min_by(|&x, &y| dist(x, p).total_cmp(&dist(y, p)))?;
+    let b = near
+        .iter()
+        .copied()
+        .filter(|&s| dot(sub(s, a), d) < 0.0)
+        .min_by(|&x, &y| dist(x, a).total_cmp(&dist(y, a)))?;
+    Some(sub(a, b))
 }
 
 /// Whether the segment from `a` to `b` crosses a segment of `curves` other than those
@@ -300,5 +341,36 @@ mod tests {
         let before = curves.clone();
         assert!(join_pinches(&mut curves, &field, 0.0, 0.004, 0.002).is_empty());
         assert_eq!(curves, before);
+    }
+
+    /// The clean bays (inlets 0.08 wide, 442 samples, seed 14), where the level set
+    /// pinched across an inlet whose lower wall has a gap from 0.754 to 0.799 and meets
+    /// the disc's circle at 0.825: the join along that wall leaves the disc's loop at
+    /// (0.814, 0.274), 0.013 short of the corner. The fit over the five samples behind
+    /// that end takes in the circle's and turns 85 degrees from the join; the two
+    /// samples behind it run along the join.
+    #[test]
+    fn the_chord_behind_an_end_a_spacing_short_of_a_corner_runs_along_its_wall() {
+        use crate::synth::{generate, Shape, SynthParams};
+        let frames = generate(&SynthParams {
+            points: 442,
+            gap: 0.08,
+            seed: 14,
+            ..SynthParams::new(Shape::Bays)
+        })
+        .unwrap();
+        let field = DistanceField::new(&frames[0].points).unwrap();
+        let (p, q) = ([0.814, 0.274], [0.740, 0.3181]);
+        let d = sub(q, p);
+        let len = norm(d);
+        let fit = Fit {
+            field: &field,
+            sigma: 0.0,
+        };
+        let e = fit.tangent(p, fit.reach(len), &[d], Some(d));
+        let cos = MAX_JOIN_TURN.cos();
+        assert!(e.is_none_or(|e| dot(e.tangent, d) < cos * len), "{e:?}");
+        let chord = chord_behind(&field, p, d).unwrap();
+        assert!(dot(chord, d) >= 0.999 * norm(chord) * len, "{chord:?}");
     }
 }
