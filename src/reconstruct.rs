@@ -501,6 +501,7 @@ fn export_with(
                 &mut local,
                 &prepared.metric.field,
                 mend_sigma,
+                clean,
                 mend_tol,
                 hmin,
             ) {

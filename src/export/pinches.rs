@@ -20,9 +20,6 @@ use super::gaps::{crossing, Fit, Gap, Loop};
 /// How far a join may turn from an end's run and still run along its wall, radians (45
 /// degrees: more along it than across).
 const MAX_JOIN_TURN: f64 = std::f64::consts::FRAC_PI_4;
-/// Samples whose noise is at most this many mesh sizes are clean: two of them give a
-/// wall's direction (the export's test for drawing curves through the samples).
-const CLEAN: f64 = 0.25;
 /// Nearest samples the chord behind a join's end is looked for among.
 const CHORD_CANDIDATES: usize = 8;
 /// Joins per frame, at most: each pass pairs every two stretches, so that the cost stays
@@ -40,14 +37,15 @@ const MAX_STRETCHES: usize = 4096;
 /// (walked `step` at a time), more than `4 step` long. Two stretches of two loops join
 /// when both walls' gaps are shorter than twice the wider stretch's chord, the samples'
 /// tangent at each of the four ends (`sigma` their noise) turns less than 45 degrees
-/// from its join (on clean samples, or the chord of the two samples behind it, where
-/// the fit takes in another wall round a corner), and no join crosses a curve or the
-/// other join. More than 4,096 stretches are
+/// from its join (or, where the samples are `clean`, the chord of the two samples
+/// behind it, where the fit takes in another wall round a corner), and no join crosses
+/// a curve or the other join. More than 4,096 stretches are
 /// not paired at all. Returns the joins made, as (kept, removed) indices, in order.
 pub fn join_pinches(
     curves: &mut Vec<Polyline>,
     field: &DistanceField,
     sigma: f64,
+    clean: bool,
     tol: f64,
     step: f64,
 ) -> Vec<(usize, usize)> {
@@ -57,7 +55,7 @@ pub fn join_pinches(
     }
     let fit = Fit { field, sigma };
     while joins.len() < MAX_JOINS {
-        let Some((k1, g1, k2, g2)) = best_pinch(curves, &fit, tol, step) else {
+        let Some((k1, g1, k2, g2)) = best_pinch(curves, &fit, tol, step, clean) else {
             break;
         };
         let (p1, p2) = (&curves[k1].points, &curves[k2].points);
@@ -85,6 +83,7 @@ fn best_pinch(
     fit: &Fit<'_>,
     tol: f64,
     step: f64,
+    clean: bool,
 ) -> Option<(usize, Gap, usize, Gap)> {
     let field = fit.field;
     let loops: Vec<(usize, Loop<'_>)> = curves
@@ -120,8 +119,8 @@ fn best_pinch(
             // 2 leaves the other wall at `g2.a` and loop 1 comes back at `g1.b`.
             let (from1, to1) = (p1[g1.a], p2[g2.b]);
             let (from2, to2) = (p2[g2.a], p1[g1.b]);
-            if !(along_wall(fit, (l1, g1.a), (l2, g2.b), neck, step)
-                && along_wall(fit, (l2, g2.a), (l1, g1.b), neck, step))
+            if !(along_wall(fit, (l1, g1.a), (l2, g2.b), neck, clean)
+                && along_wall(fit, (l2, g2.a), (l1, g1.b), neck, clean))
             {
                 continue;
             }
@@ -144,16 +143,16 @@ fn best_pinch(
 /// leaves the wall, to vertex `to` of `l_to`, where the other comes back to it, is
 /// shorter than twice `neck` and runs along the wall: the samples' tangent at each end
 /// (fitted to those behind it, as an arc across a gap takes it) turns less than
-/// [`MAX_JOIN_TURN`] from the join, or, on clean samples (noise at most [`CLEAN`]
-/// `step`), the chord of the two samples behind it does ([`chord_behind`]): an end a
-/// spacing short of a corner has the other wall's samples among the fit's five. Not the loops' runs: over a join's length those
-/// are chords, which turn towards a disc beside the gap.
+/// [`MAX_JOIN_TURN`] from the join, or, on `clean` samples, the chord of the two
+/// samples behind it does ([`chord_behind`]): an end a spacing short of a corner has
+/// the other wall's samples among the fit's five. Not the loops' runs: over a join's
+/// length those are chords, which turn towards a disc beside the gap.
 fn along_wall(
     fit: &Fit<'_>,
     (l_from, from): (&Loop<'_>, usize),
     (l_to, to): (&Loop<'_>, usize),
     neck: f64,
-    step: f64,
+    clean: bool,
 ) -> bool {
     let (p, q) = (l_from.point(from), l_to.point(to));
     let len = dist(p, q);
@@ -172,7 +171,6 @@ fn along_wall(
     let along = |t: Point| dot(d, t) >= cos * len * norm(t) && norm(t) > 0.0;
     // On clean samples, where the fit runs round a corner, the chord of the two
     // samples behind the end.
-    let clean = fit.sigma <= CLEAN * step;
     let chords = [
         chord_behind(fit.field, p, d),
         chord_behind(fit.field, q, scale(d, -1.0)).map(|t| scale(t, -1.0)),
@@ -295,7 +293,7 @@ mod tests {
     fn a_band_pinched_where_both_walls_have_a_gap_is_one_loop() {
         let (samples, mut curves) = pinched_band();
         let field = DistanceField::new(&samples).unwrap();
-        let joins = join_pinches(&mut curves, &field, 0.0, 0.004, 0.002);
+        let joins = join_pinches(&mut curves, &field, 0.0, true, 0.004, 0.002);
         assert_eq!(joins, vec![(0, 1)]);
         assert_eq!(curves.len(), 1);
         let off = curves[0]
@@ -339,7 +337,7 @@ mod tests {
             })
             .collect();
         let before = curves.clone();
-        assert!(join_pinches(&mut curves, &field, 0.0, 0.004, 0.002).is_empty());
+        assert!(join_pinches(&mut curves, &field, 0.0, true, 0.004, 0.002).is_empty());
         assert_eq!(curves, before);
     }
 

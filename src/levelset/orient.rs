@@ -420,6 +420,8 @@ fn join_open_sheets(
     if open.is_empty() {
         return (sheets, rings);
     }
+    // A ring's farthest samples may yet be ends that the test above missed: where the
+    // open sheets' ends do not all pair, it takes part with them.
     let all: Vec<usize> = (0..sheets.len()).collect();
     let Some(parent) = pair_ends(tree, normals, &links, &sheets, &open, reach, sigma)
         .or_else(|| pair_ends(tree, normals, &links, &sheets, &all, reach, sigma))
@@ -445,10 +447,15 @@ fn join_open_sheets(
         }
         merged[slot[root]].extend(sheet);
     }
-    // A ring has no ends, so it pairs with nothing and stays a sheet of its own.
+    // A ring joined to another sheet was open after all: the joined sheet must close.
+    let mut members = vec![0usize; merged.len()];
+    for &(root, _) in &parent {
+        members[slot[root]] += 1;
+    }
     let mut ring = vec![false; merged.len()];
     for s in 0..rings.len() {
-        ring[slot[parent[s].0]] |= rings[s];
+        let k = slot[parent[s].0];
+        ring[k] = rings[s] && members[k] == 1;
     }
     (merged, ring)
 }
