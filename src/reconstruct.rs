@@ -454,8 +454,8 @@ fn export_with(
             // otherwise look like strokes joined through empty space. In local
             // coordinates, where the samples' tree is; only the loops changed come back,
             // so the others keep their coordinates to the bit.
-            let mut curves = polylines;
-            let mut local: Vec<Polyline> = curves
+            let curves = polylines;
+            let local: Vec<Polyline> = curves
                 .iter()
                 .map(|pl| Polyline {
                     closed: pl.closed,
@@ -478,22 +478,16 @@ fn export_with(
                 sigma
             };
             let mend_tol = 3.0 * mend_sigma + 2.0 * hmin;
-            // Loops round fewer than three samples go first: they hold those samples off
+            // Loops round fewer than three samples go first (holes the noise opened in a
+            // band's interior, which hold none, among them): they hold those samples off
             // the arcs below.
-            let kept: Vec<bool> = local
-                .iter()
-                .map(|pl| !crate::export::holds_no_curve(pl, &prepared.metric.field, mend_tol))
-                .collect();
-            let mut k = 0;
-            curves.retain(|_| {
-                k += 1;
-                kept[k - 1]
-            });
-            let mut k = 0;
-            local.retain(|_| {
-                k += 1;
-                kept[k - 1]
-            });
+            let (mut curves, mut local): (Vec<Polyline>, Vec<Polyline>) = curves
+                .into_iter()
+                .zip(local)
+                .filter(|(_, pl)| {
+                    !crate::export::holds_no_curve(pl, &prepared.metric.field, mend_tol)
+                })
+                .unzip();
             // Pinches before that: two loops each crossing one neck where both walls
             // have a gap become one, whose joins along the walls are arcs to span.
             let mut joined = vec![false; curves.len()];
@@ -551,19 +545,14 @@ fn export_with(
             for &k in &changed {
                 curves[k].points = local[k].points.iter().map(|&p| at.to_data(p)).collect();
             }
-            // Holes the noise opened in a band's interior go.
+            // Holes the noise opened in a band's interior that the arcs shrank go.
             let min_area = params.min_area(hmin);
             let mut k = 0;
             curves.retain(|_| {
-                let hole = crate::export::is_unheld_hole(
-                    &local[k],
-                    changed.binary_search(&k).is_ok(),
-                    &prepared.metric.field,
-                    mend_tol,
-                    min_area,
-                );
+                let shrunk = changed.binary_search(&k).is_ok()
+                    && crate::export::is_shrunk_hole(&local[k], min_area);
                 k += 1;
-                !hole
+                !shrunk
             });
             crate::export::strokes::with_strokes(
                 curves,

@@ -127,20 +127,13 @@ pub fn holds_no_curve(pl: &Polyline, field: &DistanceField, tol: f64) -> bool {
     true
 }
 
-/// Whether the closed loop `pl` is a hole that the noise opened in a noisy band's
-/// interior: no vertex within `tol` of a sample of `field`, or, where the mending
-/// changed it (`mended`), enclosing less than `min_area` (its whole run lay within `tol`
-/// of the samples round it, and one short arc spanned it). Open polylines are none.
-pub fn is_unheld_hole(
-    pl: &Polyline,
-    mended: bool,
-    field: &DistanceField,
-    tol: f64,
-    min_area: f64,
-) -> bool {
-    pl.closed
-        && ((mended && pl.signed_area().abs() < min_area)
-            || pl.points.iter().all(|&p| field.distance(p) > tol))
+/// Whether the closed loop `pl`, which the mending changed, is a hole that the noise
+/// opened in a noisy band's interior: it encloses less than `min_area` (its whole run
+/// lay off the samples round it, and one short arc spanned it). Open polylines are
+/// none. (A hole that holds no sample at all goes before the mending, by
+/// [`holds_no_curve`].)
+pub fn is_shrunk_hole(pl: &Polyline, min_area: f64) -> bool {
+    pl.closed && pl.signed_area().abs() < min_area
 }
 
 #[cfg(test)]

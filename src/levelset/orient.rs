@@ -403,15 +403,22 @@ fn join_open_sheets(
 ) -> (Vec<Vec<usize>>, Vec<bool>) {
     let links = Links::new(tree, edges, &sheets);
     let mut along = vec![f64::INFINITY; tree.points().len()];
+    // Each sheet's two farthest samples, and whether both are ends.
+    let far: Vec<(usize, usize)> = sheets
+        .iter()
+        .map(|sheet| links.far_pair(sheet, &mut along))
+        .collect();
+    let ends: Vec<bool> = far
+        .iter()
+        .map(|&(a, b)| links.has_ends(tree, normals, a, b, reach))
+        .collect();
     // Open by their normals, though by less than [`RING_CLOSURE`], but with no ends:
     // rings, whose normals sum past a closed curve's by the sampling's chance.
-    let rings: Vec<bool> = sheets
-        .iter()
-        .map(|sheet| {
-            is_open(normals, sheet) && !is_open_by(normals, sheet, RING_CLOSURE) && {
-                let (far, other) = links.far_pair(sheet, &mut along);
-                !links.has_ends(tree, normals, far, other, reach)
-            }
+    let rings: Vec<bool> = (0..sheets.len())
+        .map(|s| {
+            is_open(normals, &sheets[s])
+                && !is_open_by(normals, &sheets[s], RING_CLOSURE)
+                && !ends[s]
         })
         .collect();
     let open: Vec<usize> = (0..sheets.len())
@@ -423,8 +430,13 @@ fn join_open_sheets(
     // A ring's farthest samples may yet be ends that the test above missed: where the
     // open sheets' ends do not all pair, it takes part with them.
     let all: Vec<usize> = (0..sheets.len()).collect();
-    let Some(parent) = pair_ends(tree, normals, &links, &sheets, &open, reach, sigma)
-        .or_else(|| pair_ends(tree, normals, &links, &sheets, &all, reach, sigma))
+    let sheet_ends = SheetEnds {
+        links: &links,
+        far: &far,
+        ends: &ends,
+    };
+    let Some(parent) = pair_ends(tree, normals, &sheet_ends, &sheets, &open, reach, sigma)
+        .or_else(|| pair_ends(tree, normals, &sheet_ends, &sheets, &all, reach, sigma))
     else {
         return (sheets, rings);
     };
@@ -467,7 +479,7 @@ fn join_open_sheets(
 fn pair_ends(
     tree: &DistanceField,
     normals: &[Point],
-    links: &Links,
+    sheet_ends: &SheetEnds<'_>,
     sheets: &[Vec<usize>],
     candidates: &[usize],
     reach: f64,
@@ -482,9 +494,10 @@ fn pair_ends(
     let mut taking = 0;
     for &s in candidates {
         let sheet = &sheets[s];
-        let (far, other) = links.far_pair(sheet, &mut along);
+        let (far, other) = sheet_ends.far[s];
+        sheet_ends.links.farthest(sheet, far, &mut along);
         let a = end_of(pts, normals, s, sheet, far, &along, span);
-        links.farthest(sheet, other, &mut along);
+        sheet_ends.links.farthest(sheet, other, &mut along);
         let b = end_of(pts, normals, s, sheet, other, &along, span);
         let (Some(a), Some(b)) = (a, b) else {
             if is_open(normals, sheet) {
@@ -494,7 +507,7 @@ fn pair_ends(
         };
         // A sheet closed by its normals has no ends where the samples round its
         // farthest lie on both sides of them (see `Links::has_ends`).
-        if !is_open(normals, sheet) && !links.has_ends(tree, normals, far, other, reach) {
+        if !is_open(normals, sheet) && !sheet_ends.ends[s] {
             continue;
         }
         ends.extend([a, b]);
@@ -608,6 +621,14 @@ fn end_of(
             runs_out: dot(tangent(n), out) > 0.0,
         }
     })
+}
+
+/// The sheets' farthest samples (by [`Links::far_pair`]) and whether both are ends (by
+/// [`Links::has_ends`]), found once for both pairing passes.
+struct SheetEnds<'a> {
+    links: &'a Links,
+    far: &'a [(usize, usize)],
+    ends: &'a [bool],
 }
 
 /// The samples' links along their sheets, to find a sheet's ends by: its edges, and
