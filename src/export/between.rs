@@ -6,7 +6,8 @@
 //! to one and the five from the next each lie on their own circle and neither circle
 //! holds the other's sample, two walls meet between the two: at the corner where those
 //! circles run on to cross, as [`gaps`](super::gaps) places a corner across a sampling
-//! gap. Elsewhere the curve between two consecutive samples is the circle through five
+//! gap. (A circle may pass the other's sample where the two circles cross twice; then
+//! the samples cannot tell which crossing is the corner, and the curve runs midway.) Elsewhere the curve between two consecutive samples is the circle through five
 //! consecutive samples with these two among them (and no corner between), as a spline
 //! through them would draw it.
 //!
@@ -160,7 +161,8 @@ impl Curve {
 /// samples of `field` along it (those within `tol` of it, this loop their nearest
 /// curve) by the curve they imply, sampled every `step`: where the five samples up to
 /// the first and the five from the second each lie on a circle (or line) to within
-/// `fit_tol` and neither holds the other's sample, the corner where the two circles
+/// `fit_tol` and neither holds the other's sample (but by a chance crossing of the
+/// two, then midway between it and the next), the corner where the two circles
 /// run on to cross, turning by 11 degrees at least; else the arc of a circle through
 /// five consecutive samples with both among them and no corner, or the Hermite arc
 /// between two runs' circles where the curvature jumps between the samples. A stretch
@@ -373,13 +375,26 @@ fn corner_piece(s: impl Fn(isize) -> Point, fit_tol: f64, step: f64) -> Option<V
     let curve = |first: isize| Curve::of_run(&s, first..first + n, fit_tol);
     let (before, after) = (curve(1 - n)?, curve(1)?);
     // Either side's curve running on through the other's first sample: a smooth
-    // stretch whose curvature changes fast (two runs' circles may cross there).
-    if before.off(q) <= fit_tol || after.off(p) <= fit_tol {
+    // stretch whose curvature changes fast (two runs' circles may cross there), or a
+    // corner at that sample, the run holding it one round the corner. Or a chance,
+    // where that sample lies nearer its own run's circle than the other's, and the
+    // circles cross there by a corner's turn and again farther on: the samples cannot
+    // tell the two crossings apart, and the piece runs midway between them.
+    let held = |x: Point, own: Curve, other: Curve| {
+        let off = other.off(x);
+        (off <= fit_tol).then_some(own.off(x) < off)
+    };
+    let (q_held, p_held) = (held(q, after, before), held(p, before, after));
+    if q_held == Some(false) || p_held == Some(false) {
         return None;
     }
-    let before = before.end(p, sub(p, s(-1)))?;
-    let after = after.end(q, sub(s(2), q))?;
-    corner(p, q, before, after, (MIN_TURN, MAX_SIDE_TURN), step)
+    let at_p = before.end(p, sub(p, s(-1)))?;
+    let at_q = after.end(q, sub(s(2), q))?;
+    let path = corner(p, q, at_p, at_q, (MIN_TURN, MAX_SIDE_TURN), step)?;
+    if (q_held.is_some() || p_held.is_some()) && !path.midway {
+        return None;
+    }
+    Some(path.inner)
 }
 
 /// The largest distance of a point of `a` to the polyline `b`.
@@ -794,5 +809,85 @@ mod tests {
                 proptest::prop_assert!(p[0].is_finite() && p[1].is_finite());
             }
         }
+    }
+
+    /// The clean spiral's inner end (seed 15 of the gap table, its samples about the
+    /// centre of the data): its cap, a circle of radius 0.04, meets the wall, turning by
+    /// 23 degrees at the corner, which lies in a gap between samples 0.043 apart. The
+    /// cap's circle, curving the other way, crosses the wall's again 0.02 from the
+    /// corner and passes the wall's last sample there by 1.7e-4, within the fit
+    /// tolerance: the samples imply a corner at either crossing. Taken for a corner at
+    /// that sample, the cap's circle ran on up to it, 2.1e-3 off the wall (over the
+    /// `2 hmin` bound of 1.9e-3). Midway between the two, the piece keeps within 1e-3
+    /// of the truth, about half the lens between the circles.
+    #[test]
+    fn a_circle_through_the_next_wall_sample_by_chance_leaves_the_corner_in_doubt() {
+        let s = [
+            [0.0863220, 0.0484178],
+            [0.0955439, 0.0350806],
+            [0.1026003, 0.0170949],
+            [0.1037598, 0.0113940],
+            [0.1041141, 0.0088934],
+            [0.1044417, -0.0041277],
+            [0.1080361, -0.0473798],
+            [0.1113052, -0.0511679],
+            [0.1170623, -0.0560305],
+            [0.1181723, -0.0567760],
+            [0.1262249, -0.0607850],
+            [0.1300098, -0.0619525],
+        ];
+        let at = |j: isize| s[(j + 5) as usize];
+        let (fit_tol, hmin) = (2.33e-4, 9.32e-4);
+        // The truth: the wall, r = 0.06 + 0.16 t / 2 pi round the spiral's centre, and
+        // the cap's lower half circle, in the same frame.
+        let (centre, cap) = ([0.0398856, -0.0231946], [0.1398856, -0.0231946]);
+        let wall: Vec<Point> = (0..=4000)
+            .map(|i| {
+                let t = 0.6 * i as f64 / 4000.0;
+                let r = 0.06 + 0.16 * t / std::f64::consts::TAU;
+                add(centre, [r * t.cos(), r * t.sin()])
+            })
+            .collect();
+        let off_truth = |v: Point| {
+            let below = v[1] <= cap[1];
+            let to_cap = if below {
+                (dist(v, cap) - 0.04).abs()
+            } else {
+                f64::INFINITY
+            };
+            polyline_dist(v, &wall).min(to_cap)
+        };
+        let inner = corner_piece(at, fit_tol, hmin).unwrap();
+        let off = inner.iter().map(|&v| off_truth(v)).fold(0.0, f64::max);
+        assert!(off < 1e-3, "{off}");
+    }
+
+    /// A bay's circle meeting an inlet's straight wall (the bays 0.06 apart, clean, seed
+    /// 30), and the gap between the wall's second and third samples. The run of five up
+    /// to the second holds three of the bay's and the wall's first two on a circle of
+    /// radius 0.022 (the bay's is 0.09) to 6.8e-4, within the loose fit tolerance of
+    /// these samples; the wall's line from the third holds the second to 1e-8. That
+    /// circle crosses the line at the second sample and again farther on, but the sample
+    /// lies on the line, not on its own run's circle by chance: no piece is drawn midway
+    /// (it bowed 5.3e-4 off the wall, and the stretch round it rose to 3.2e-3 from the
+    /// truth).
+    #[test]
+    fn a_run_round_a_corner_is_no_chance_crossing() {
+        let s = [
+            [0.2617495, -0.0835943],
+            [0.2627211, -0.0906474],
+            [0.2629647, -0.0935998],
+            [0.2630620, -0.0954670],
+            [0.2621923, -0.1124902],
+            [0.2630624, -0.1166750],
+            [0.2665020, -0.1186609],
+            [0.2909877, -0.1327977],
+            [0.3001108, -0.1380649],
+            [0.3003615, -0.1382097],
+            [0.3153863, -0.1468842],
+            [0.3282951, -0.1543371],
+        ];
+        let at = |j: isize| s[(j + 6) as usize];
+        assert_eq!(corner_piece(at, 9.34e-4, 3.74e-3), None);
     }
 }

@@ -470,7 +470,7 @@ impl<'a> Loop<'a> {
             };
             let a = fit.tangent(p, r, &[before, d], Some(behind_p))?;
             let b = fit.tangent(q, r, &[after, d], Some(behind_q))?;
-            corner(p, q, a, b, (MIN_CORNER, MAX_SIDE_TURN), step)
+            corner(p, q, a, b, (MIN_CORNER, MAX_SIDE_TURN), step).map(|c| c.inner)
         };
         let mut arc = Vec::new();
         let mut i = 0;
@@ -608,6 +608,8 @@ const MAX_SIDE_TURN: f64 = 1.0;
 /// imply, which no smooth arc between them keeps. A smooth curve between `p` and `q`
 /// gives none: osculating circles of a curve of monotone curvature are nested (Tait and
 /// Kneser), and two circles fitted to the same one meet, if at all, at a small angle.
+/// Where the curves cross twice so, at the ends of a thin lens, the path runs midway
+/// between the two crossings' (see [`Corner::midway`]).
 pub(super) fn corner(
     p: Point,
     q: Point,
@@ -615,7 +617,7 @@ pub(super) fn corner(
     b: End,
     (min_turn, max_side_turn): (f64, f64),
     step: f64,
-) -> Option<Vec<Point>> {
+) -> Option<Corner> {
     let c = dist(p, q);
     let (ka, kb) = (a.curvature?, b.curvature?);
     if c <= 0.0 || ka.abs() * c > max_side_turn || kb.abs() * c > max_side_turn {
@@ -626,34 +628,106 @@ pub(super) fn corner(
     let side_a = continued(p, a.tangent, ka, 1.5 * c, step);
     // Behind `q`: the same curve walked backwards turns the other way.
     let side_b = continued(q, scale(b.tangent, -1.0), -kb, 1.5 * c, step);
-    // The crossing nearest the ends, by the arc length from both.
-    let mut best: Option<(usize, usize, Point)> = None;
+    // Every crossing, the nearest the ends (by the arc length from both) first.
+    let mut found: Vec<(usize, usize, Point)> = Vec::new();
     for i in 0..side_a.len() - 1 {
         for j in 0..side_b.len() - 1 {
-            if best.is_some_and(|(bi, bj, _)| i + j >= bi + bj) {
-                break;
-            }
             if let Some(x) = crossing(side_a[i], side_a[i + 1], side_b[j], side_b[j + 1]) {
-                best = Some((i, j, x));
+                found.push((i, j, x));
             }
         }
     }
-    let (i, j, x) = best?;
-    let ta = sub(side_a[i + 1], side_a[i]);
-    let tb = sub(side_b[j], side_b[j + 1]);
-    let turn = (dot(ta, tb) / (norm(ta) * norm(tb)))
-        .clamp(-1.0, 1.0)
-        .acos();
-    if !(min_turn..=MAX_TURN).contains(&turn) {
-        return None;
-    }
-    let mut path: Vec<Point> = side_a[1..=i].to_vec();
-    path.push(x);
-    path.extend(side_b[1..=j].iter().rev());
-    // A crossing at a side's first vertex repeats it.
-    path.retain(|&v| v != p && v != q);
-    path.dedup();
-    Some(path)
+    found.sort_by_key(|&(i, j, _)| i + j);
+    let turns = |&(i, j, _): &(usize, usize, Point)| {
+        let ta = sub(side_a[i + 1], side_a[i]);
+        let tb = sub(side_b[j], side_b[j + 1]);
+        let turn = (dot(ta, tb) / (norm(ta) * norm(tb)))
+            .clamp(-1.0, 1.0)
+            .acos();
+        (min_turn..=MAX_TURN).contains(&turn)
+    };
+    let path = |&(i, j, x): &(usize, usize, Point)| {
+        let mut path = vec![p];
+        path.extend_from_slice(&side_a[1..=i]);
+        path.push(x);
+        path.extend(side_b[1..=j].iter().rev());
+        path.push(q);
+        // A crossing at a side's first vertex repeats it.
+        path.dedup();
+        path
+    };
+    let first = found.first().filter(|x| turns(x))?;
+    let one = path(first);
+    // Two circles cross twice. Where both crossings turn as corners do and lie at the
+    // two ends of a thin lens between the circles (the paths along its two sides are
+    // of one length to a tenth), the samples cannot tell which is the corner: the
+    // other is where one circle passes a sample of the other's wall by chance (at the
+    // spiral's inner end the cap and its wall curve opposite ways, and their circles
+    // cross again 2 turn / (curvature change), about 0.02, from the corner). The path
+    // runs midway between the two, within half the lens's width of either.
+    let other = found
+        .iter()
+        .skip(1)
+        .filter(|x| dist(x.2, first.2) > step && turns(x))
+        .map(path)
+        .find(|two| (length(two) - length(&one)).abs() <= 0.1 * length(&one));
+    let midway = other.is_some();
+    let mut inner = match other {
+        Some(two) => midway_between(&one, &two),
+        None => one,
+    };
+    inner.retain(|&v| v != p && v != q);
+    inner.dedup();
+    Some(Corner { inner, midway })
+}
+
+/// The path round a corner that [`corner`] finds.
+pub(super) struct Corner {
+    /// Its inner points.
+    pub(super) inner: Vec<Point>,
+    /// Whether it runs midway between two crossings of the sides' curves.
+    pub(super) midway: bool,
+}
+
+/// The length of the polyline `pl`.
+fn length(pl: &[Point]) -> f64 {
+    pl.windows(2).map(|w| dist(w[0], w[1])).sum()
+}
+
+/// The path midway between the paths `a` and `b`, which run from one point to another:
+/// the midpoints of their points at the same fraction of their lengths, as many as the
+/// longer list has, its ends exactly theirs.
+fn midway_between(a: &[Point], b: &[Point]) -> Vec<Point> {
+    let n = a.len().max(b.len());
+    // Each path with the length up to each of its points.
+    let along = |pl: &[Point]| -> Vec<f64> {
+        let mut run = 0.0;
+        std::iter::once(0.0)
+            .chain(pl.windows(2).map(|w| {
+                run += dist(w[0], w[1]);
+                run
+            }))
+            .collect()
+    };
+    let (la, lb) = (along(a), along(b));
+    let at = |pl: &[Point], l: &[f64], t: f64| {
+        let target = t * l[l.len() - 1];
+        let i = l.partition_point(|&x| x < target).clamp(1, pl.len() - 1);
+        let d = l[i] - l[i - 1];
+        let s = if d > 0.0 {
+            ((target - l[i - 1]) / d).clamp(0.0, 1.0)
+        } else {
+            0.0
+        };
+        add(pl[i - 1], scale(sub(pl[i], pl[i - 1]), s))
+    };
+    let mut path = vec![a[0]];
+    path.extend((1..n - 1).map(|k| {
+        let t = k as f64 / (n - 1) as f64;
+        scale(add(at(a, &la, t), at(b, &lb, t)), 0.5)
+    }));
+    path.push(a[a.len() - 1]);
+    path
 }
 
 /// The curve from `p` along the unit tangent `t` with the constant curvature `k` (left
@@ -1129,5 +1203,81 @@ mod tests {
         let before = curves.clone();
         assert!(span_gaps(&mut curves, &field(&samples), 0.0, 0.01, 0.005).is_empty());
         assert_eq!(curves, before);
+    }
+
+    /// Two circles (radii 0.07 and 0.04, centres 0.1 apart) cross at two points 0.044
+    /// apart, turning by 51 degrees at both, with a lens 0.01 wide between them. A wall
+    /// on the first meets one on the second at the upper crossing; its last sample lies
+    /// at the lower one, which the second circle passes too. From that sample, and one
+    /// 0.02 along the second wall past the corner, either crossing is a corner the
+    /// samples imply, and either path (round the second circle all the way, or up the
+    /// first to the upper crossing) is 0.01 from the other at the lens's middle. The
+    /// path comes out midway: within 0.6 of the lens's width of both (half, and a little
+    /// for pairing the two by the fraction of their lengths), so that whichever is the
+    /// curve it is off by about half the lens; either path alone is off the other by
+    /// the whole lens.
+    #[test]
+    fn two_crossings_a_lens_apart_give_the_path_midway_between_them() {
+        let (ra, rb, cb): (f64, f64, Point) = (0.07, 0.04, [0.1, 0.0]);
+        // The crossings, at x from the first centre (the origin), y = +-h.
+        let x = (cb[0] * cb[0] + ra * ra - rb * rb) / (2.0 * cb[0]);
+        let h = (ra * ra - x * x).sqrt();
+        let (upper, lower) = ([x, h], [x, -h]);
+        // The first wall runs counter-clockwise up to the upper crossing; the second
+        // leaves it clockwise round the second circle.
+        let on_b = |angle: f64| add(cb, [rb * angle.cos(), rb * angle.sin()]);
+        let at_upper = (upper[1] - cb[1]).atan2(upper[0] - cb[0]);
+        let q = on_b(at_upper - 0.02 / rb);
+        let p = lower;
+        let a = End {
+            tangent: scale([-p[1], p[0]], 1.0 / ra),
+            curvature: Some(1.0 / ra),
+        };
+        let out_q = sub(q, cb);
+        let b = End {
+            tangent: scale([out_q[1], -out_q[0]], 1.0 / rb),
+            curvature: Some(-1.0 / rb),
+        };
+        let step = 1e-4;
+        let got = corner(p, q, a, b, (0.2, 2.0), step).unwrap();
+        assert!(got.midway);
+        // The two candidates, finely drawn: up the first circle then on round the
+        // second, or round the second from the lower crossing.
+        let arc = |centre: Point, r: f64, from: f64, to: f64| -> Vec<Point> {
+            (0..=2000)
+                .map(|i| {
+                    let t = from + (to - from) * i as f64 / 2000.0;
+                    add(centre, [r * t.cos(), r * t.sin()])
+                })
+                .collect()
+        };
+        let mut via_upper = arc([0.0, 0.0], ra, lower[1].atan2(lower[0]), h.atan2(x));
+        via_upper.extend(arc(cb, rb, at_upper, at_upper - 0.02 / rb));
+        let at_lower = (lower[1] - cb[1]).atan2(lower[0] - cb[0]) + std::f64::consts::TAU;
+        let via_lower = arc(cb, rb, at_lower, at_upper - 0.02 / rb);
+        let width = ra - (cb[0] - rb);
+        assert!((width - 0.01).abs() < 1e-12);
+        for candidate in [&via_upper, &via_lower] {
+            let off = got
+                .inner
+                .iter()
+                .map(|&v| polyline_dist(v, candidate))
+                .fold(0.0, f64::max);
+            assert!(off <= 0.6 * width, "{off}");
+            let apart = candidate
+                .iter()
+                .map(|&v| {
+                    polyline_dist(
+                        v,
+                        if candidate == &via_upper {
+                            &via_lower
+                        } else {
+                            &via_upper
+                        },
+                    )
+                })
+                .fold(0.0, f64::max);
+            assert!(apart >= 0.99 * width, "{apart}");
+        }
     }
 }
