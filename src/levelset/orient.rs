@@ -402,9 +402,9 @@ fn turn_along(
 
 /// The spanning forest that [`turn_along`] built, rooted, for turning back the stretch
 /// below one of its edges: the greedy forest decides each link by the surest edge
-/// between two pieces, and where that edge was wrong (a join across a gap whose ends'
-/// fits turn the wrong way) a whole stretch comes out turned against the rest, every
-/// edge at its far end opposed.
+/// between two pieces, and where that edge was wrong (its samples' fits turned by the
+/// noise) a whole stretch comes out turned against the rest, the edges at its far end
+/// opposed.
 struct Forest {
     /// Each sample's parent (a root its own), its tree's root, depth, and place in a
     /// depth-first order with the end of its subtree there.
