@@ -628,11 +628,18 @@ pub(super) fn corner(
     let side_a = continued(p, a.tangent, ka, 1.5 * c, step);
     // Behind `q`: the same curve walked backwards turns the other way.
     let side_b = continued(q, scale(b.tangent, -1.0), -kb, 1.5 * c, step);
-    // Every crossing, the nearest the ends (by the arc length from both) first.
+    // The crossings, the nearest the ends (by the arc length from both) first: the
+    // pieces of both sides are of one length, so past a tenth beyond the nearest, no
+    // path through one is of its path's length (below).
     let mut found: Vec<(usize, usize, Point)> = Vec::new();
+    let mut least = usize::MAX;
     for i in 0..side_a.len() - 1 {
         for j in 0..side_b.len() - 1 {
+            if least != usize::MAX && i + j > least + least / 10 + 2 {
+                break;
+            }
             if let Some(x) = crossing(side_a[i], side_a[i + 1], side_b[j], side_b[j + 1]) {
+                least = least.min(i + j);
                 found.push((i, j, x));
             }
         }
