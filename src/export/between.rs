@@ -7,7 +7,8 @@
 //! holds the other's sample, two walls meet between the two: at the corner where those
 //! circles run on to cross, as [`gaps`](super::gaps) places a corner across a sampling
 //! gap. (A circle may pass the other's sample where the two circles cross twice; then
-//! the samples cannot tell which crossing is the corner, and the curve runs midway.) Elsewhere the curve between two consecutive samples is the circle through five
+//! the samples cannot tell which crossing is the corner, and the curve runs midway.)
+//! Elsewhere the curve between two consecutive samples is the circle through five
 //! consecutive samples with these two among them (and no corner between), as a spline
 //! through them would draw it.
 //!

@@ -59,9 +59,9 @@ pub(super) struct Fit<'a> {
 /// end, on its side only), their line where it holds them or where the noise (`sigma`)
 /// hides the curvature; two sides whose curves run on to meet within one and a half
 /// chords, turning by 40 degrees or more, meet at that corner. Arcs are taken where
-/// each turns less than 171 degrees, stays within 0.6 chords of its chord and all keep `tol`
-/// from every other part of the curves. Open polylines are left as they are. Returns the indices of the polylines
-/// changed.
+/// each turns less than 171 degrees, stays within 0.6 chords of its chord and all keep
+/// `tol` from every other part of the curves. Open polylines are left as they are.
+/// Returns the indices of the polylines changed.
 pub fn span_gaps(
     curves: &mut [Polyline],
     field: &DistanceField,

@@ -978,8 +978,9 @@ impl Links {
 }
 
 /// Turns each sheet of `sheets` outward, or `None` when one does not close (a ring, by
-/// `rings`, does) or there are none or more than [`MAX_SHEETS`]. Closed: the unit normals of a closed curve sum to
-/// nothing (their integral along it vanishes), an open stroke's to its chord. Outward:
+/// `rings`, does) or there are none or more than [`MAX_SHEETS`]. Closed: the unit
+/// normals of a closed curve sum to nothing (their integral along it vanishes), an open
+/// stroke's to its chord. Outward:
 /// the flux of the position, `sum (p - c) . n`, is twice the enclosed area over the
 /// spacing, positive for outward normals; a sheet inside an odd number of others bounds
 /// a hole, and turns the other way.
