@@ -1311,6 +1311,33 @@ mod tests {
         }
     }
 
+    /// The orientation of a run of the gap table (walls 0.08 apart, sigma = 0.00707) with
+    /// the noise `sigma_hat` the pipeline estimates for it, if any: how many normals
+    /// point into the material, of how many.
+    fn noisy_gap_run(
+        shape: Shape,
+        points: usize,
+        seed: u64,
+        sigma_hat: f64,
+    ) -> Option<(usize, usize)> {
+        let frames = generate(&SynthParams {
+            points,
+            noise: 0.00707,
+            gap: 0.08,
+            seed,
+            ..SynthParams::new(shape)
+        })
+        .unwrap();
+        let truth = shape.truth(0.08).remove(0).points;
+        let f = DistanceField::new(&frames[0].points).unwrap();
+        let oriented = orient(&f, sigma_hat)?;
+        let wrong = oriented
+            .iter()
+            .filter(|&&(p, n)| dot(n, outward(&truth, p)) <= 0.0)
+            .count();
+        Some((wrong, oriented.len()))
+    }
+
     /// The spiral and the bays with walls 0.08 apart at sigma = 0.00707 (seeds 24 and 33
     /// of the gap table), where the spanning forest turned a stretch of 215 and of 71
     /// samples against the rest: the spiral's sheet summed to 0.21 of its number and
@@ -1328,26 +1355,9 @@ mod tests {
             (Shape::Bays, 442, 33, 6.124e-3),
         ];
         for (shape, points, seed, sigma) in runs {
-            let frames = generate(&SynthParams {
-                points,
-                noise: 0.00707,
-                gap: 0.08,
-                seed,
-                ..SynthParams::new(shape)
-            })
-            .unwrap();
-            let truth = shape.truth(0.08).remove(0).points;
-            let f = DistanceField::new(&frames[0].points).unwrap();
-            let oriented = orient(&f, sigma).unwrap_or_else(|| panic!("{shape:?}"));
-            let wrong = oriented
-                .iter()
-                .filter(|&&(p, n)| dot(n, outward(&truth, p)) <= 0.0)
-                .count();
-            assert!(
-                wrong * 100 <= oriented.len(),
-                "{shape:?}: {wrong} of {}",
-                oriented.len()
-            );
+            let (wrong, of) =
+                noisy_gap_run(shape, points, seed, sigma).unwrap_or_else(|| panic!("{shape:?}"));
+            assert!(wrong * 100 <= of, "{shape:?}: {wrong} of {of}");
         }
     }
 
@@ -1381,22 +1391,8 @@ mod tests {
     /// spiral came out as three curves).
     #[test]
     fn a_stretch_is_not_turned_back_on_one_sample() {
-        let frames = generate(&SynthParams {
-            points: 498,
-            noise: 0.00707,
-            gap: 0.08,
-            seed: 26,
-            ..SynthParams::new(Shape::Spiral)
-        })
-        .unwrap();
-        let truth = Shape::Spiral.truth(0.08).remove(0).points;
-        let f = DistanceField::new(&frames[0].points).unwrap();
-        let oriented = orient(&f, 6.576e-3).unwrap();
-        let wrong = oriented
-            .iter()
-            .filter(|&&(p, n)| dot(n, outward(&truth, p)) <= 0.0)
-            .count();
-        assert_eq!(wrong, 0, "{wrong} of {}", oriented.len());
+        let (wrong, of) = noisy_gap_run(Shape::Spiral, 498, 26, 6.576e-3).unwrap();
+        assert_eq!(wrong, 0, "{wrong} of {of}");
     }
 
     /// The noisy spiral of the tests above, seed 28: 35 of its 3,331 sheet edges
@@ -1408,26 +1404,8 @@ mod tests {
     /// 8 curves).
     #[test]
     fn a_sample_straddling_two_walls_takes_the_side_most_of_its_edges_give() {
-        let frames = generate(&SynthParams {
-            points: 498,
-            noise: 0.00707,
-            gap: 0.08,
-            seed: 28,
-            ..SynthParams::new(Shape::Spiral)
-        })
-        .unwrap();
-        let truth = Shape::Spiral.truth(0.08).remove(0).points;
-        let f = DistanceField::new(&frames[0].points).unwrap();
-        let oriented = orient(&f, 7.588e-3).unwrap();
-        let wrong = oriented
-            .iter()
-            .filter(|&&(p, n)| dot(n, outward(&truth, p)) <= 0.0)
-            .count();
-        assert!(
-            wrong * 100 <= oriented.len(),
-            "{wrong} of {}",
-            oriented.len()
-        );
+        let (wrong, of) = noisy_gap_run(Shape::Spiral, 498, 28, 7.588e-3).unwrap();
+        assert!(wrong * 100 <= of, "{wrong} of {of}");
     }
 
     /// A circle of radius 0.3 sampled 1.6 times as densely on one half as on the other
