@@ -167,7 +167,12 @@ fn a_spiral_and_bays_behind_narrow_inlets_stay_open() {
 /// disc's circle left its bay an open sheet, and the rest one long sheet whose normals
 /// sum to less than a closed one's may, so the two were not joined. Bays seed 32 bowed
 /// 0.01 into an inlet across a gap in its straight wall that reaches a sample beside
-/// the corner, whose fit spans the corner (a Hermite arc with that tangent).
+/// the corner, whose fit spans the corner (a Hermite arc with that tangent). The
+/// spiral 0.06 apart, seed 16, ballooned 0.03 into a corridor past three samples of a
+/// wall, which the balloon passed in the reverse order, so the arc through them doubled
+/// back and was refused; seed 32 came out as five curves: gaps cut one wall twice,
+/// nearly a turn apart, and both sheets, their normals summing as closed curves', were
+/// turned outward on their own.
 #[test]
 fn clean_walls_keep_their_bends_and_corners_across_sampling_gaps() {
     let dir = tempfile::tempdir().unwrap();
@@ -180,6 +185,8 @@ fn clean_walls_keep_their_bends_and_corners_across_sampling_gaps() {
         ("spiral", 498, 27, 0.08, true),
         ("spiral", 914, 4, 0.06, true),
         ("spiral", 914, 9, 0.06, true),
+        ("spiral", 914, 16, 0.06, true),
+        ("spiral", 914, 32, 0.06, true),
         ("bays", 442, 2, 0.08, true),
         ("bays", 442, 8, 0.08, true),
         ("bays", 442, 6, 0.08, false),

@@ -587,7 +587,49 @@ fn skipped_samples(
         })
         .collect();
     found.sort_by(|x, y| x.0.total_cmp(&y.0));
-    found.into_iter().map(|(_, p)| p).collect()
+    let mut knots: Vec<Point> = found.into_iter().map(|(_, p)| p).collect();
+    untangle(pa, pb, &mut knots);
+    knots
+}
+
+/// Samples in a path longer than this keep their order: 2-opt is quadratic a pass.
+const MAX_UNTANGLED: usize = 64;
+
+/// Reorders `knots` so that the path from `pa` through them to `pb` is no longer for
+/// reversing any run of them (2-opt): the order of the stretch they were found along is
+/// theirs where it follows them, but a stretch that balloons off the samples into the
+/// space beside them (and back) passes them in the reverse order, and an arc through
+/// them so would double back.
+fn untangle(pa: Point, pb: Point, knots: &mut [Point]) {
+    let k = knots.len();
+    if !(2..=MAX_UNTANGLED).contains(&k) {
+        return;
+    }
+    // Knot `i` of the whole path, ends included.
+    let at = |knots: &[Point], i: usize| match i {
+        0 => pa,
+        i if i == k + 1 => pb,
+        i => knots[i - 1],
+    };
+    // Each reversal shortens the path, so this ends; a pass per knot bounds it all the same.
+    for _ in 0..k {
+        let mut shorter = false;
+        for i in 1..k {
+            for j in i + 1..=k {
+                let (a, b) = (at(knots, i - 1), at(knots, i));
+                let (c, d) = (at(knots, j), at(knots, j + 1));
+                // Reversing knots i..=j swaps the edges (a, b), (c, d) for (a, c), (b, d);
+                // by more than a rounding, so that ties do not cycle.
+                if dist(a, c) + dist(b, d) < (dist(a, b) + dist(c, d)) * (1.0 - 1e-12) {
+                    knots[i - 1..j].reverse();
+                    shorter = true;
+                }
+            }
+        }
+        if !shorter {
+            break;
+        }
+    }
 }
 
 /// Turns at a corner from which the sides meet there rather than round a smooth arc,
@@ -1019,6 +1061,22 @@ mod tests {
             .chain((0..n).map(|i| [0.0, 1.0 - side(i)]))
             .filter(|&p| keep(p))
             .collect()
+    }
+
+    /// Samples a stretch passed in the reverse order (a loop that balloons off a wall
+    /// into the corridor beside it and back, as on the clean spiral with walls 0.06
+    /// apart, seed 16, whose arc then doubled back and was refused): the path from one
+    /// end through them to the other runs in order. Samples round an acute corner, in
+    /// order already, stay so, though a chord's projection would misorder them.
+    #[test]
+    fn knots_passed_in_reverse_are_put_in_order() {
+        let mut knots = vec![[0.8, 0.01], [0.5, -0.01], [0.2, 0.0]];
+        untangle([0.0, 0.0], [1.0, 0.0], &mut knots);
+        assert_eq!(knots, [[0.2, 0.0], [0.5, -0.01], [0.8, 0.01]]);
+        let corner = vec![[0.6, 0.0], [0.95, 0.0], [0.92, 0.08], [0.85, 0.2]];
+        let mut knots = corner.clone();
+        untangle([0.0, 0.0], [0.7, 0.5], &mut knots);
+        assert_eq!(knots, corner);
     }
 
     /// A square sampled but near one corner, whose loop cuts the corner by a chord:
