@@ -380,15 +380,18 @@ fn turn_along(
         }
     }
     // A sample whose fit straddles two walls was joined last, by its weakest edge: it
-    // takes the side most of its edges give it.
-    let mut say = vec![0i32; n];
+    // takes the side its edges give it, each by the inverse square of its length. A
+    // sample amid a band in the noise has a few short edges along its own wall and more
+    // long ones across to the other wall's straddling samples.
+    let mut say = vec![0.0f64; n];
     for &(i, j) in edges {
         let (i, j) = (i as usize, j as usize);
-        let w = if runs(normals, i, j) { 1 } else { -1 };
+        let w = 1.0 / dist2(pts[i], pts[j]).max(f64::MIN_POSITIVE);
+        let w = if runs(normals, i, j) { w } else { -w };
         say[i] += w;
         say[j] += w;
     }
-    for v in (0..n).filter(|&v| !one_wall[v] && say[v] < 0) {
+    for v in (0..n).filter(|&v| !one_wall[v] && say[v] < 0.0) {
         normals[v] = [-normals[v][0], -normals[v][1]];
     }
     let opposed = edges
@@ -1446,10 +1449,11 @@ mod tests {
         seed: u64,
         sigma_hat: f64,
     ) -> Option<(usize, usize)> {
-        gap_run(shape, points, 0.00707, 0.08, seed, sigma_hat)
+        gap_run(shape, points, 0.00707, 0.08, seed, sigma_hat).map(|(wrong, of)| (wrong.len(), of))
     }
 
-    /// [`noisy_gap_run`] at any noise and gap.
+    /// [`noisy_gap_run`] at any noise and gap, with the samples whose normals point into
+    /// the material.
     fn gap_run(
         shape: Shape,
         points: usize,
@@ -1457,7 +1461,7 @@ mod tests {
         gap: f64,
         seed: u64,
         sigma_hat: f64,
-    ) -> Option<(usize, usize)> {
+    ) -> Option<(Vec<Point>, usize)> {
         let frames = generate(&SynthParams {
             points,
             noise,
@@ -1472,7 +1476,8 @@ mod tests {
         let wrong = oriented
             .iter()
             .filter(|&&(p, n)| dot(n, outward(&truth, p)) <= 0.0)
-            .count();
+            .map(|&(p, _)| p)
+            .collect();
         Some((wrong, oriented.len()))
     }
 
@@ -1572,7 +1577,22 @@ mod tests {
     #[test]
     fn sheets_closed_by_their_normals_but_with_ends_are_paired() {
         let (wrong, of) = gap_run(Shape::Spiral, 914, 0.0, 0.06, 32, 0.0).unwrap();
-        assert_eq!(wrong, 0, "{wrong} of {of}");
+        assert!(wrong.is_empty(), "{} of {of}", wrong.len());
+    }
+
+    /// The spiral of the accuracy table at sigma = 0.005 (2,000 samples, walls 0.05
+    /// apart, seed 7): two samples amid the band, 0.016 from their nearest wall, have
+    /// fits that straddle both walls. One has a short edge (0.012) along its wall and
+    /// three twice as long across to the other wall's straddling samples; counted
+    /// alike, the three turned it into the material (and its mean distance to the
+    /// truth rose by 0.14%). By the inverse square of their lengths, both keep their
+    /// own wall's side.
+    #[test]
+    fn a_straddling_sample_takes_its_side_from_its_nearest_edges() {
+        let (wrong, _) = gap_run(Shape::Spiral, 2000, 0.005, 0.05, 7, 4.39e-3).unwrap();
+        for amid in [[0.4047365, 0.7018904], [0.6780022, 0.2865269]] {
+            assert!(wrong.iter().all(|&p| dist2(p, amid) > 1e-12), "{amid:?}");
+        }
     }
 
     /// A circle of radius 0.3 sampled 1.6 times as densely on one half as on the other
