@@ -133,12 +133,10 @@ pub fn orient(field: &DistanceField, sigma: f64) -> Option<Vec<(Point, Point)>> 
         .collect();
     let edges = sheet_edges(&tree, &normals, sigma, reach);
     // Smaller sheets are clusters of outliers: they sign nothing.
-    let turned = turn_along(pts, &mut normals, &one_wall, &edges, reach)?;
-    let sheets: Vec<Vec<usize>> = turned
-        .sheets
-        .iter()
+    let (sheets, turned) = turn_along(pts, &mut normals, &one_wall, &edges, reach)?;
+    let sheets: Vec<Vec<usize>> = sheets
+        .into_iter()
         .filter(|s| s.len() >= MIN_SHEET)
-        .cloned()
         .collect();
     let (sheets, rings) =
         join_open_sheets(&tree, &mut normals, &edges, sheets, &turned, reach, sigma);
@@ -282,15 +280,15 @@ fn runs(pts: &[Point], normals: &[Point], i: usize, j: usize) -> bool {
 /// Turns `normals` to agree along `edges`, the surest edges first (short, along both
 /// tangents, normals alike) as a spanning forest with the parity of each sample's turn:
 /// a doubtful edge (a join across a gap, a stray link across a corridor) only decides
-/// what nothing surer reaches. The connected sheets with their forest and the edges
-/// that vote on it, or `None` when more than 1% of the edges still disagree.
+/// what nothing surer reaches. The connected sheets with the forest that turned them,
+/// or `None` when more than 1% of the edges still disagree.
 fn turn_along(
     pts: &[Point],
     normals: &mut [Point],
     one_wall: &[bool],
     edges: &[(u32, u32)],
     reach: f64,
-) -> Option<Turned> {
+) -> Option<(Vec<Vec<usize>>, Turned)> {
     let n = pts.len();
     let runs = |normals: &[Point], i: usize, j: usize| runs(pts, normals, i, j);
     let doubt = |i: usize, j: usize| {
@@ -406,17 +404,12 @@ fn turn_along(
         );
         return None;
     }
-    Some(Turned {
-        sheets,
-        forest,
-        votes,
-    })
+    Some((sheets, Turned { forest, votes }))
 }
 
-/// What [`turn_along`] leaves: the sheets, the forest that turned them, and the edges
-/// between samples whose fits see one wall, which vote on a stretch turned back.
+/// The forest that [`turn_along`] turned the sheets by, and the edges between samples
+/// whose fits see one wall, which vote on a stretch turned back.
 struct Turned {
-    sheets: Vec<Vec<usize>>,
     forest: Forest,
     votes: Vec<(usize, usize)>,
 }
@@ -593,7 +586,7 @@ impl Forest {
         for &v in self.order.iter().rev() {
             let p = self.parent[v];
             if p != v {
-                sums[p] = [sums[p][0] + sums[v][0], sums[p][1] + sums[v][1]];
+                sums[p] = add(sums[p], sums[v]);
             }
         }
         sums
