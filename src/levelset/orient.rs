@@ -736,37 +736,11 @@ fn join_open_sheets(
             // wrong way: where a gap breaks the sheet, that stretch meets the rest at
             // one place only, and there the edges may agree with the wrong turn (a
             // corner's fits), so no count of them alone sees it. The pair is one more
-            // vote, across the gap, and the sheet must close: of the stretches below the
-            // forest edges between the two ends, those whose turn leaves the sheet's
-            // normals summing as a closed curve's, the one that leaves fewest votes
-            // opposed turns back, once.
+            // vote, across the gap, and the sheet must close (`turn_back_between`);
+            // once.
             Err(Unpaired::SameWay(s, a, b)) if !turned_back => {
-                let forest = &turned.forest;
-                let pts = tree.points();
-                let gain = forest.gains(&turned.votes, |i, j| runs(pts, normals, i, j));
-                let sums = forest.subtree_sums(normals);
-                let total = sheets[s]
-                    .iter()
-                    .fold([0.0, 0.0], |t, &i| add(t, normals[i]));
-                let left = |v: usize| {
-                    let after = sub(total, scale(sums[v], 2.0));
-                    dot(after, after).sqrt()
-                };
-                let bound = CLOSURE * sheets[s].len() as f64;
-                let Some(v) = forest
-                    .path(a, b)
-                    .into_iter()
-                    .filter(|&v| left(v) <= bound)
-                    .min_by(|&v, &w| gain[w].cmp(&gain[v]).then(left(v).total_cmp(&left(w))))
-                else {
+                if !turn_back_between(tree.points(), normals, turned, &sheets[s], (a, b)) {
                     return (sheets, rings);
-                };
-                tracing::debug!(
-                    samples = forest.subtree(v).count(),
-                    "orientation: a stretch between two ends that run alike turned back"
-                );
-                for v in forest.subtree(v) {
-                    normals[v] = [-normals[v][0], -normals[v][1]];
                 }
                 turned_back = true;
             }
@@ -800,6 +774,44 @@ fn join_open_sheets(
         ring[k] = rings[s] && members[k] == 1;
     }
     (merged, ring)
+}
+
+/// Turns back the stretch of `sheet` between its ends `a` and `b` (whose curve runs out
+/// of both, or into both): of the subtrees below the forest edges on the path between
+/// them, those whose turn leaves the sheet's normals summing as a closed curve's, the
+/// one that leaves fewest votes opposed. Whether there was one.
+fn turn_back_between(
+    pts: &[Point],
+    normals: &mut [Point],
+    turned: &Turned,
+    sheet: &[usize],
+    (a, b): (usize, usize),
+) -> bool {
+    let forest = &turned.forest;
+    let gain = forest.gains(&turned.votes, |i, j| runs(pts, normals, i, j));
+    let sums = forest.subtree_sums(normals);
+    let total = sheet.iter().fold([0.0, 0.0], |t, &i| add(t, normals[i]));
+    let left = |v: usize| {
+        let after = sub(total, scale(sums[v], 2.0));
+        dot(after, after).sqrt()
+    };
+    let bound = CLOSURE * sheet.len() as f64;
+    let Some(v) = forest
+        .path(a, b)
+        .into_iter()
+        .filter(|&v| left(v) <= bound)
+        .min_by(|&v, &w| gain[w].cmp(&gain[v]).then(left(v).total_cmp(&left(w))))
+    else {
+        return false;
+    };
+    tracing::debug!(
+        samples = forest.subtree(v).count(),
+        "orientation: a stretch between two ends that run alike turned back"
+    );
+    for v in forest.subtree(v) {
+        normals[v] = [-normals[v][0], -normals[v][1]];
+    }
+    true
 }
 
 /// Why [`pair_ends`] pairs no ends.
