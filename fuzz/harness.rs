@@ -7,14 +7,15 @@
 
 use std::path::Path;
 
-use isoline::geom::Point;
-use isoline::reconstruct::{reconstruct, reconstruct_frame, Params};
+use isoline_core::geom::Point;
+use isoline_core::{reconstruct, Params};
+use isoline_io::reconstruct_frame;
 
 /// The point-file reader: any text is points or a typed error, and the points read
 /// are finite.
 pub fn points(data: &[u8]) {
     let text = String::from_utf8_lossy(data);
-    if let Ok(pts) = isoline::ingest::parse_points(&text, "fuzz") {
+    if let Ok(pts) = isoline_io::parse_points(&text, "fuzz") {
         assert!(pts.iter().flatten().all(|c| c.is_finite()));
     }
 }
@@ -25,7 +26,7 @@ pub fn frame(data: &[u8]) {
     let Ok(text) = std::str::from_utf8(data) else {
         return;
     };
-    if let Ok(frame) = isoline::ingest::parse_frame(text, "fuzz", 1) {
+    if let Ok(frame) = isoline_io::parse_frame(text, "fuzz", 1) {
         assert!(frame.points.iter().flatten().all(|c| c.is_finite()));
         if frame.points.len() <= 300 {
             let _ = reconstruct_frame(&frame, &Params::default());
@@ -53,11 +54,11 @@ pub fn recording(data: &[u8]) {
     std::fs::create_dir_all(&dir).expect("a temporary folder");
     let path = dir.join(if kind % 2 == 0 { "in.mcap" } else { "in.clf" });
     std::fs::write(&path, rest).expect("a temporary file");
-    let opts = isoline::ingest::bag::BagOptions {
+    let opts = isoline_io::bag::BagOptions {
         odometry: Some("/odom".into()),
         ..Default::default()
     };
-    if let Ok(items) = isoline::ingest::read_items(&path, &opts) {
+    if let Ok(items) = isoline_io::read_items(&path, &opts) {
         for f in items.iter().flatten() {
             assert!(f.points.iter().flatten().all(|c| c.is_finite()));
         }

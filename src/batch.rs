@@ -38,9 +38,10 @@ use serde::{Deserialize, Serialize};
 
 use crate::config::Config;
 use crate::error::{Error, Result};
-use crate::export::svg;
-use crate::export::writers::{self, Format};
-use crate::reconstruct::{reconstruct_frame, Params};
+use isoline_core::Params;
+use isoline_io::reconstruct_frame;
+use isoline_io::write::svg;
+use isoline_io::write::{self as writers, Format};
 
 /// The `[batch]` table.
 #[derive(Clone, Debug, Deserialize)]
@@ -85,7 +86,7 @@ pub struct Job {
     /// Worker threads.
     pub workers: usize,
     /// What to read from bags (`topics`, `odometry`, `world_frame` in `[batch]`).
-    pub bag: crate::ingest::bag::BagOptions,
+    pub bag: isoline_io::bag::BagOptions,
 }
 
 /// What became of one input.
@@ -325,7 +326,7 @@ impl Job {
             output,
             formats,
             workers,
-            bag: crate::ingest::bag::BagOptions {
+            bag: isoline_io::bag::BagOptions {
                 topics: batch.topics.clone(),
                 odometry: batch.odometry.clone(),
                 world_frame: batch.world_frame.clone(),
@@ -413,7 +414,7 @@ impl Job {
     }
 
     /// The records of the NDJSON output of `task`, if it has one.
-    fn previous_records(&self, task: &Task) -> Option<Vec<crate::format::ResultRecord>> {
+    fn previous_records(&self, task: &Task) -> Option<Vec<isoline_io::format::ResultRecord>> {
         let ndjson = self
             .outputs(task)
             .into_iter()
@@ -545,7 +546,7 @@ impl Job {
             s.ms = t0.elapsed().as_secs_f64() * 1e3;
             s
         };
-        let frames = match crate::ingest::read_items(&task.input, &self.bag) {
+        let frames = match isoline_io::read_items(&task.input, &self.bag) {
             Ok(f) => f,
             Err(e) => return fail(s, e.to_string()),
         };
@@ -558,7 +559,7 @@ impl Job {
             let f = match item {
                 Ok(f) => f,
                 Err(b) => {
-                    recs.push(crate::format::ResultRecord {
+                    recs.push(isoline_io::format::ResultRecord {
                         stream: b.stream.clone(),
                         frame: b.frame,
                         error: Some(b.message.clone()),
@@ -649,7 +650,7 @@ fn write_drawings(
 }
 
 /// Adds the stats of `recs` to `s`.
-fn tally(s: &mut FileSummary, recs: &[crate::format::ResultRecord]) {
+fn tally(s: &mut FileSummary, recs: &[isoline_io::format::ResultRecord]) {
     s.frames = recs.len();
     for r in recs {
         s.polylines += r.polylines.as_ref().map_or(0, |p| p.len());

@@ -5,12 +5,12 @@ use serde::Deserialize;
 use std::path::Path;
 
 use crate::error::{Error, Result};
-use crate::export::ExportParams;
-use crate::levelset::SolverParams;
-use crate::levelset::{Init, Scheme};
-use crate::mesh::field::MeshParams;
-use crate::reconstruct::Params;
-use crate::scan::ScanParams;
+use isoline_core::ExportParams;
+use isoline_core::MeshParams;
+use isoline_core::Params;
+use isoline_core::ScanParams;
+use isoline_core::SolverParams;
+use isoline_core::{Init, Scheme};
 
 /// The whole configuration file.
 #[derive(Clone, Debug, Default, Deserialize)]
@@ -136,13 +136,13 @@ impl SolverConfig {
             }
         }
         if let Some(s) = &self.linear_solver {
-            match s.parse::<crate::levelset::LinearSolver>() {
+            match s.parse::<isoline_core::LinearSolver>() {
                 Ok(l) => p.linear = l,
                 Err(e) => problems.push(format!("solver.linear_solver: {e}")),
             }
         }
         if let Some(s) = &self.settle {
-            match s.parse::<crate::levelset::Settle>() {
+            match s.parse::<isoline_core::Settle>() {
                 Ok(v) => p.settle = v,
                 Err(e) => problems.push(format!("solver.settle: {e}")),
             }
@@ -196,10 +196,10 @@ impl ExportConfig {
                 )]);
             }
         }
-        Ok(ExportParams {
-            simplify,
-            min_area: self.min_area,
-        })
+        let mut p = ExportParams::default();
+        p.simplify = simplify;
+        p.min_area = self.min_area;
+        Ok(p)
     }
 }
 
@@ -236,20 +236,18 @@ pub struct MeshConfig {
 impl MeshConfig {
     /// The mesh parameters, validated; every problem is listed.
     pub fn to_params(&self) -> std::result::Result<MeshParams, Vec<String>> {
-        let d = MeshParams::default();
-        let p = MeshParams {
-            hmin: self.hmin,
-            hmax: self.hmax,
-            eps: self.eps,
-            band: self.band,
-            gradation: self.gradation.or(d.gradation),
-            neighbours: self.neighbours.unwrap_or(d.neighbours),
-            padding: self.padding.unwrap_or(d.padding),
-            isotropic: self.isotropic.unwrap_or(d.isotropic),
-            max_passes: self.max_passes.unwrap_or(d.max_passes),
-            warm_change: self.warm_change.unwrap_or(d.warm_change),
-            max_vertices: self.max_vertices.unwrap_or(d.max_vertices),
-        };
+        let mut p = MeshParams::default();
+        p.hmin = self.hmin;
+        p.hmax = self.hmax;
+        p.eps = self.eps;
+        p.band = self.band;
+        p.gradation = self.gradation.or(p.gradation);
+        p.neighbours = self.neighbours.unwrap_or(p.neighbours);
+        p.padding = self.padding.unwrap_or(p.padding);
+        p.isotropic = self.isotropic.unwrap_or(p.isotropic);
+        p.max_passes = self.max_passes.unwrap_or(p.max_passes);
+        p.warm_change = self.warm_change.unwrap_or(p.warm_change);
+        p.max_vertices = self.max_vertices.unwrap_or(p.max_vertices);
         p.validate().map(|()| p)
     }
 }

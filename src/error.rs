@@ -1,95 +1,31 @@
-//! Library errors: one enum, with the variants a caller can fix (bad input data or
-//! configuration) kept apart from internal invariant failures.
+//! The daemon's and batch jobs' errors: the file layer's pass through, and the ones the
+//! daemon adds (its configuration, Kafka, its own threads).
 
 use std::path::PathBuf;
 
-/// Errors returned by the isoline library.
+/// Errors of the daemon, batch jobs and the commands.
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
 pub enum Error {
-    /// The point set is empty.
-    #[error("the point set is empty")]
-    EmptyPointSet,
-    /// Every point is at the same place: there is no curve to find.
-    #[error("all {count} points coincide: there is no curve to reconstruct")]
-    CoincidentPoints {
-        /// How many points there are.
-        count: usize,
-    },
-    /// The points span less than the smallest supported extent.
-    #[error("the points span {extent:e}, below the supported 1e-150")]
-    TinyExtent {
-        /// Their bounding-box diagonal.
-        extent: f64,
-    },
-    /// A coordinate is NaN or infinite; `index` is the point's position in the input.
-    #[error("point {index} has a non-finite coordinate ({x}, {y})")]
-    NonFinitePoint {
-        /// The point's position in the input, from 0.
-        index: usize,
-        /// Its x coordinate.
-        x: f64,
-        /// Its y coordinate.
-        y: f64,
-    },
-    /// A coordinate is so large that squared distances would overflow.
-    #[error(
-        "point {index} has a coordinate of magnitude {magnitude:e}, above the supported 1e150"
-    )]
-    HugeCoordinate {
-        /// The point's position in the input, from 0.
-        index: usize,
-        /// The largest coordinate magnitude.
-        magnitude: f64,
-    },
-    /// A text input could not be parsed; `line` is 1-based.
-    #[error("{source_name}, line {line}: {message}")]
-    Parse {
-        /// The file or stream.
-        source_name: String,
-        /// 1-based line.
-        line: usize,
-        /// What is wrong.
-        message: String,
-    },
-    /// A parameter is out of its allowed range.
-    #[error("invalid parameter {name} = {value}: {reason}")]
-    InvalidParameter {
-        /// The parameter.
-        name: &'static str,
-        /// Its value.
-        value: String,
-        /// The allowed range.
-        reason: String,
-    },
-    /// A scan frame's beams are malformed (no beams, a zero step, a bad range limit).
-    #[error("invalid scan: {0}")]
-    Scan(String),
-    /// Reading or writing a file failed.
+    /// A file could not be read or written, or its data are wrong for the method.
+    #[error(transparent)]
+    File(#[from] isoline_io::Error),
+    /// Reading or writing a file, a socket or a pipe failed.
     #[error("{path}: {source}")]
     Io {
-        /// The file.
+        /// What was read or written.
         path: PathBuf,
         /// The operating system's error.
         #[source]
         source: std::io::Error,
     },
-    /// The configuration file is invalid; every problem found is listed.
+    /// The configuration is invalid; every problem found is listed.
     #[error("invalid configuration {path}:\n  {}", problems.join("\n  "))]
     Config {
-        /// The file (or what the parameters came from).
+        /// The file (or what the configuration came from).
         path: String,
         /// Every problem found, each naming its key path.
         problems: Vec<String>,
-    },
-    /// A recording (an MCAP bag, a CARMEN log) cannot be read as a whole: not the
-    /// format, or none of the chosen topics in it.
-    #[error("{path}: {message}")]
-    Recording {
-        /// The file.
-        path: PathBuf,
-        /// What is wrong.
-        message: String,
     },
     /// A Kafka client failed: it could not be created, or a message could not be
     /// delivered.
@@ -100,7 +36,7 @@ pub enum Error {
     Internal(String),
 }
 
-/// `Result` with the library's [`Error`].
+/// `Result` with the daemon's [`Error`].
 pub type Result<T> = std::result::Result<T, Error>;
 
 impl Error {
@@ -112,12 +48,8 @@ impl Error {
     }
 }
 
-/// Adds a problem to `problems` if `value` is set and is not a positive finite number;
-/// `key` is its path in the configuration (`mesh.hmin`).
-pub(crate) fn check_positive(problems: &mut Vec<String>, key: &str, value: Option<f64>) {
-    if let Some(v) = value {
-        if !(v.is_finite() && v > 0.0) {
-            problems.push(format!("{key} = {v}: must be a positive finite number"));
-        }
+impl From<isoline_core::Error> for Error {
+    fn from(e: isoline_core::Error) -> Self {
+        Error::File(e.into())
     }
 }

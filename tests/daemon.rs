@@ -307,15 +307,15 @@ fn every_streamed_frame_is_as_accurate_as_a_one_shot_reconstruction() {
         .unwrap();
     assert!(out.status.success());
     let (recs, _) = replay(dir.path(), &frames, "", "");
-    let truth: isoline::format::TruthFile =
+    let truth: isoline_io::format::TruthFile =
         serde_json::from_str(&std::fs::read_to_string(&truth).unwrap()).unwrap();
     assert_eq!(recs.len(), 8);
     let bound = 3.0 * sigma + 2.0 * hmin;
     for r in &recs {
-        let rec: isoline::format::ResultRecord = serde_json::from_value(r.clone()).unwrap();
-        let polylines: Vec<isoline::geom::Polyline> =
+        let rec: isoline_io::format::ResultRecord = serde_json::from_value(r.clone()).unwrap();
+        let polylines: Vec<isoline_core::geom::Polyline> =
             rec.polylines.unwrap().into_iter().map(Into::into).collect();
-        let acc = isoline::eval::compare(&polylines, &truth.for_frame(rec.frame), None);
+        let acc = isoline_sim::compare(&polylines, &truth.for_frame(rec.frame), None);
         let h = acc.hausdorff.unwrap();
         assert!(
             h <= bound,

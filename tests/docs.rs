@@ -174,13 +174,13 @@ fn check_toml(dir: &Path, page: &Path, k: usize, body: &str) {
 }
 
 fn check_json(page: &Path, k: usize, body: &str) {
-    use isoline::format::{FrameRecord, ResultRecord, TruthFile};
+    use isoline_io::format::{FrameRecord, ResultRecord, TruthFile};
     let what = format!("{}, json block {k}", page.display());
     let v: serde_json::Value =
         serde_json::from_str(body).unwrap_or_else(|e| panic!("{what}: not JSON: {e}"));
     if v.get("ranges").is_some() || v.get("points").is_some() {
         let rec: FrameRecord = serde_json::from_value(v).unwrap_or_else(|e| panic!("{what}: {e}"));
-        isoline::ingest::Frame::from_record(rec).unwrap_or_else(|e| panic!("{what}: {e}"));
+        isoline_io::Frame::from_record(rec).unwrap_or_else(|e| panic!("{what}: {e}"));
     } else if v.get("stats").is_some() || v.get("error").is_some() {
         let _: ResultRecord = serde_json::from_value(v).unwrap_or_else(|e| panic!("{what}: {e}"));
     } else {

@@ -105,7 +105,7 @@ fn points_a_few_ulps_apart_do_not_exhaust_memory() {
     .iter()
     .map(|&i| [x, ys[i]])
     .collect();
-    match isoline::reconstruct::reconstruct(&pts, &isoline::reconstruct::Params::default()) {
+    match isoline_core::reconstruct(&pts, &isoline_core::Params::default()) {
         Ok(r) => assert!(r.polylines.iter().all(|p| p
             .points
             .iter()

@@ -12,8 +12,8 @@ use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
 use common::{ok, p};
-use isoline::format::FrameRecord;
-use isoline::ingest::ros;
+use isoline_io::format::FrameRecord;
+use isoline_io::ros;
 use serde_json::Value;
 
 /// The laser sits this far ahead of the robot's base (the `/tf_static` link).

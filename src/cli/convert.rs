@@ -7,9 +7,9 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context, Result};
 
-use isoline::format::FrameRecord;
-use isoline::ingest::bag::{self, BagOptions, BagWriter};
-use isoline::ingest::{carmen, BadFrame};
+use isoline_io::bag::{self, BagOptions, BagWriter};
+use isoline_io::format::FrameRecord;
+use isoline_io::{carmen, BadFrame};
 
 /// `isoline convert` options.
 #[derive(clap::Args)]
@@ -44,8 +44,8 @@ enum Out {
 pub fn run(a: Args) -> Result<()> {
     let (input, output) = (a.input.as_path(), a.output.as_path());
     super::refuse_overwrite(input, &[Some(output)])?;
-    let out_bag = isoline::ingest::is_bag(output);
-    if !out_bag && !isoline::ingest::is_frame_stream(output) {
+    let out_bag = isoline_io::is_bag(output);
+    if !out_bag && !isoline_io::is_frame_stream(output) {
         bail!(
             "{}: unknown output extension (use .ndjson, .jsonl or .mcap)",
             output.display()
@@ -157,15 +157,15 @@ pub fn read_frames(
 ) -> Result<()> {
     // Each frame is checked as the pipeline would read it; the record is what is kept.
     let check = |rec: FrameRecord| {
-        isoline::ingest::Frame::from_record(rec.clone())
+        isoline_io::Frame::from_record(rec.clone())
             .map(|_| rec)
             .map_err(|e| e.to_string())
     };
-    if isoline::ingest::is_bag(input) {
+    if isoline_io::is_bag(input) {
         bag::read_bag_with(input, opts, check, &mut *each)?;
     } else if carmen::is_carmen(input) {
         carmen::read_carmen_with(input, check, &mut *each)?;
-    } else if isoline::ingest::is_frame_stream(input) {
+    } else if isoline_io::is_frame_stream(input) {
         let text = super::read(input)?;
         let name = input.display().to_string();
         for (i, line) in text.lines().enumerate() {

@@ -6,9 +6,9 @@ use std::path::{Path, PathBuf};
 use anyhow::{bail, Context, Result};
 use serde_json::json;
 
-use isoline::eval;
-use isoline::format::{PolylineJson, TruthFile};
-use isoline::geom::Polyline;
+use isoline_core::geom::Polyline;
+use isoline_io::format::{PolylineJson, TruthFile};
+use isoline_sim as eval;
 
 /// `isoline eval` options.
 #[derive(clap::Args)]
@@ -33,8 +33,8 @@ pub fn run(a: Args) -> Result<()> {
     let truth_file: TruthFile = serde_json::from_str(&super::read(&a.truth)?)
         .with_context(|| format!("{}: not a truth file", a.truth.display()))?;
     let records = read_polyline_records(&a.recon)?;
-    let frames: Vec<isoline::ingest::Frame> = match &a.frames {
-        Some(p) => isoline::ingest::read_frames(p)?,
+    let frames: Vec<isoline_io::Frame> = match &a.frames {
+        Some(p) => isoline_io::read_frames(p)?,
         None => Vec::new(),
     };
     let tol = a.tolerance.unwrap_or_else(|| {

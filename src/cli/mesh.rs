@@ -5,8 +5,8 @@ use std::path::PathBuf;
 use anyhow::{Context, Result};
 use serde_json::json;
 
-use isoline::export::svg;
-use isoline::mesh::adapt_to_points;
+use isoline_core::stages::adapt_to_points;
+use isoline_io::write::svg;
 
 /// `isoline mesh` options.
 #[derive(clap::Args)]
@@ -36,7 +36,7 @@ pub fn run(a: Args) -> Result<()> {
     let mut params = cfg.mesh_params();
     params.isotropic |= a.isotropic;
     super::refuse_overwrite(&a.input, &[a.output.as_deref(), a.stats.as_deref()])?;
-    let points = isoline::ingest::read_points(&a.input, a.frame)?;
+    let points = isoline_io::read_points(&a.input, a.frame)?;
     let m = adapt_to_points(&points, &params)
         .with_context(|| format!("meshing {}", a.input.display()))?;
     let s = &m.stats;

@@ -72,7 +72,7 @@ pub fn print(text: &str) -> Result<()> {
 /// Refuses to run when one of `outputs` is the file `input`: it would be overwritten.
 pub fn refuse_overwrite(input: &Path, outputs: &[Option<&Path>]) -> Result<()> {
     for out in outputs.iter().flatten() {
-        if isoline::files::same_file(input, out) {
+        if isoline::same_file(input, out) {
             anyhow::bail!(
                 "{} is the input file; writing there would destroy it",
                 out.display()
@@ -103,13 +103,13 @@ pub struct BagArgs {
 
 impl BagArgs {
     /// The options, refused unless `input` is a bag when any is given.
-    pub fn options(self, input: &Path) -> Result<isoline::ingest::bag::BagOptions> {
-        let opts = isoline::ingest::bag::BagOptions {
+    pub fn options(self, input: &Path) -> Result<isoline_io::bag::BagOptions> {
+        let opts = isoline_io::bag::BagOptions {
             topics: self.topics,
             odometry: self.odometry,
             world_frame: self.world_frame,
         };
-        if opts != Default::default() && !isoline::ingest::is_bag(input) {
+        if opts != Default::default() && !isoline_io::is_bag(input) {
             anyhow::bail!("--topic, --odometry and --world-frame apply to a bag input (.mcap)");
         }
         Ok(opts)

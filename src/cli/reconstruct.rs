@@ -4,10 +4,10 @@ use std::path::PathBuf;
 
 use anyhow::{bail, Context, Result};
 
-use isoline::export::foxglove::{FrameView, McapOut};
-use isoline::export::svg;
-use isoline::format::ResultRecord;
-use isoline::ingest::Item;
+use isoline_io::format::ResultRecord;
+use isoline_io::foxglove::{FrameView, McapOut};
+use isoline_io::write::svg;
+use isoline_io::Item;
 
 /// `isoline reconstruct` options.
 #[derive(clap::Args)]
@@ -30,10 +30,10 @@ pub struct Args {
     frame: Option<u64>,
     /// Override the configured scheme: explicit or semi-implicit.
     #[arg(long)]
-    scheme: Option<isoline::levelset::Scheme>,
+    scheme: Option<isoline_core::Scheme>,
     /// Override the configured starting curve: medial, tube, box or circle.
     #[arg(long)]
-    init: Option<isoline::levelset::Init>,
+    init: Option<isoline_core::Init>,
     /// Draw the mesh in SVG output.
     #[arg(long)]
     mesh: bool,
@@ -44,7 +44,7 @@ pub struct Args {
 /// Reconstructs every frame (or `--frame`) and writes one record per frame in the
 /// output's format; fails when a frame failed, after writing the others.
 pub fn run(a: Args) -> Result<()> {
-    use isoline::export::writers::{self, Format};
+    use isoline_io::write::{self as writers, Format};
 
     let cfg = super::load_config(a.config.as_deref())?;
     let mut params = cfg.params();
@@ -63,7 +63,7 @@ pub fn run(a: Args) -> Result<()> {
         a.mesh,
     );
 
-    let mcap = output.is_some_and(isoline::ingest::is_bag);
+    let mcap = output.is_some_and(isoline_io::is_bag);
     let format = match output {
         None => Format::Ndjson,
         Some(_) if mcap => Format::Ndjson,
@@ -77,7 +77,7 @@ pub fn run(a: Args) -> Result<()> {
     };
     super::refuse_overwrite(input, &[output, stats])?;
     let bag = a.bag.options(input)?;
-    let all = isoline::ingest::read_items(input, &bag)?;
+    let all = isoline_io::read_items(input, &bag)?;
     let frames: Vec<Item> = match frame {
         Some(f) => all
             .into_iter()
@@ -111,7 +111,7 @@ pub fn run(a: Args) -> Result<()> {
     };
     for item in &frames {
         let (rec, r) = match item {
-            Ok(f) => isoline::reconstruct::reconstruct_frame(f, params),
+            Ok(f) => isoline_io::reconstruct_frame(f, params),
             Err(b) => (
                 ResultRecord {
                     stream: b.stream.clone(),
@@ -133,7 +133,7 @@ pub fn run(a: Args) -> Result<()> {
             };
             // One frame of points: the error is the answer. A recording's frames all
             // get records, whatever their number.
-            if frames.len() == 1 && !isoline::ingest::is_recording(input) {
+            if frames.len() == 1 && !isoline_io::is_recording(input) {
                 bail!(what);
             }
             eprintln!("isoline: {what}");

@@ -6,10 +6,12 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context, Result};
 
-use isoline::format::{FrameRecord, OpeningJson, PolylineJson, SensorJson, TruthFile, TruthFrame};
-use isoline::geom::Polyline;
-use isoline::synth::lidar::{self, LidarParams, SceneKind, SensorModel};
-use isoline::synth::{self, Shape, SynthParams};
+use isoline_core::geom::Polyline;
+use isoline_io::format::{
+    FrameRecord, OpeningJson, PolylineJson, SensorJson, TruthFile, TruthFrame,
+};
+use isoline_sim::lidar::{self, LidarParams, SceneKind, SensorModel};
+use isoline_sim::{self as synth, Shape, SynthParams};
 
 /// `isoline synth` options.
 #[derive(clap::Args)]

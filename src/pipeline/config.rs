@@ -11,10 +11,10 @@ use serde::Deserialize;
 
 use super::kafka::{KafkaInput, KafkaTopic};
 use super::source::Limits;
-use crate::accumulate::WindowLimits;
 use crate::config::{value_problem, Config};
 use crate::error::{Error, Result};
-use crate::reconstruct::Params;
+use isoline_core::Params;
+use isoline_core::WindowLimits;
 
 /// Where frames come from.
 #[derive(Clone, Debug, PartialEq)]
@@ -91,10 +91,10 @@ pub struct DaemonConfig {
     /// A stream not seen for this long is forgotten (its next frame starts cold).
     pub stream_idle: Duration,
     /// Refinement over frames: each scan frame with a pose has its level set averaged
-    /// with its stream's last frames' ([`crate::accumulate`]).
+    /// with its stream's last frames' ([`isoline_core`]).
     pub accumulate: Option<WindowLimits>,
     /// What to read from an MCAP input.
-    pub bag: crate::ingest::bag::BagOptions,
+    pub bag: isoline_io::bag::BagOptions,
     /// Serve a live view (Foxglove WebSocket) on this address.
     pub live: Option<SocketAddr>,
     /// Serve Prometheus metrics and a health check on this address.
@@ -492,12 +492,12 @@ impl DaemonConfig {
                  not {kind:?}"
             ));
         }
-        let bag = crate::ingest::bag::BagOptions {
+        let bag = isoline_io::bag::BagOptions {
             topics: input.topics.clone().unwrap_or_default(),
             odometry: input.odometry.clone(),
             world_frame: input.world_frame.clone(),
         };
-        let is_bag = input.path.as_deref().is_some_and(crate::ingest::is_bag);
+        let is_bag = input.path.as_deref().is_some_and(isoline_io::is_bag);
         if bag != Default::default() && !(kind == "file" && is_bag) {
             problems.push(
                 "input.topics, input.odometry and input.world_frame apply to an MCAP input \

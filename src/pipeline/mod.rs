@@ -18,6 +18,7 @@
 
 pub mod config;
 pub mod kafka;
+mod live;
 pub mod metrics;
 mod sink;
 pub mod source;
@@ -151,7 +152,7 @@ impl Daemon {
         let drained = Arc::new(AtomicBool::new(false));
         let limits = cfg.limits;
         let source = match &cfg.source {
-            Source::File { path, replay } if crate::ingest::is_recording(path) => {
+            Source::File { path, replay } if isoline_io::is_recording(path) => {
                 source::spawn_recording(path, *replay, cfg.bag.clone(), line_tx, stop.clone())?
             }
             Source::File { path, replay } => {
@@ -248,7 +249,7 @@ impl Daemon {
             )?,
         ));
         let live = match cfg.live {
-            Some(bind) => Some(crate::export::foxglove::LiveView::start(bind)?),
+            Some(bind) => Some(crate::pipeline::live::LiveView::start(bind)?),
             None => None,
         };
         let live_addr = live.as_ref().map(|l| l.addr());

@@ -2,7 +2,7 @@
 //! with one call; if that fails (a full disk), the file is cut back to its last whole
 //! record, so that a reader never meets half a line. MCAP (an output path ending in
 //! `.mcap`): the records with curves, points and poses for Foxglove
-//! ([`crate::export::foxglove`]), complete once the run ends. Kafka: each record as a
+//! ([`isoline_io::foxglove`]), complete once the run ends. Kafka: each record as a
 //! message keyed by its stream, in order per stream ([`super::kafka`]).
 //!
 //! A Kafka frame's offset may be committed once its record is written: at once for a
@@ -14,8 +14,8 @@ use std::path::{Path, PathBuf};
 
 use super::kafka::{KafkaTopic, KafkaWriter, Receipt};
 use crate::error::{Error, Result};
-use crate::export::foxglove::{FrameView, McapOut};
-use crate::format::ResultRecord;
+use isoline_io::format::ResultRecord;
+use isoline_io::foxglove::{FrameView, McapOut};
 
 /// A writer that can be cut back to a length.
 pub(crate) trait Truncate: Write {
@@ -59,7 +59,7 @@ impl Sink {
         if let Some(dir) = p.parent().filter(|d| !d.as_os_str().is_empty()) {
             std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
         }
-        if crate::ingest::is_bag(p) {
+        if isoline_io::is_bag(p) {
             return Ok(Sink::Mcap(Box::new(McapOut::create(p)?)));
         }
         let file = File::create(p).map_err(|e| Error::io(p, e))?;
@@ -97,7 +97,7 @@ impl Sink {
     /// Completes the output: an MCAP file's summary, Kafka's last acknowledgements.
     pub(crate) fn finish(self) -> Result<()> {
         match self {
-            Sink::Mcap(m) => m.finish(),
+            Sink::Mcap(m) => Ok(m.finish()?),
             Sink::Kafka(k) => k.finish(),
             _ => Ok(()),
         }

@@ -34,7 +34,7 @@ pub struct Line {
     pub text: std::result::Result<String, String>,
     /// A recording's frame, decoded by its reader (an MCAP bag, a CARMEN log): then
     /// `text` is empty and this is the frame or why its message is not one.
-    pub decoded: Option<Box<crate::ingest::Item>>,
+    pub decoded: Option<Box<isoline_io::Item>>,
     /// When it was read.
     pub arrived: Instant,
     /// A Kafka message's claim on its offset, handed in when its record is written.
@@ -303,7 +303,7 @@ pub fn spawn_file(
 pub fn spawn_recording(
     path: &Path,
     replay: Replay,
-    bag: crate::ingest::bag::BagOptions,
+    bag: isoline_io::bag::BagOptions,
     tx: Sender<Line>,
     stop: Arc<AtomicBool>,
 ) -> Result<JoinHandle<Result<()>>> {
@@ -314,7 +314,7 @@ pub fn spawn_recording(
     spawn("source-recording", move || {
         let mut pacer = Pacer::new(replay);
         let mut n = 0u64;
-        let mut send = |item: crate::ingest::Item| -> bool {
+        let mut send = |item: isoline_io::Item| -> bool {
             if stop.load(Ordering::Relaxed) {
                 return false;
             }
@@ -335,11 +335,12 @@ pub fn spawn_recording(
             })
             .is_ok()
         };
-        if crate::ingest::is_bag(&owned) {
-            crate::ingest::bag::read_bag(&owned, &bag, &mut send).map(drop)
+        if isoline_io::is_bag(&owned) {
+            isoline_io::bag::read_bag(&owned, &bag, &mut send)?;
         } else {
-            crate::ingest::carmen::read_carmen(&owned, &mut send).map(drop)
+            isoline_io::carmen::read_carmen(&owned, &mut send)?;
         }
+        Ok(())
     })
 }
 

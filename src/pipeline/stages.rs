@@ -20,15 +20,16 @@ use super::metrics::Metrics;
 use super::sink::Sink;
 use super::source::Line;
 use super::RunSummary;
-use crate::accumulate::{Window, WindowLimits};
 use crate::error::{Error, Result};
-use crate::format::ResultRecord;
-use crate::geom::{Point, Pose};
-use crate::levelset::evolve::Solved;
-use crate::levelset::warm::Previous;
-use crate::mesh::field::AdaptedMesh;
-use crate::mesh::Mesh;
-use crate::reconstruct::{self, Params, Prepared};
+use isoline_core::geom::{Point, Pose};
+use isoline_core::stages::AdaptedMesh;
+use isoline_core::stages::Previous;
+use isoline_core::stages::Solved;
+use isoline_core::stages::{self as reconstruct, Prepared};
+use isoline_core::Mesh;
+use isoline_core::Params;
+use isoline_core::{Window, WindowLimits};
+use isoline_io::format::ResultRecord;
 
 /// A frame on its way through the stages.
 pub(crate) struct Msg {
@@ -175,12 +176,12 @@ impl<V> Streams<V> {
 
 /// What has been made of a frame so far.
 enum Work {
-    Input(Box<crate::ingest::Frame>),
+    Input(Box<isoline_io::Frame>),
     Prepared(Box<Prepared>),
     Adapted(Box<(Prepared, AdaptedMesh)>),
     Solved(Box<(Prepared, AdaptedMesh, Solved)>),
     /// In the export stage only: the reconstruction and the frame's points (for drawing).
-    Exported(Box<reconstruct::Reconstruction>, Vec<Point>),
+    Exported(Box<isoline_core::Reconstruction>, Vec<Point>),
     Failed(String),
     Skipped,
 }
@@ -205,7 +206,7 @@ struct LevelSet {
 /// coordinates of the next frame, at `to`, when both frames carry poses.
 fn follow(mesh: &mut Mesh, from: &mut Option<Pose>, to: Option<Pose>) {
     if let (Some(a), Some(b)) = (*from, to) {
-        crate::geom::reframe(a, b, &mut mesh.coords);
+        mesh.map_coords(|p| isoline_core::geom::to_sensor(b, isoline_core::geom::to_world(a, p)));
         *from = Some(b);
     }
 }
@@ -380,7 +381,7 @@ fn parse_line(mut line: Line) -> Msg {
         )),
         (None, Ok(text)) => {
             let n = usize::try_from(line.line).unwrap_or(usize::MAX);
-            crate::ingest::parse_frame(text, &line.origin, n)
+            isoline_io::parse_frame(text, &line.origin, n)
                 .map_err(|e| (e.to_string(), guess_ids(text)))
         }
     };
@@ -511,9 +512,7 @@ pub(crate) fn spawn_adapt(
                     let adapted =
                         reconstruct::adapt_moving(&p, previous.map(|(_, mesh, _)| mesh), motion);
                     let mut mesh = adapted.mesh.clone();
-                    for c in &mut mesh.coords {
-                        *c = p.placement.to_data(*c);
-                    }
+                    mesh.map_coords(|c| p.placement.to_data(c));
                     *slot = Some((frame, mesh, m.pose));
                     adapted
                 } else {
@@ -645,9 +644,7 @@ pub(crate) fn spawn_renormalize(
                         // differently.
                         let at = p.placement;
                         let mut mesh = adapted.mesh.clone();
-                        for c in &mut mesh.coords {
-                            *c = at.to_data(*c);
-                        }
+                        mesh.map_coords(|c| at.to_data(c));
                         LevelSet {
                             mesh,
                             u: solved.u.iter().map(|&x| at.len_to_data(x)).collect(),
@@ -680,7 +677,7 @@ pub(crate) struct Outputs {
     /// The records (NDJSON or MCAP).
     pub(crate) sink: Sink,
     /// The live view, if on.
-    pub(crate) live: Option<crate::export::foxglove::LiveView>,
+    pub(crate) live: Option<crate::pipeline::live::LiveView>,
     /// A folder for one drawing per frame.
     pub(crate) svg_dir: Option<PathBuf>,
     /// The counters of what is written.
@@ -805,7 +802,7 @@ pub(crate) fn spawn_export(
                     unreachable!("export takes frames that went through every stage")
                 }
             }
-            let view = crate::export::foxglove::FrameView {
+            let view = isoline_io::foxglove::FrameView {
                 record: rec,
                 points: shown,
                 t: m.t,
@@ -827,8 +824,8 @@ pub(crate) fn spawn_export(
             }
             if let (Some(dir), Some((points, r))) = (&svg_dir, drawing) {
                 let features: Vec<Point> = r.features.iter().map(|f| f.center).collect();
-                let doc = crate::export::svg::render(
-                    &crate::export::svg::of_reconstruction(&points, &r, &features, &[], false),
+                let doc = isoline_io::write::svg::render(
+                    &isoline_io::write::svg::of_reconstruction(&points, &r, &features, &[], false),
                     800.0,
                 );
                 let path = super::svg_path(dir, m.stream.as_deref(), frame);
@@ -892,8 +889,8 @@ impl Tally {
         let h = |max| Histogram::new_with_bounds(1, max, 3).expect("valid histogram bounds");
         Tally {
             latency_us: h(3_600_000_000),
-            warm_its: h(crate::levelset::params::MAX_STEPS as u64),
-            cold_its: h(crate::levelset::params::MAX_STEPS as u64),
+            warm_its: h(isoline_core::stages::MAX_STEPS as u64),
+            cold_its: h(isoline_core::stages::MAX_STEPS as u64),
         }
     }
 

@@ -1,0 +1,251 @@
+//! Unsigned distance to a point set, through a kiddo kd-tree (paper section 3.1).
+//!
+//! Points are validated at the door (finite, not huge) and exact duplicates are merged
+//! before the tree is built: a scanner that returns the same point many times must not
+//! cost more nor change any answer, and the tree never sees input it could choke on.
+
+use kiddo::{ImmutableKdTree, SquaredEuclidean};
+use rayon::prelude::*;
+use std::num::NonZeroUsize;
+
+use crate::error::{Error, Result};
+use crate::geom::{dist, Point};
+
+/// Largest coordinate magnitude accepted: squared distances of twice this stay finite.
+pub const MAX_COORDINATE: f64 = 1e150;
+
+/// Smallest extent (bounding-box diagonal) of a point set: below it, coordinates
+/// relative to the data's centre lose their precision to subnormal numbers.
+pub const MIN_EXTENT: f64 = 1e-150;
+
+/// Checks that `points` is non-empty, finite and within [`MAX_COORDINATE`].
+pub fn validate_points(points: &[Point]) -> Result<()> {
+    if points.is_empty() {
+        return Err(Error::EmptyPointSet);
+    }
+    for (index, p) in points.iter().enumerate() {
+        if !p[0].is_finite() || !p[1].is_finite() {
+            return Err(Error::NonFinitePoint {
+                index,
+                x: p[0],
+                y: p[1],
+            });
+        }
+        let magnitude = p[0].abs().max(p[1].abs());
+        if magnitude > MAX_COORDINATE {
+            return Err(Error::HugeCoordinate { index, magnitude });
+        }
+    }
+    Ok(())
+}
+
+/// The distance field of one point set: a kd-tree over its distinct points.
+pub struct DistanceField {
+    points: Vec<Point>,
+    tree: ImmutableKdTree<f64, 2>,
+}
+
+impl std::fmt::Debug for DistanceField {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("DistanceField")
+            .field("points", &self.points.len())
+            .finish()
+    }
+}
+
+/// Distance from a query to its nearest data point, and that point's index in
+/// [`DistanceField::points`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Nearest {
+    /// Euclidean distance.
+    pub dist: f64,
+    /// Index of the nearest distinct point.
+    pub index: u32,
+}
+
+impl DistanceField {
+    /// Builds the field of `points` after validating them; exact duplicates are merged.
+    pub fn new(points: &[Point]) -> Result<DistanceField> {
+        validate_points(points)?;
+        let mut distinct: Vec<Point> = points.to_vec();
+        distinct.sort_unstable_by(|a, b| a[0].total_cmp(&b[0]).then(a[1].total_cmp(&b[1])));
+        // -0.0 and 0.0 are the same point; total_cmp orders them apart, so compare with ==.
+        distinct.dedup_by(|a, b| a[0] == b[0] && a[1] == b[1]);
+        let tree = ImmutableKdTree::new_from_slice(&distinct)
+            .map_err(|e| Error::Internal(format!("kd-tree construction failed: {e:?}")))?;
+        Ok(DistanceField {
+            points: distinct,
+            tree,
+        })
+    }
+
+    /// The distinct data points, in the tree's index order: sorted by x, then y, so
+    /// that a field built from some of them, in this order, keeps it.
+    pub fn points(&self) -> &[Point] {
+        &self.points
+    }
+
+    /// Nearest data point to `q`.
+    #[inline]
+    pub fn nearest(&self, q: Point) -> Nearest {
+        let r = self
+            .tree
+            .query(&q)
+            .nearest_one::<SquaredEuclidean<f64>>()
+            .execute();
+        Nearest {
+            dist: r.distance.sqrt(),
+            index: r.item,
+        }
+    }
+
+    /// Unsigned distance `d(q)`.
+    #[inline]
+    pub fn distance(&self, q: Point) -> f64 {
+        self.nearest(q).dist
+    }
+
+    /// How many data points lie within distance `r` of `q`.
+    pub fn count_within(&self, q: Point, r: f64) -> usize {
+        self.tree
+            .query(&q)
+            .within::<SquaredEuclidean<f64>>(r * r)
+            .unsorted()
+            .execute()
+            .len()
+    }
+
+    /// Indices of the data points within distance `r` of `q`, in no order, appended to
+    /// `out` after clearing it.
+    pub fn within(&self, q: Point, r: f64, out: &mut Vec<u32>) {
+        out.clear();
+        let found = self
+            .tree
+            .query(&q)
+            .within::<SquaredEuclidean<f64>>(r * r)
+            .unsorted()
+            .execute();
+        out.extend(found.iter().map(|n| n.item));
+    }
+
+    /// Indices of the `k` nearest data points to `q`, nearest first (fewer when the set
+    /// is smaller), appended to `out` after clearing it.
+    pub fn nearest_k(&self, q: Point, k: usize, out: &mut Vec<u32>) {
+        out.clear();
+        let Some(k) = NonZeroUsize::new(k.min(self.points.len())) else {
+            return;
+        };
+        let found = self
+            .tree
+            .query(&q)
+            .nearest_n::<SquaredEuclidean<f64>>(k)
+            .execute();
+        out.extend(found.iter().map(|r| r.item));
+    }
+
+    /// Distance and nearest point at every query, in parallel.
+    pub fn nearest_all(&self, queries: &[Point]) -> Vec<Nearest> {
+        queries.par_iter().map(|&q| self.nearest(q)).collect()
+    }
+
+    /// Unsigned distance at every query, in parallel, into `out` (resized).
+    pub fn distances_into(&self, queries: &[Point], out: &mut Vec<f64>) {
+        out.resize(queries.len(), 0.0);
+        out.par_iter_mut()
+            .zip(queries.par_iter())
+            .for_each(|(d, &q)| *d = self.distance(q));
+    }
+}
+
+/// A default tube radius: twice the 95th percentile of the data's nearest-neighbour
+/// spacing, and at least `floor`. Gaps between consecutive samples up to twice that
+/// close; where the tube still leaks, the tube start (`levelset::init`) says so.
+pub fn tube_radius(field: &DistanceField, floor: f64) -> f64 {
+    let pts = field.points();
+    let mut nn: Vec<f64> = pts
+        .par_iter()
+        .map_init(Vec::new, |buf, &p| {
+            field.nearest_k(p, 2, buf);
+            buf.get(1).map_or(0.0, |&j| dist(p, pts[j as usize]))
+        })
+        .collect();
+    if nn.is_empty() {
+        return floor;
+    }
+    let k = (nn.len() * 95 / 100).min(nn.len() - 1);
+    let (_, p95, _) = nn.select_nth_unstable_by(k, f64::total_cmp);
+    (2.0 * *p95).max(floor)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::{Rng, SeedableRng};
+
+    fn brute(points: &[Point], q: Point) -> f64 {
+        points
+            .iter()
+            .map(|&p| crate::geom::dist(p, q))
+            .fold(f64::INFINITY, f64::min)
+    }
+
+    #[test]
+    fn matches_brute_force_on_random_data() {
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
+        let points: Vec<Point> = (0..500)
+            .map(|_| [rng.random::<f64>(), rng.random::<f64>()])
+            .collect();
+        let field = DistanceField::new(&points).unwrap();
+        let queries: Vec<Point> = (0..2000)
+            .map(|_| {
+                [
+                    rng.random::<f64>() * 3.0 - 1.0,
+                    rng.random::<f64>() * 3.0 - 1.0,
+                ]
+            })
+            .collect();
+        let near = field.nearest_all(&queries);
+        for (q, n) in queries.iter().zip(&near) {
+            let exact = brute(&points, *q);
+            assert!((n.dist - exact).abs() <= 1e-14 * (1.0 + exact));
+            let p = field.points()[n.index as usize];
+            assert!((crate::geom::dist(p, *q) - exact).abs() <= 1e-14 * (1.0 + exact));
+        }
+    }
+
+    #[test]
+    fn duplicates_and_clusters_are_merged_and_exact() {
+        // 10,000 copies of one point plus a tight cluster: kd-trees that split on a
+        // coordinate can degenerate on such input; the field must stay exact and small.
+        let mut points = vec![[0.25, 0.75]; 10_000];
+        for i in 0..1000 {
+            points.push([0.5 + 1e-12 * (i % 10) as f64, 0.5]);
+        }
+        points.push([-0.0, 0.0]);
+        points.push([0.0, 0.0]);
+        let field = DistanceField::new(&points).unwrap();
+        assert_eq!(field.points().len(), 1 + 10 + 1);
+        for q in [[0.0, 1.0], [0.5, 0.4], [1.0, 1.0], [-3.0, 2.0]] {
+            assert!((field.distance(q) - brute(&points, q)).abs() < 1e-14);
+        }
+    }
+
+    #[test]
+    fn rejects_bad_input() {
+        assert!(matches!(DistanceField::new(&[]), Err(Error::EmptyPointSet)));
+        assert!(matches!(
+            DistanceField::new(&[[0.0, 0.0], [f64::NAN, 1.0]]),
+            Err(Error::NonFinitePoint { index: 1, .. })
+        ));
+        assert!(matches!(
+            DistanceField::new(&[[1e200, 0.0]]),
+            Err(Error::HugeCoordinate { index: 0, .. })
+        ));
+        // One point is a valid (if degenerate) set.
+        let one = DistanceField::new(&[[1.0, 2.0]]).unwrap();
+        assert_eq!(one.distance([4.0, 6.0]), 5.0);
+        let mut knn = Vec::new();
+        one.nearest_k([0.0, 0.0], 8, &mut knn);
+        assert_eq!(knn, vec![0]);
+    }
+}

@@ -1,0 +1,428 @@
+//! Curves supported by data (scan frames): the pieces of the zero isoline that run along
+//! the returns, cut where the support ends, and the returns no curve explains.
+//!
+//! A scan's free-space start puts the curve on the whole boundary of what the rays swept,
+//! which also runs along depth jumps, occlusion shadows, doorways, the edges of the field
+//! of view and the max-range boundary: lines no return lies on. Only the stretches within
+//! a tolerance of a run of returns (the surface between neighbouring returns on one
+//! wall) are kept, each cut at the point where it leaves the tolerance, found by
+//! bisection along the curve.
+
+use crate::geom::{add, dist, point_segment_dist2, scale, sub, Point, Polyline};
+use crate::index::SegmentIndex;
+
+/// Bisection steps that place a cut: the cut point is within `step / 2^8` of where the
+/// curve leaves the tolerance.
+const BISECTIONS: usize = 8;
+
+/// The pieces of `curves` within `tol` of `support`, tested at points at most `step`
+/// apart along each curve; pieces shorter than `min_len` are dropped. A closed curve
+/// supported everywhere stays closed; the others come out open, in their direction.
+///
+/// At the end of a run a piece either overshoots, ending in a hook up to `tol` long past
+/// the data along the free-space boundary, and is trimmed to end where the curve passes
+/// the run's end return (at the curve's point nearest to it); or stops short, where the
+/// free space between the last returns is a sliver thinner than the mesh resolves (a
+/// wall seen at grazing incidence that ends at an opening), and is extended along the
+/// run's last returns to its end.
+pub fn cut_to_support(
+    curves: &[Polyline],
+    support: &[Polyline],
+    tol: f64,
+    cap: f64,
+    step: f64,
+    min_len: f64,
+) -> Vec<Polyline> {
+    let index = SegmentIndex::new(support);
+    // Per segment: whether its start, its end is the end of a run.
+    let mut run_end: Vec<(bool, bool)> = Vec::new();
+    for pl in support {
+        let m = pl.segments().count();
+        if m == 0 {
+            run_end.extend(pl.points.iter().map(|_| (true, true)));
+        }
+        for k in 0..m {
+            run_end.push((!pl.closed && k == 0, !pl.closed && k + 1 == m));
+        }
+    }
+    // Each run end with the run's last two gaps, from the end inwards.
+    let ends: Vec<Vec<Point>> = support
+        .iter()
+        .filter(|pl| !pl.closed && !pl.points.is_empty())
+        .flat_map(|pl| {
+            let n = pl.points.len();
+            let head: Vec<Point> = pl.points[..n.min(3)].to_vec();
+            let tail: Vec<Point> = pl.points[n.saturating_sub(3)..]
+                .iter()
+                .rev()
+                .copied()
+                .collect();
+            [head, tail]
+        })
+        .collect();
+    let ends = &ends[..];
+    let segs = index.segments();
+    let supported = |p: Point| match index.nearest(p) {
+        Some((d, i, t)) if d <= tol => {
+            let (a, b) = segs[i];
+            let (at_a, at_b) = run_end[i];
+            // How far past a run's end along its last segment.
+            let past = |end: Point, other: Point| {
+                let dir = sub(end, other);
+                let len = crate::geom::norm(dir);
+                if len > 0.0 {
+                    crate::geom::dot(sub(p, end), dir) / len
+                } else {
+                    dist(p, end)
+                }
+            };
+            if t <= 0.0 && at_a {
+                past(a, b) <= cap
+            } else if t >= 1.0 && at_b {
+                past(b, a) <= cap
+            } else {
+                true
+            }
+        }
+        _ => false,
+    };
+    let mut out = Vec::new();
+    for c in curves {
+        let n = c.points.len();
+        if n < 2 {
+            continue;
+        }
+        // Start a closed curve at an unsupported point, so that no piece wraps round.
+        let pts: Vec<Point> = if c.closed {
+            match first_unsupported(c, &supported, step) {
+                None => {
+                    out.push(c.clone());
+                    continue;
+                }
+                Some((k, p)) => {
+                    let mut v = vec![p];
+                    v.extend((1..=n).map(|j| c.points[(k + j) % n]));
+                    v.push(p);
+                    v
+                }
+            }
+        } else {
+            c.points.clone()
+        };
+        let mut piece: Vec<Point> = Vec::new();
+        let mut on = supported(pts[0]);
+        if on {
+            piece.push(pts[0]);
+        }
+        for w in pts.windows(2) {
+            let (a, b) = (w[0], w[1]);
+            let m = ((dist(a, b) / step).ceil() as usize).max(1);
+            let at = |t: f64| add(a, scale(sub(b, a), t));
+            let mut t_prev = 0.0;
+            for k in 1..=m {
+                let t = k as f64 / m as f64;
+                let now = supported(at(t));
+                if now != on {
+                    // Bisect between t_prev (state `on`) and t (state `now`).
+                    let (mut lo, mut hi) = (t_prev, t);
+                    for _ in 0..BISECTIONS {
+                        let mid = 0.5 * (lo + hi);
+                        if supported(at(mid)) == on {
+                            lo = mid;
+                        } else {
+                            hi = mid;
+                        }
+                    }
+                    if on {
+                        piece.push(at(lo));
+                        flush(&mut piece, ends, tol, min_len, &mut out);
+                    } else {
+                        piece.push(at(hi));
+                    }
+                    on = now;
+                }
+                t_prev = t;
+            }
+            if on {
+                piece.push(b);
+            }
+        }
+        flush(&mut piece, ends, tol, min_len, &mut out);
+    }
+    out
+}
+
+/// The first point of a closed curve, tested every `step`, that is not supported: the
+/// segment it lies on (from vertex `k`) and the point.
+fn first_unsupported(
+    c: &Polyline,
+    supported: &impl Fn(Point) -> bool,
+    step: f64,
+) -> Option<(usize, Point)> {
+    c.segments().enumerate().find_map(|(k, (a, b))| {
+        let m = ((dist(a, b) / step).ceil() as usize).max(1);
+        (0..m)
+            .map(|j| add(a, scale(sub(b, a), j as f64 / m as f64)))
+            .find(|&p| !supported(p))
+            .map(|p| (k, p))
+    })
+}
+
+fn flush(
+    piece: &mut Vec<Point>,
+    ends: &[Vec<Point>],
+    tol: f64,
+    min_len: f64,
+    out: &mut Vec<Polyline>,
+) {
+    piece.dedup();
+    let mut p = Polyline {
+        closed: false,
+        points: std::mem::take(piece),
+    };
+    // Crumbs are judged before trimming: a short run (a leg) trims to less than the
+    // tolerance and is still a curve.
+    if p.points.len() < 2 || p.length() < min_len {
+        return;
+    }
+    // Each end goes to its nearest run end; on a short run both may be nearest to the
+    // same one, which then belongs to the nearer end of the piece only.
+    let (first, last) = (p.points[0], p.points[p.points.len() - 1]);
+    let (mut a, mut b) = (nearest_end(ends, first, tol), nearest_end(ends, last, tol));
+    if let (Some((x, dx)), Some((y, dy))) = (a, b) {
+        if std::ptr::eq(x, y) {
+            if dx <= dy {
+                b = None;
+            } else {
+                a = None;
+            }
+        }
+    }
+    if let Some((e, _)) = a {
+        to_run_end(&mut p.points, e, tol);
+    }
+    if let Some((e, _)) = b {
+        p.points.reverse();
+        to_run_end(&mut p.points, e, tol);
+        p.points.reverse();
+    }
+    p.points.dedup();
+    if p.points.len() >= 2 {
+        out.push(p);
+    }
+}
+
+/// The run end (its last returns, from the end inwards) nearest `q` among those whose
+/// last gaps pass within `2.5 tol` of it (a hook runs up to `tol` from the support,
+/// which itself zigzags through the noisy returns near its end), and its distance.
+fn nearest_end(ends: &[Vec<Point>], q: Point, tol: f64) -> Option<(&Vec<Point>, f64)> {
+    // Near a short run its two ends' gaps overlap: of the ends whose gaps pass near
+    // `q`, the nearest end return wins.
+    ends.iter()
+        .filter(|tail| {
+            let d = if tail.len() < 2 {
+                dist(tail[0], q)
+            } else {
+                tail.windows(2)
+                    .map(|w| point_segment_dist2(q, w[0], w[1]).0.sqrt())
+                    .fold(f64::INFINITY, f64::min)
+            };
+            d <= 2.5 * tol
+        })
+        .map(|tail| (tail, dist(tail[0], q)))
+        .min_by(|a, b| a.1.total_cmp(&b.1))
+}
+
+/// Makes `points` start at the run end `tail[0]`: cut back to the point nearest it
+/// (searched over the first `4 tol` of arc length) when the curve passes it, and
+/// extended from there along the run's last gap (`tail[0]` to `tail[1]`) when that point
+/// is still more than `tol / 2` short of the end and lies along that gap.
+fn to_run_end(points: &mut Vec<Point>, tail: &[Point], tol: f64) {
+    let Some(&first) = points.first() else { return };
+    let end = tail[0];
+    let mut best = (dist(end, first), 0usize, first);
+    let mut arc = 0.0;
+    for k in 0..points.len().saturating_sub(1) {
+        let (a, b) = (points[k], points[k + 1]);
+        let (d2, t) = point_segment_dist2(end, a, b);
+        if d2.sqrt() < best.0 {
+            best = (d2.sqrt(), k, add(a, scale(sub(b, a), t)));
+        }
+        arc += dist(a, b);
+        if arc > 4.0 * tol {
+            break;
+        }
+    }
+    let (gap, k, q) = best;
+    if k > 0 || q != first {
+        points.drain(..=k);
+        points.insert(0, q);
+    }
+    if gap <= 0.5 * tol {
+        return;
+    }
+    // Short of the end within the run's last gap: prepend the end return and where the
+    // start projects onto that gap.
+    let first = q;
+    let Some((j, proj)) = tail
+        .windows(2)
+        .enumerate()
+        .map(|(j, w)| {
+            let (d2, t) = point_segment_dist2(first, w[0], w[1]);
+            (d2, j, add(w[0], scale(sub(w[1], w[0]), t)))
+        })
+        .min_by(|a, b| a.0.total_cmp(&b.0))
+        .map(|(_, j, p)| (j, p))
+    else {
+        return;
+    };
+    if j > 0 {
+        return;
+    }
+    let mut head: Vec<Point> = vec![tail[0]];
+    head.push(proj);
+    head.extend_from_slice(points);
+    *points = head;
+}
+
+/// A cluster of returns that no curve explains: consecutive unexplained returns of one
+/// run.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Feature {
+    /// The returns' centroid.
+    pub center: Point,
+    /// How many returns.
+    pub returns: usize,
+}
+
+/// The returns farther than `tol` from every curve, grouped into features by run:
+/// `runs` lists each run's returns in bearing order.
+pub fn unexplained(runs: &[Vec<Point>], curves: &[Polyline], tol: f64) -> Vec<Feature> {
+    let index = SegmentIndex::new(curves);
+    let mut out = Vec::new();
+    for run in runs {
+        let mut group: Vec<Point> = Vec::new();
+        let mut close = |group: &mut Vec<Point>| {
+            if !group.is_empty() {
+                let n = group.len() as f64;
+                let c = group.iter().fold([0.0, 0.0], |s, p| add(s, *p));
+                out.push(Feature {
+                    center: scale(c, 1.0 / n),
+                    returns: group.len(),
+                });
+                group.clear();
+            }
+        };
+        for &p in run {
+            if index.distance(p) > tol {
+                group.push(p);
+            } else {
+                close(&mut group);
+            }
+        }
+        close(&mut group);
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn line(points: &[Point], closed: bool) -> Polyline {
+        Polyline {
+            closed,
+            points: points.to_vec(),
+        }
+    }
+
+    /// A curve along a wall that then runs on past its end leaves the support where the
+    /// cap past the run's end runs out (found by bisection to step / 256), and is then
+    /// trimmed to the run's ends.
+    #[test]
+    fn pieces_end_where_the_support_ends() {
+        let wall = [line(&[[0.0, 0.0], [0.5, 0.0], [1.0, 0.0]], false)];
+        let curve = line(&[[-0.5, 0.0], [2.0, 0.0], [2.0, 1.0]], false);
+        let (tol, step) = (0.03, 0.01);
+        let cut = cut_to_support(std::slice::from_ref(&curve), &wall, tol, tol, step, tol);
+        assert_eq!(cut.len(), 1);
+        let p = &cut[0].points;
+        assert!(dist(p[0], [0.0, 0.0]) < 1e-12, "{p:?}");
+        assert!(dist(*p.last().unwrap(), [1.0, 0.0]) < 1e-12, "{p:?}");
+        // Without trimming (a closed support has no ends), the cut lies where the
+        // tolerance runs out.
+        let ring = [line(
+            &[[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]],
+            true,
+        )];
+        let across = line(&[[0.5, -0.5], [0.5, 0.5]], false);
+        let cut = cut_to_support(&[across], &ring, tol, tol, step, 0.0);
+        let p = &cut[0].points;
+        assert!((p[0][1] + tol).abs() < step / 100.0, "{p:?}");
+        assert!((p.last().unwrap()[1] - tol).abs() < step / 100.0, "{p:?}");
+    }
+
+    /// The free-space boundary turning away just past a run's end (along a depth jump)
+    /// leaves no hook: the support stops `cap` past the end along the run.
+    #[test]
+    fn no_hook_where_the_boundary_turns_away() {
+        let wall = [line(&[[0.0, 0.0], [0.5, 0.0], [1.0, 0.0]], false)];
+        let turn = line(&[[0.5, 0.01], [1.005, 0.01], [1.005, -1.0]], false);
+        let cut = cut_to_support(&[turn], &wall, 0.03, 0.01, 0.01, 0.0);
+        assert_eq!(cut.len(), 1);
+        let p = &cut[0].points;
+        // It ends where the curve passes nearest the run's last return.
+        assert!(p.iter().all(|q| q[1] > -1e-9), "{p:?}");
+        assert!(dist(*p.last().unwrap(), [1.005, 0.0]) < 1e-9, "{p:?}");
+        // A curve crossing 0.02 past the run's end, within the tolerance of its last
+        // return, is not supported: it runs across the run, not along it.
+        let across = line(&[[1.02, 0.5], [1.02, -0.5]], false);
+        assert!(cut_to_support(&[across], &wall, 0.03, 0.01, 0.005, 0.01).is_empty());
+    }
+
+    /// A closed loop supported all round stays closed; one with a doorway comes out as
+    /// one open piece from jamb to jamb, in the loop's direction.
+    #[test]
+    fn a_loop_closes_only_where_the_data_close_it() {
+        let square = [[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]];
+        let full = [line(&square, true)];
+        let cut = cut_to_support(&[line(&square, true)], &full, 0.01, 0.01, 0.05, 0.01);
+        assert_eq!(cut.len(), 1);
+        assert!(cut[0].closed);
+        let walls = [line(
+            &[
+                [0.6, 0.0],
+                [1.0, 0.0],
+                [1.0, 1.0],
+                [0.0, 1.0],
+                [0.0, 0.0],
+                [0.4, 0.0],
+            ],
+            false,
+        )];
+        let cut = cut_to_support(&[line(&square, true)], &walls, 0.01, 0.01, 0.05, 0.01);
+        assert_eq!(cut.len(), 1, "{cut:?}");
+        let p = &cut[0];
+        assert!(!p.closed);
+        assert!(dist(p.points[0], [0.6, 0.0]) < 1e-9, "{:?}", p.points[0]);
+        assert!(dist(*p.points.last().unwrap(), [0.4, 0.0]) < 1e-9);
+        assert!((p.length() - 3.8).abs() < 1e-9);
+    }
+
+    #[test]
+    fn crumbs_are_dropped_and_lone_returns_reported() {
+        let wall = [line(&[[0.0, 0.0], [1.0, 0.0]], false)];
+        // The curve crosses the support: 0.02 of it is within the tolerance.
+        let curve = line(&[[0.9, 0.5], [0.9, -0.5]], false);
+        assert!(cut_to_support(&[curve], &wall, 0.01, 0.01, 0.005, 0.05).is_empty());
+        let runs = vec![
+            vec![[0.0, 0.0], [0.5, 0.0], [1.0, 0.0]],
+            vec![[0.5, 0.5], [0.52, 0.5]],
+        ];
+        let curves = [line(&[[0.0, 0.001], [1.0, 0.001]], false)];
+        let f = unexplained(&runs, &curves, 0.01);
+        assert_eq!(f.len(), 1);
+        assert_eq!(f[0].returns, 2);
+        assert!(dist(f[0].center, [0.51, 0.5]) < 1e-12);
+    }
+}

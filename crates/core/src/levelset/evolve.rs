@@ -1,0 +1,305 @@
+//! The solve stage as one plain function: a frame's starting level set (warm or cold),
+//! its evolution by the solver, and the median settle.
+
+use std::time::Instant;
+
+use crate::fem::locate::locate_all;
+use crate::fem::P1Space;
+use crate::field::{AdaptedMesh, MetricField};
+use crate::geom::Placement;
+use crate::levelset::init::{self, Init};
+use crate::levelset::params::{Settle, SolverParams};
+use crate::levelset::settle::center_on_data;
+use crate::levelset::solver::{spread, SolveReport, Solver, SolverSettings, StopReason};
+use crate::levelset::warm::{warm_start, Previous, WarmCriteria};
+use crate::redistance::Redistancer;
+use crate::scan::FreeSpace;
+
+/// The solve stage's product: the level set on the adapted mesh and how it was found.
+#[derive(Debug)]
+pub struct Solved {
+    /// The level set at the mesh vertices (centred coordinates, negative inside).
+    pub u: Vec<f64>,
+    /// The P1 space of the mesh (reused by renormalization).
+    pub space: P1Space,
+    /// The solver's report (its `ms_solve` includes the median settle).
+    pub report: SolveReport,
+    /// The settings used.
+    pub settings: SolverSettings,
+    /// Whether the level set started from the previous frame's.
+    pub warm_start: bool,
+    /// Whether a warm start was tried, found worse than the previous frame, and
+    /// replaced by a cold one.
+    pub cold_fallback: bool,
+    /// Whether the data enclose anything: false when a tube start found no inside
+    /// region (open strokes, or samples too sparse to close) and the level set started
+    /// from the box around them, whose loop then explains nothing.
+    pub enclosed: bool,
+    /// Whether `u` is already the signed distance to its zero isoline over the whole mesh
+    /// (the median settle's last accepted round leaves it so).
+    pub renormalized: bool,
+    /// Milliseconds: distances at the vertices and locating the data.
+    pub ms_distance: f64,
+    /// Milliseconds: the whole solve stage.
+    pub ms: f64,
+    /// Milliseconds of fast marching outside the solver's loop (warm start, final pass).
+    pub ms_renormalize: f64,
+}
+
+/// Where a frame's level set may start.
+#[derive(Clone, Copy, Debug)]
+pub enum Start<'a> {
+    /// From `params.init`.
+    Cold,
+    /// From the previous frame's level set when that is a good start (see
+    /// [`mod@crate::levelset::warm`]), else from `params.init`.
+    Warm(Previous<'a>),
+    /// From the free space a scan's rays swept ([`init::free_space`]): the curve starts
+    /// on the data, so the evolution has nothing to capture (and attraction would carry
+    /// the curve into space the sensor saw as free): no time steps, the settle places
+    /// it.
+    FreeSpace(&'a FreeSpace),
+}
+
+/// The level set of one frame on its adapted mesh (`field` is the frame's distance
+/// field and metric frames, in the mesh's local coordinates; `diag` its data's diagonal
+/// in them; `params` in local units), from `start` (`at` places the local coordinates in
+/// the data's, where a previous frame is), evolved by the solver and, on noisy data,
+/// settled on the data's median.
+pub fn solve(
+    field: &MetricField,
+    adapted: &AdaptedMesh,
+    diag: f64,
+    at: &Placement,
+    start: Start<'_>,
+    params: &SolverParams,
+) -> Solved {
+    let t0 = Instant::now();
+    let mesh = &adapted.mesh;
+    let kd = &field.field;
+    let hmin = adapted.params.hmin;
+    let space = P1Space::new(mesh);
+    let pts = kd.points();
+    let (dist, nearest): (Vec<f64>, Vec<u32>) = if adapted.nearest.len() == mesh.coords.len()
+        && adapted.nearest.iter().all(|&j| (j as usize) < pts.len())
+    {
+        mesh.coords
+            .iter()
+            .zip(&adapted.nearest)
+            .map(|(&x, &j)| (crate::geom::dist(x, pts[j as usize]), j))
+            .unzip()
+    } else {
+        kd.nearest_all(&mesh.coords)
+            .iter()
+            .map(|n| (n.dist, n.index))
+            .unzip()
+    };
+    // The field's points: the data with exact duplicates merged, so that the stopping
+    // test and the median settle weigh each sample once.
+    let data = locate_all(mesh, pts);
+    let ms_distance = t0.elapsed().as_secs_f64() * 1e3;
+
+    let settings = params.resolve(diag, hmin);
+    let warm_patience = params
+        .warm_patience
+        .unwrap_or((settings.patience / 2).max(1));
+    let tube_radius = params
+        .tube
+        .unwrap_or_else(|| crate::distance::tube_radius(kd, 2.0 * hmin));
+    let settle_width = 4.0 * adapted.noise_estimate + 4.0 * hmin;
+    let criteria = WarmCriteria {
+        settle_width,
+        tube_radius,
+        eps: settings.eps,
+        median_settle: params.settle == Settle::Median,
+    };
+    let run = |start: Start<'_>| -> Attempt {
+        let mut settings = settings.clone();
+        let mut fm = Redistancer::new();
+        let mut ms_renormalize = 0.0;
+        let warm = match start {
+            Start::Warm(prev) if prev.enclosed => warm_start(prev, at, mesh, &data, &criteria),
+            _ => None,
+        };
+        let warm_start = warm.is_some();
+        let mut enclosed = true;
+        let mut u = match (warm, start) {
+            (Some((u, near)), _) => {
+                if near {
+                    settings.patience = warm_patience;
+                }
+                u
+            }
+            (None, Start::FreeSpace(free)) => {
+                let t = Instant::now();
+                let u = init::free_space(mesh, &space, free, &mut fm);
+                ms_renormalize += t.elapsed().as_secs_f64() * 1e3;
+                u
+            }
+            (None, _) => {
+                let t = Instant::now();
+                let corridor = matches!(params.init, Init::Medial | Init::Tube).then(|| {
+                    init::corridors(
+                        kd,
+                        &mesh.coords,
+                        &dist,
+                        &nearest,
+                        2.0 * hmin,
+                        4.0 * tube_radius,
+                    )
+                });
+                let oriented = matches!(params.init, Init::Medial | Init::Tube)
+                    .then(|| {
+                        crate::levelset::orient::oriented_offsets(
+                            kd,
+                            adapted.noise_estimate,
+                            2.0 * adapted.noise_estimate + tube_radius,
+                            &mesh.coords,
+                        )
+                    })
+                    .flatten();
+                let start = init::cold_start(
+                    params.init,
+                    mesh,
+                    &space,
+                    &dist,
+                    pts,
+                    tube_radius,
+                    corridor.as_ref(),
+                    oriented.as_deref().map(|offsets| init::Oriented {
+                        offsets,
+                        clean: adapted.noise_estimate < tube_radius / 8.0,
+                    }),
+                    params.margin * diag,
+                    &mut fm,
+                );
+                ms_renormalize += t.elapsed().as_secs_f64() * 1e3;
+                enclosed =
+                    !(matches!(params.init, Init::Medial | Init::Tube) && start.init == Init::Box);
+                if start.init == Init::Medial && params.settle == Settle::Median {
+                    // Like a warm start at the data: nothing to capture, the settle
+                    // places the curve.
+                    settings.patience = warm_patience;
+                }
+                if params.init == Init::Tube {
+                    // The pinned vertices must lie inside the starting curve, or nothing
+                    // moves.
+                    settings.tube = settings.tube.min(0.5 * tube_radius);
+                }
+                start.u
+            }
+        };
+        let mut report = if let Start::FreeSpace(_) = start {
+            // The free-space start already lies on the returns, and the evolution could
+            // only move what lies away from them, which export cuts: it would pinch thin
+            // shadows (behind a leg, say) into loops and cost time for nothing. The
+            // settle alone places the curve in the noise band.
+            let (residual, mean) = crate::levelset::solver::residual(mesh, &data, &u);
+            SolveReport {
+                residual,
+                mean_residual: mean,
+                initial_residual: residual,
+                converged: residual < settings.eps,
+                stop: if residual < settings.eps {
+                    StopReason::Converged
+                } else {
+                    StopReason::Settled
+                },
+                dt: settings.dt,
+                ..Default::default()
+            }
+        } else {
+            Solver::new().solve(mesh, &space, &dist, &data, &mut u, &settings)
+        };
+        let mut renormalized = false;
+        if params.settle == Settle::Median {
+            let t = Instant::now();
+            let settled =
+                center_on_data(mesh, &space, field, &data, &nearest, &mut u, settle_width);
+            renormalized = settled.moved;
+            report.residual = settled.residual;
+            report.mean_residual = settled.mean;
+            // Rounds are kept by the mean distance, so the maximum can move either way.
+            let converged = settled.residual < settings.eps;
+            if converged != report.converged {
+                report.converged = converged;
+                report.stop = if converged {
+                    StopReason::Converged
+                } else {
+                    StopReason::Settled
+                };
+            }
+            report.ms_solve += t.elapsed().as_secs_f64() * 1e3;
+        }
+        (report.spread, report.near) = spread(mesh, &data, &u, settle_width);
+        Attempt {
+            u,
+            report,
+            settings,
+            warm_start,
+            enclosed,
+            renormalized,
+            ms_renormalize,
+        }
+    };
+    let mut attempt = run(start);
+    let mut cold_fallback = false;
+    if let (Start::Warm(prev), true) = (start, attempt.warm_start) {
+        // Never worse than a cold start: a warm result that explains clearly less of
+        // the data than the previous frame did, or lies clearly farther from it, is
+        // replaced by a cold one (robust measures: a maximum would follow outliers).
+        let prev_spread = at.len_to_local(prev.spread);
+        let worse = attempt.report.near < prev.near - 0.03
+            || attempt.report.spread > 2.0 * prev_spread.max(settle_width);
+        if worse {
+            tracing::info!(
+                near = attempt.report.near,
+                previous_near = prev.near,
+                spread = attempt.report.spread,
+                "warm start worse than the previous frame: cold start"
+            );
+            let ms_first = attempt.ms_renormalize + attempt.report.ms_solve;
+            attempt = run(Start::Cold);
+            attempt.report.ms_solve += ms_first;
+            cold_fallback = true;
+        }
+    }
+    Solved {
+        u: attempt.u,
+        space,
+        report: attempt.report,
+        settings: attempt.settings,
+        warm_start: attempt.warm_start,
+        enclosed: attempt.enclosed,
+        cold_fallback,
+        renormalized: attempt.renormalized,
+        ms_distance,
+        ms: t0.elapsed().as_secs_f64() * 1e3,
+        ms_renormalize: attempt.ms_renormalize,
+    }
+}
+
+/// One try at a frame's level set, from one start.
+struct Attempt {
+    u: Vec<f64>,
+    report: SolveReport,
+    settings: SolverSettings,
+    warm_start: bool,
+    enclosed: bool,
+    renormalized: bool,
+    ms_renormalize: f64,
+}
+
+/// The renormalize stage: `u` becomes the signed distance to its zero isoline over the
+/// whole mesh (the solver's own passes stop at twice its narrow band), which is what the
+/// next frame's warm start interpolates. Nothing to do when the median settle already
+/// left it so.
+pub fn renormalize(mesh: &crate::mesh::Mesh, solved: &mut Solved) {
+    if solved.renormalized {
+        return;
+    }
+    let t = Instant::now();
+    Redistancer::new().run(mesh, &solved.space, &mut solved.u, f64::INFINITY);
+    solved.renormalized = true;
+    solved.ms_renormalize += t.elapsed().as_secs_f64() * 1e3;
+}

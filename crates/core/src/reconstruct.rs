@@ -1,0 +1,663 @@
+//! The whole method as one call: points in, curves out (DESIGN.md section 1).
+//!
+//! This module only runs the stages in order and moves data between them; each stage's
+//! algorithm lives in its own module ([`mod@crate::field`] for the distance field
+//! and the adapted mesh, [`mod@crate::levelset::evolve`] for the level set,
+//! [`mod@crate::export`] for the curves). `reconstruct` runs them in coordinates centred
+//! on the data (element shapes and the level set then lose no precision to large
+//! offsets) and returns curves in data coordinates. Parameters left unset are derived
+//! from the data's bounding-box diagonal `D` and the mesh's `hmin`, so results do not
+//! depend on the data's units.
+
+use std::time::Instant;
+
+use crate::distance::validate_points;
+use crate::error::{Error, Result};
+use crate::export::support::Feature;
+use crate::export::ExportParams;
+use crate::field::{AdaptedMesh, MeshParams, MetricField};
+use crate::geom::{BBox, Placement, Point, Polyline};
+use crate::levelset::evolve::{self, Solved};
+use crate::levelset::init::Init;
+use crate::levelset::solver::{SolveReport, SolverSettings};
+use crate::levelset::warm::Previous;
+use crate::levelset::SolverParams;
+use crate::mesh::Mesh;
+use crate::scan::{Analysis, Scan, ScanParams};
+use crate::stats::{StageMs, Stats, WindowStats};
+use crate::warning::Warning;
+
+pub use crate::levelset::evolve::renormalize;
+
+/// Everything `reconstruct` needs.
+#[derive(Clone, Debug, PartialEq, Default)]
+#[non_exhaustive]
+pub struct Params {
+    /// The mesh.
+    pub mesh: MeshParams,
+    /// The solver.
+    pub solver: SolverParams,
+    /// The export.
+    pub export: ExportParams,
+    /// How scan frames are read.
+    pub scan: ScanParams,
+}
+
+impl Params {
+    /// The same parameters with every length multiplied by `s` (into other units).
+    pub fn scaled(&self, s: f64) -> Params {
+        Params {
+            mesh: self.mesh.scaled(s),
+            solver: self.solver.scaled(s),
+            export: self.export.scaled(s),
+            scan: self.scan.scaled(s),
+        }
+    }
+
+    /// Parameters from their three parts (and the default scan reading).
+    pub fn new(mesh: MeshParams, solver: SolverParams, export: ExportParams) -> Params {
+        Params {
+            mesh,
+            solver,
+            export,
+            scan: ScanParams::default(),
+        }
+    }
+}
+
+/// A reconstruction: the curves, and the mesh and level set they come from.
+#[derive(Debug)]
+pub struct Reconstruction {
+    /// The curves, in data coordinates: the zero isoline's closed loops counter-clockwise
+    /// around inside regions, clockwise around holes, and open chains where it leaves
+    /// the mesh (scans: cut to the returns' support); then, for point clouds, open
+    /// strokes along samples no loop explains.
+    pub polylines: Vec<Polyline>,
+    /// The adapted mesh, in data coordinates.
+    pub mesh: Mesh,
+    /// The level set at the mesh vertices (negative inside).
+    pub u: Vec<f64>,
+    /// Per-frame statistics (the `stats` of a result record).
+    pub stats: Stats,
+    /// The solver's report (lengths in the local units of the frame's placement).
+    pub solve: SolveReport,
+    /// The 90th percentile of `|u|` at the data, in data units: how far the level set's
+    /// zero isoline is from the data, robustly ([`SolveReport::spread`]).
+    pub spread: f64,
+    /// The solver settings used.
+    pub settings: SolverSettings,
+    /// The estimated noise of the data (median local-fit residual; for a scan, the range
+    /// noise).
+    pub noise_estimate: f64,
+    /// Scan frames: the clusters of returns that no curve explains, in data coordinates.
+    pub features: Vec<Feature>,
+    /// Point clouds: where open strokes meet, and which of `polylines` meet there
+    /// ([`crate::repair::strokes`]).
+    pub junctions: Vec<crate::repair::strokes::Junction>,
+    /// Whether the data enclosed anything ([`crate::levelset::evolve::Solved::enclosed`]).
+    pub enclosed: bool,
+    /// Scan frames: the sensor's position and the boundary of the free space its rays
+    /// swept, in data coordinates.
+    pub free_space: Option<(Point, Polyline)>,
+    /// What is wrong with the result, if anything.
+    pub warnings: Vec<Warning>,
+}
+
+impl Reconstruction {
+    /// This frame as the next frame's warm start takes it.
+    pub fn as_previous(&self) -> Previous<'_> {
+        Previous {
+            mesh: &self.mesh,
+            u: &self.u,
+            spread: self.spread,
+            near: self.solve.near,
+            enclosed: self.enclosed,
+        }
+    }
+}
+
+/// Reconstructs curves from `points`.
+///
+/// ```
+/// use isoline_core::{reconstruct, Params};
+/// let pts: Vec<[f64; 2]> = (0..300)
+///     .map(|i| {
+///         let a = i as f64 * std::f64::consts::TAU / 300.0;
+///         [0.5 + 0.4 * a.cos(), 0.5 + 0.4 * a.sin()]
+///     })
+///     .collect();
+/// let r = reconstruct(&pts, &Params::default()).unwrap();
+/// assert_eq!(r.polylines.len(), 1);
+/// assert!(r.polylines[0].closed && r.polylines[0].signed_area() > 0.0);
+/// ```
+pub fn reconstruct(points: &[Point], params: &Params) -> Result<Reconstruction> {
+    reconstruct_with(points, None, params, None)
+}
+
+/// Reconstructs the walls a scanner saw: open curves along the returns, with the free
+/// space (the sensor's side) on their left; returns no curve explains are
+/// [`Reconstruction::features`].
+///
+/// ```
+/// use isoline_core::{reconstruct_scan, LaserScan, Params, Scan};
+/// // A wall 2 m in front of a sensor at the origin, seen over 90 degrees.
+/// let n = 181;
+/// let ranges: Vec<Option<f64>> = (0..n)
+///     .map(|i| {
+///         let a = -std::f64::consts::FRAC_PI_4 + i as f64 * (std::f64::consts::FRAC_PI_2 / 180.0);
+///         Some(2.0 / a.cos())
+///     })
+///     .collect();
+/// let scan = Scan::from_laser(&LaserScan {
+///     origin: [0.0, 0.0],
+///     angle_min: -std::f64::consts::FRAC_PI_4,
+///     angle_increment: std::f64::consts::FRAC_PI_2 / 180.0,
+///     ranges: &ranges,
+///     range_min: 0.1,
+///     range_max: 10.0,
+/// })
+/// .unwrap();
+/// let r = reconstruct_scan(&scan, &Params::default()).unwrap();
+/// assert_eq!(r.polylines.len(), 1);
+/// let wall = &r.polylines[0];
+/// assert!(!wall.closed);
+/// // Free side on the left: the wall runs from y < 0 to y > 0 at x = 2.
+/// assert!(wall.points[0][1] < wall.points.last().unwrap()[1]);
+/// assert!(wall.points.iter().all(|p| (p[0] - 2.0).abs() < 0.01));
+/// ```
+pub fn reconstruct_scan(scan: &Scan, params: &Params) -> Result<Reconstruction> {
+    reconstruct_with(&scan.returns(), Some(scan), params, None)
+}
+
+/// [`reconstruct`] warm-started from `previous`, the reconstruction of an earlier frame of
+/// the same stream: the five stages [`prepare`], [`adapt`], [`solve`], [`renormalize`]
+/// and [`export`] in turn, with the previous frame's mesh and level set (see [`solve`]
+/// for when the warm start is taken). `stats.warm_start` says whether it was.
+pub fn reconstruct_warm(
+    points: &[Point],
+    params: &Params,
+    previous: Option<&Reconstruction>,
+) -> Result<Reconstruction> {
+    reconstruct_with(points, None, params, previous)
+}
+
+/// The stages in turn on `points`, seen by `scan` when the frame has a sensor (its
+/// returns are then `points`), warm-started from `previous`.
+pub fn reconstruct_with(
+    points: &[Point],
+    scan: Option<&Scan>,
+    params: &Params,
+    previous: Option<&Reconstruction>,
+) -> Result<Reconstruction> {
+    let _span = tracing::debug_span!("reconstruct", points = points.len()).entered();
+    let prepared = prepare(points, scan, params)?;
+    let adapted = adapt(&prepared, previous.map(|p| &p.mesh));
+    let warm = previous.map(Reconstruction::as_previous);
+    let mut solved = solve(&prepared, &adapted, warm);
+    renormalize(&adapted.mesh, &mut solved);
+    Ok(export(&prepared, adapted, solved))
+}
+
+/// The distance stage's product: one frame's points centred on their bounding box, their
+/// kd-tree and the local frames of the metric.
+#[derive(Debug)]
+pub struct Prepared {
+    /// Input points (before duplicates are merged).
+    pub points: usize,
+    /// Where the data sit: every later stage works in coordinates centred on the data's
+    /// bounding box and scaled by its diagonal ([`Placement`]).
+    pub placement: Placement,
+    /// Diagonal `D` of the data's bounding box, in local units (1 but for rounding).
+    pub diag: f64,
+    /// The points, in local coordinates.
+    pub local: Vec<Point>,
+    /// The parameters in local units.
+    pub params: Params,
+    /// Their distance field and metric frames.
+    pub metric: MetricField,
+    /// A scan frame's runs, scales, free space and support, centred.
+    pub scan: Option<Analysis>,
+    /// Milliseconds spent.
+    pub ms: f64,
+}
+
+/// The distance stage: validates the points, centres them and builds their distance
+/// field and metric frames; for a scan frame (`scan`, whose returns are `points`), also
+/// its runs, scales and free space, and the sizes follow the sensor: `hmin` is the range
+/// noise, at least a quarter of the median beam spacing, instead of a share of the
+/// bounding box.
+pub fn prepare(points: &[Point], scan: Option<&Scan>, params: &Params) -> Result<Prepared> {
+    let t0 = Instant::now();
+    validate_points(points)?;
+    let config = |path: &str| {
+        let path = path.to_string();
+        move |problems| Error::Config { path, problems }
+    };
+    params
+        .solver
+        .validate()
+        .map_err(config("solver parameters"))?;
+    params.scan.validate().map_err(config("scan parameters"))?;
+    let bbox = BBox::of(points).ok_or(Error::EmptyPointSet)?;
+    let extent = bbox.diag();
+    if extent <= 0.0 {
+        return Err(Error::CoincidentPoints {
+            count: points.len(),
+        });
+    }
+    if extent < crate::distance::MIN_EXTENT {
+        return Err(Error::TinyExtent { extent });
+    }
+    params
+        .mesh
+        .check_against(extent)
+        .map_err(config("mesh parameters"))?;
+    let placement = Placement::of(&bbox);
+    let local: Vec<Point> = points.iter().map(|&p| placement.to_local(p)).collect();
+    let diag = BBox::of(&local).map_or(1.0, |b| b.diag());
+    let params = params.scaled(1.0 / placement.scale);
+    let params = &params;
+    let mut mesh_params = params.mesh.clone();
+    if params.solver.init == Init::Circle {
+        mesh_params.padding = mesh_params
+            .padding
+            .max(crate::levelset::init::circle_padding(
+                &local,
+                params.solver.margin * diag,
+            ));
+    }
+    let analysis = scan.map(|s| Analysis::new(s.placed(&placement), &params.scan));
+    let metric = match &analysis {
+        Some(a) => a.metric_field(&a.mesh_params(&mesh_params, diag), &local)?,
+        None => MetricField::new(&local, &mesh_params)?,
+    };
+    Ok(Prepared {
+        points: points.len(),
+        placement,
+        diag,
+        local,
+        params: params.clone(),
+        metric,
+        scan: analysis,
+        ms: t0.elapsed().as_secs_f64() * 1e3,
+    })
+}
+
+/// The adapt stage: an anisotropic mesh of the frame (local coordinates), adapted from
+/// `previous` (a mesh in data coordinates, the previous frame's) when it still covers the
+/// data, else from a lattice.
+pub fn adapt(prepared: &Prepared, previous: Option<&Mesh>) -> AdaptedMesh {
+    adapt_moving(prepared, previous, None)
+}
+
+/// [`adapt`] for a moving sensor: `previous` (in the coordinates of the previous
+/// frame, at pose `motion.0`) is first moved into this frame's (at `motion.1`), and
+/// used as it was if, moved, its domain no longer covers the data (its box, turned,
+/// no longer holds this frame's box).
+pub fn adapt_moving(
+    prepared: &Prepared,
+    previous: Option<&Mesh>,
+    motion: Option<(crate::geom::Pose, crate::geom::Pose)>,
+) -> AdaptedMesh {
+    let local = |m: &Mesh, motion: Option<(crate::geom::Pose, crate::geom::Pose)>| {
+        let mut m = m.clone();
+        if let Some((from, to)) = motion {
+            crate::geom::reframe(from, to, &mut m.coords);
+        }
+        for c in &mut m.coords {
+            *c = prepared.placement.to_local(*c);
+        }
+        m
+    };
+    let starts = previous.into_iter().flat_map(|m| {
+        let moved = motion.map(|mv| local(m, Some(mv)));
+        moved
+            .into_iter()
+            .chain(std::iter::once_with(move || local(m, None)))
+    });
+    prepared.metric.adapt_from(starts)
+}
+
+/// The solve stage: see [`evolve::solve`] (with the parameters [`prepare`] put in local
+/// units).
+pub fn solve(prepared: &Prepared, adapted: &AdaptedMesh, previous: Option<Previous<'_>>) -> Solved {
+    let params = &prepared.params;
+    match &prepared.scan {
+        // A scan's free space is a better start than any earlier frame's level set
+        // (which, in a moving sensor's frame, is in the wrong place): the warm start is
+        // the mesh, adapted from the previous frame's.
+        Some(scan) => {
+            let mut solved = evolve::solve(
+                &prepared.metric,
+                adapted,
+                prepared.diag,
+                &prepared.placement,
+                evolve::Start::FreeSpace(&scan.free),
+                &params.solver,
+            );
+            solved.warm_start = adapted.warm;
+            solved
+        }
+        None => evolve::solve(
+            &prepared.metric,
+            adapted,
+            prepared.diag,
+            &prepared.placement,
+            match previous {
+                Some(p) => evolve::Start::Warm(p),
+                None => evolve::Start::Cold,
+            },
+            &params.solver,
+        ),
+    }
+}
+
+/// The export stage: the curves ([`crate::export::curves`]) in data coordinates, with the
+/// frame's statistics (lengths in data units).
+pub fn export(prepared: &Prepared, adapted: AdaptedMesh, solved: Solved) -> Reconstruction {
+    export_with(prepared, prepared.scan.as_ref(), adapted, solved, None)
+}
+
+/// The export stage with refinement over frames ([`crate::fusion`]): the frame (a
+/// scan taken at `pose`) joins its stream's `window`, and its level set is replaced by
+/// the average of the window's that agree with it, on its mesh. The record stays in the
+/// frame's coordinates.
+#[allow(clippy::too_many_arguments)]
+pub fn export_refined(
+    prepared: &Prepared,
+    adapted: AdaptedMesh,
+    mut solved: Solved,
+    frame: u64,
+    t: Option<f64>,
+    pose: crate::geom::Pose,
+    window: &mut crate::fusion::Window,
+    limits: &crate::fusion::WindowLimits,
+) -> Reconstruction {
+    use crate::geom::to_world;
+    let Some(scan) = &prepared.scan else {
+        return export(prepared, adapted, solved);
+    };
+    let at = prepared.placement;
+    let world = |p: Point| to_world(pose, at.to_data(p));
+    let mut mesh = adapted.mesh.clone();
+    mesh.coords.iter_mut().for_each(|c| *c = world(*c));
+    let mut u: Vec<f64> = solved.u.iter().map(|&x| at.len_to_data(x)).collect();
+    let analysis = scan.transformed(&world, pose[2], &|x| at.len_to_data(x));
+    let tol = at.len_to_data(2.0 * scan.scales.noise + adapted.params.hmin);
+    window.push(
+        crate::fusion::View::new(frame, t, mesh, u.clone(), analysis, tol),
+        limits,
+    );
+    let newest = window.views().last().expect("the frame just pushed");
+    window.fuse(&newest.mesh.coords, &mut u);
+    solved.u = u.iter().map(|&x| at.len_to_local(x)).collect();
+    // A curve ends where its run's last return is; each frame's is off by its own
+    // noise, and the median over the window much less.
+    let mut own = scan.clone();
+    let local = |p: Point| at.to_local(crate::geom::to_sensor(pose, p));
+    for pl in own.support.iter_mut().filter(|pl| !pl.closed) {
+        let n = pl.points.len();
+        for i in [0, n.saturating_sub(1)] {
+            if let Some(m) = window.median_end(world(pl.points[i]), 2.0 * tol) {
+                pl.points[i] = local(m);
+            }
+        }
+    }
+    let stats = WindowStats {
+        frames: window.len(),
+        points: window.points(),
+        bytes: window.bytes(),
+    };
+    export_with(prepared, Some(&own), adapted, solved, Some(stats))
+}
+
+/// [`export`] with the scan analysis `scan_analysis` (the prepared one, or one with the
+/// window's run ends) and the window the frame was refined over.
+fn export_with(
+    prepared: &Prepared,
+    scan_analysis: Option<&Analysis>,
+    adapted: AdaptedMesh,
+    solved: Solved,
+    window: Option<WindowStats>,
+) -> Reconstruction {
+    let t0 = Instant::now();
+    let at = prepared.placement;
+    let params = &prepared.params.export;
+    let hmin = adapted.params.hmin;
+    let mut mesh = adapted.mesh;
+    let u: Vec<f64> = solved.u.iter().map(|&x| at.len_to_data(x)).collect();
+    let scan = scan_analysis.map(|a| {
+        // The returns' noise band does not narrow with the mesh: a mesh finer than the
+        // noise (refinement over frames meshes at half of it) keeps the tolerance of
+        // one at the noise, or returns in the band's tails would count as unexplained.
+        let sigma = a.scales.noise;
+        (a, 2.0 * sigma + hmin.max(sigma))
+    });
+    let (polylines, features) =
+        crate::export::curves(&mesh, &solved.u, &at, prepared.diag, hmin, scan, params);
+    let min_run = prepared.params.scan.min_run;
+    let residual = match &scan_analysis {
+        // Eq. 11 over the returns of runs: isolated returns (spurious, or too few to
+        // place a curve by) get no curve by design, and |u| at them follows whatever
+        // the mesh happens to resolve there, which a warm and a cold mesh do not share.
+        Some(a) => {
+            let returns: Vec<Point> = a
+                .run_points()
+                .into_iter()
+                .filter(|r| r.len() >= min_run)
+                .flatten()
+                .collect();
+            crate::fem::locate::locate_all(&mesh, &returns)
+                .iter()
+                .map(|l| l.interpolate(&mesh, &solved.u).abs())
+                .fold(0.0, f64::max)
+        }
+        None => solved.report.residual,
+    };
+    for p in &mut mesh.coords {
+        *p = at.to_data(*p);
+    }
+    let sigma = scan.map_or(adapted.noise_estimate, |(a, _)| a.scales.noise);
+    let tolerance = at.len_to_data(3.0 * sigma + 2.0 * hmin);
+    let data: Vec<Point> = prepared.local.iter().map(|&q| at.to_data(q)).collect();
+    let (polylines, junctions) = match scan {
+        Some(_) => (polylines, Vec::new()),
+        None => crate::repair::mend(
+            polylines,
+            &crate::repair::Frame {
+                field: &prepared.metric.field,
+                data: &data,
+                at,
+                sigma,
+                one_wall_noise: adapted.one_wall_noise,
+                hmin,
+                min_area: params.min_area(hmin),
+                enclosed: solved.enclosed,
+                tolerance,
+            },
+        ),
+    };
+    let fit = crate::export::fit::fit(&data, &polylines, tolerance);
+    let supported = match &scan_analysis {
+        Some(a) => a
+            .run_points()
+            .iter()
+            .map(Vec::len)
+            .filter(|&n| n >= min_run)
+            .sum(),
+        None => data.len(),
+    };
+    let warnings = crate::export::fit::warnings(supported, &polylines, &fit, tolerance);
+    let report = solved.report;
+    let ms_export = t0.elapsed().as_secs_f64() * 1e3;
+    let renormalize = report.ms_renormalize + solved.ms_renormalize;
+    let ms = StageMs {
+        distance: prepared.ms + solved.ms_distance,
+        adapt: adapted.ms.adapt,
+        solve: solved.ms - solved.ms_distance - solved.ms_renormalize - report.ms_renormalize,
+        renormalize,
+        export: ms_export,
+        total: 0.0,
+    };
+    let ms = StageMs {
+        total: ms.distance + ms.adapt + ms.solve + ms.renormalize + ms.export,
+        ..ms
+    };
+    let stats = Stats {
+        points: prepared.points,
+        vertices: mesh.num_vertices(),
+        triangles: mesh.num_triangles(),
+        iterations: report.iterations,
+        residual: at.len_to_data(residual),
+        converged: report.converged,
+        warm_start: solved.warm_start,
+        ms,
+        stop: report.stop,
+        scheme: solved.settings.scheme,
+        linear_iterations: report.linear_iterations,
+        renormalizations: report.renormalizations,
+        hmin: at.len_to_data(hmin),
+        eps: at.len_to_data(solved.settings.eps),
+        unexplained: prepared
+            .scan
+            .as_ref()
+            .map(|_| features.iter().map(|f| f.returns).sum()),
+        range_noise: prepared
+            .scan
+            .as_ref()
+            .map(|a| at.len_to_data(a.scales.noise)),
+        explained: fit.explained,
+        fit_p90: fit.p90.is_finite().then_some(fit.p90),
+        cold_fallback: solved.cold_fallback,
+        window,
+    };
+    Reconstruction {
+        polylines,
+        mesh,
+        u,
+        stats,
+        spread: at.len_to_data(report.spread),
+        solve: report,
+        settings: solved.settings,
+        noise_estimate: at.len_to_data(adapted.noise_estimate),
+        features,
+        junctions,
+        enclosed: solved.enclosed,
+        free_space: scan_analysis.map(|a| {
+            let mut poly = a.free.polygon();
+            poly.points.iter_mut().for_each(|p| *p = at.to_data(*p));
+            (at.to_data(a.free.origin), poly)
+        }),
+        warnings,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::levelset::SolverParams;
+
+    /// Data of any size the contract accepts reconstruct alike, and settings that cannot
+    /// work on the data are refused by name, not by a panic (the hardening issue's radius
+    /// 1e61 and 1e-42, and hmin or padding of 1e300, all once panicked).
+    #[test]
+    fn any_size_reconstructs_and_impossible_settings_are_named() {
+        let unit: Vec<Point> = (0..400)
+            .map(|i| {
+                let a = i as f64 * 2.399_963;
+                [0.4 * a.cos(), 0.4 * a.sin()]
+            })
+            .collect();
+        for scale in [1e-140, 1e-42, 1e-12, 1.0, 1e12, 1e61, 1e140] {
+            let pts: Vec<Point> = unit.iter().map(|p| [p[0] * scale, p[1] * scale]).collect();
+            let r = reconstruct(&pts, &Params::default()).unwrap();
+            assert_eq!(r.polylines.len(), 1, "scale {scale}");
+            let area = r.polylines[0].signed_area() / (scale * scale);
+            assert!(
+                (area - std::f64::consts::PI * 0.16).abs() < 0.01,
+                "{scale}: {area}"
+            );
+        }
+        let with =
+            |mesh: MeshParams| Params::new(mesh, SolverParams::default(), ExportParams::default());
+        let e = reconstruct(&unit, &with(MeshParams::default().with_hmin(1e300)))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("mesh.hmin = 1e300"), "{e}");
+        let wide = MeshParams {
+            padding: 1e300,
+            ..Default::default()
+        };
+        let e = reconstruct(&unit, &with(wide)).unwrap_err().to_string();
+        assert!(e.contains("mesh.padding"), "{e}");
+        let tiny: Vec<Point> = unit
+            .iter()
+            .map(|p| [p[0] * 1e-160, p[1] * 1e-160])
+            .collect();
+        let e = reconstruct(&tiny, &Params::default())
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("below the supported 1e-150"), "{e}");
+    }
+
+    /// A new object with a twentieth of the samples: the warm start's curve is near nine
+    /// samples in ten and is taken, but it misses the object, which a cold start
+    /// captures. The result explains less than the previous frame did, so the frame is
+    /// redone cold.
+    #[test]
+    fn a_warm_start_that_misses_new_data_falls_back_to_cold() {
+        let ring = |n: usize, c: Point, r: f64| -> Vec<Point> {
+            (0..n)
+                .map(|i| {
+                    let a = i as f64 * std::f64::consts::TAU / n as f64;
+                    [c[0] + r * a.cos(), c[1] + r * a.sin()]
+                })
+                .collect()
+        };
+        let params = Params::default();
+        let first = ring(760, [0.4, 0.5], 0.3);
+        let before = reconstruct(&first, &params).unwrap();
+        let mut next = first.clone();
+        // Inside the old curve, where the old mesh covers it.
+        next.extend(ring(40, [0.4, 0.5], 0.06));
+        let r = reconstruct_warm(&next, &params, Some(&before)).unwrap();
+        assert!(
+            r.stats.cold_fallback && !r.stats.warm_start,
+            "{:?}",
+            r.stats
+        );
+        assert_eq!(r.polylines.len(), 2);
+        // The same frame again is near and explained: warm, no fallback.
+        let again = reconstruct_warm(&next, &params, Some(&r)).unwrap();
+        assert!(again.stats.warm_start && !again.stats.cold_fallback);
+        assert_eq!(again.polylines.len(), 2);
+    }
+
+    /// `mesh.max_vertices` bounds the mesh whatever the padding asks for (padding 20 with
+    /// 10,000 vertices once gave 166,870).
+    #[test]
+    fn max_vertices_is_a_bound_that_holds() {
+        let pts: Vec<Point> = (0..500)
+            .map(|i| {
+                let a = i as f64 * 2.399_963;
+                [0.5 + 0.3 * a.cos(), 0.5 + 0.3 * a.sin()]
+            })
+            .collect();
+        for padding in [0.0, 1.0, 10.0] {
+            for max in [200, 2000, 10_000] {
+                let mesh = MeshParams {
+                    padding,
+                    max_vertices: max,
+                    ..Default::default()
+                };
+                let params = Params::new(mesh, SolverParams::default(), ExportParams::default());
+                let r = reconstruct(&pts, &params).unwrap();
+                assert!(
+                    r.stats.vertices <= max,
+                    "padding {padding}, max {max}: {} vertices",
+                    r.stats.vertices
+                );
+            }
+        }
+    }
+}

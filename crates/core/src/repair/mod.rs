@@ -1,0 +1,211 @@
+//! Repair of a point cloud's curves after the export stage: the zero isoline is right
+//! where the level set captured the samples, and these passes mend it where the mesh
+//! could not resolve the data (loops round too few samples, pinches across narrow
+//! necks, sampling gaps, clean samples it passed by, corners) and add the open strokes
+//! of a drawing that encloses nothing. [`mend`] runs them in order; each pass is its own
+//! module, with its contract in its doc.
+
+pub mod between;
+pub mod corners;
+pub mod gaps;
+pub mod pinches;
+pub mod strokes;
+pub mod through;
+
+use crate::distance::DistanceField;
+use crate::geom::{Placement, Point, Polyline};
+use strokes::Junction;
+
+/// What [`mend`] needs of the frame besides its curves (lengths in the local units of
+/// the frame's placement unless said otherwise).
+#[derive(Clone, Copy, Debug)]
+pub struct Frame<'a> {
+    /// The samples, in local coordinates.
+    pub field: &'a DistanceField,
+    /// The samples, in data coordinates.
+    pub data: &'a [Point],
+    /// Where the data sit.
+    pub at: Placement,
+    /// The data's noise (median local-fit residual).
+    pub sigma: f64,
+    /// The noise the fits over one wall's window measure (clean samples of a bend
+    /// read as clean by them where the neighbours' fits span the bend).
+    pub one_wall_noise: f64,
+    /// The mesh's smallest size.
+    pub hmin: f64,
+    /// Closed loops enclosing less area are holes the noise opened.
+    pub min_area: f64,
+    /// Whether the level set enclosed anything (a drawing of strokes does not).
+    pub enclosed: bool,
+    /// The accuracy bound `3 sigma + 2 hmin`, in data units.
+    pub tolerance: f64,
+}
+
+/// Mends a point cloud's `curves` (data coordinates) and adds its open strokes: loops
+/// round fewer than three samples go; two loops pinched across one neck where both
+/// walls have a gap become one ([`pinches`]); arcs span the sampling gaps a loop passed
+/// by ([`gaps`]); on clean samples, loops are moved onto them ([`through`]) and drawn
+/// between them round corners ([`between`]); holes the arcs shrank go; and the samples
+/// no loop explains become strokes with their junctions ([`strokes`]). Loops the passes
+/// leave alone keep their coordinates to the bit.
+pub fn mend(curves: Vec<Polyline>, frame: &Frame<'_>) -> (Vec<Polyline>, Vec<Junction>) {
+    let Frame {
+        field,
+        at,
+        sigma,
+        hmin,
+        ..
+    } = *frame;
+    // Across sampling gaps first: a loop that passed a sparse wall by would otherwise
+    // look like strokes joined through empty space. In local coordinates, where the
+    // samples' tree is; only the loops changed come back.
+    let local: Vec<Polyline> = curves
+        .iter()
+        .map(|pl| Polyline {
+            closed: pl.closed,
+            points: pl.points.iter().map(|&p| at.to_local(p)).collect(),
+        })
+        .collect();
+    // Noisy samples lie on no circle to a quarter of hmin; clean ones do, by the fits
+    // over one wall's window too: the k neighbours' fits span a small bay's bend (and
+    // measure it as noise) where it is about their reach across. (Clean random
+    // samplings of curved shapes estimate a few 1e-5 of the diagonal: the fits' own
+    // error.) Where only the one-wall fits say clean, the neighbours' estimate is the
+    // bend's, not noise, and the mending below holds the curve to the one wall's
+    // residual: with the estimate, a loop that cuts an inlet's sharp corner by twice the
+    // spacing counts as held there.
+    let fit_tol = 0.25 * hmin;
+    let clean = sigma.min(frame.one_wall_noise) <= fit_tol;
+    let mend_sigma = if sigma > fit_tol && clean {
+        frame.one_wall_noise
+    } else {
+        sigma
+    };
+    let mend_tol = 3.0 * mend_sigma + 2.0 * hmin;
+    // Loops round fewer than three samples go first (holes the noise opened in a band's
+    // interior, which hold none, among them): they hold those samples off the arcs
+    // below.
+    let (mut curves, mut local): (Vec<Polyline>, Vec<Polyline>) = curves
+        .into_iter()
+        .zip(local)
+        .filter(|(_, pl)| !holds_no_curve(pl, field, mend_tol))
+        .unzip();
+    // Pinches before that: two loops each crossing one neck where both walls have a gap
+    // become one, whose joins along the walls are arcs to span.
+    let mut joined = vec![false; curves.len()];
+    for (kept, removed) in
+        pinches::join_pinches(&mut local, field, mend_sigma, clean, mend_tol, hmin)
+    {
+        joined[kept] = true;
+        joined.remove(removed);
+        curves.remove(removed);
+    }
+    tracing::debug!(
+        loops = joined.iter().filter(|&&j| j).count(),
+        "loops joined across pinches"
+    );
+    let mut changed = gaps::span_gaps(&mut local, field, mend_sigma, mend_tol, hmin);
+    tracing::debug!(loops = changed.len(), "sampling gaps spanned by arcs");
+    // Then onto clean samples, which the level set passes by up to the capture's
+    // tolerance (the arcs go through those they skipped, not onto the others), and round
+    // which it kinks by up to twice that: moves of 4 hmin at most.
+    changed.extend((0..joined.len()).filter(|&k| joined[k]));
+    if clean {
+        let onto = through::through_samples(&mut local, field, 4.0 * hmin, fit_tol);
+        tracing::debug!(loops = onto.len(), "loops moved onto clean samples");
+        changed.extend(onto);
+        // Then between them: the vertices round a corner, whose nearest samples span
+        // both walls, are not moved above.
+        let pieces = between::between_samples(&mut local, field, 4.0 * hmin, fit_tol, hmin);
+        tracing::debug!(loops = pieces.len(), "loops drawn between clean samples");
+        changed.extend(pieces);
+    }
+    changed.sort_unstable();
+    changed.dedup();
+    for &k in &changed {
+        curves[k].points = local[k].points.iter().map(|&p| at.to_data(p)).collect();
+    }
+    // Holes the noise opened in a band's interior that the arcs shrank go.
+    let mut k = 0;
+    curves.retain(|_| {
+        let shrunk = changed.binary_search(&k).is_ok() && is_shrunk_hole(&local[k], frame.min_area);
+        k += 1;
+        !shrunk
+    });
+    strokes::with_strokes(
+        curves,
+        frame.data,
+        frame.enclosed,
+        at.len_to_data(sigma),
+        at.len_to_data(hmin),
+        frame.tolerance,
+    )
+}
+
+/// Whether the closed loop `pl` holds fewer than three samples of `field` (within `tol`
+/// of a vertex): two samples show a segment, not a curve round anything. The level set
+/// leaves such a loop round a few samples of a wall it passed by, and in the way of the
+/// arc that spans the wall's gap ([`gaps::span_gaps`]) through them. Open polylines
+/// are none.
+pub fn holds_no_curve(pl: &Polyline, field: &DistanceField, tol: f64) -> bool {
+    if !pl.closed {
+        return false;
+    }
+    let (mut held, mut near) = (Vec::<u32>::new(), Vec::new());
+    for &p in &pl.points {
+        field.within(p, tol, &mut near);
+        for &j in &near {
+            if !held.contains(&j) {
+                held.push(j);
+                if held.len() >= 3 {
+                    return false;
+                }
+            }
+        }
+    }
+    true
+}
+
+/// Whether the closed loop `pl`, which the mending changed, is a hole that the noise
+/// opened in a noisy band's interior: it encloses less than `min_area` (its whole run
+/// lay off the samples round it, and one short arc spanned it). Open polylines are
+/// none. (A hole that holds no sample at all goes before the mending, by
+/// [`holds_no_curve`].)
+pub fn is_shrunk_hole(pl: &Polyline, min_area: f64) -> bool {
+    pl.closed && pl.signed_area().abs() < min_area
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn ring(c: Point, r: f64, n: usize) -> Vec<Point> {
+        (0..n)
+            .map(|i| {
+                let a = std::f64::consts::TAU * i as f64 / n as f64;
+                [c[0] + r * a.cos(), c[1] + r * a.sin()]
+            })
+            .collect()
+    }
+
+    /// A loop of radius 0.008 whose side lies on two samples of a wall 0.006 apart (as
+    /// the level set leaves one beside a wall it passed by) holds no curve; the same
+    /// loop through three samples does, and an open polyline is never dropped.
+    #[test]
+    fn a_loop_round_two_samples_holds_no_curve() {
+        let loop_ = Polyline {
+            closed: true,
+            points: ring([0.008, 0.0], 0.008, 64),
+        };
+        let two = DistanceField::new(&[[0.0, -0.003], [0.0, 0.003]]).unwrap();
+        let tol = 0.0023;
+        assert!(holds_no_curve(&loop_, &two, tol));
+        let three = DistanceField::new(&[[0.0, -0.003], [0.0, 0.003], [0.016, 0.0]]).unwrap();
+        assert!(!holds_no_curve(&loop_, &three, tol));
+        let open = Polyline {
+            closed: false,
+            ..loop_
+        };
+        assert!(!holds_no_curve(&open, &two, tol));
+    }
+}

@@ -1,0 +1,848 @@
+//! The sensor's view of a frame: beams from a known origin, what each one saw, and what
+//! follows from it (DESIGN.md section 7).
+//!
+//! A [`Scan`] holds one frame's beams in bearing order: each beam either returned (a
+//! point at its range) or did not (no echo, beyond `range_max`, below `range_min`, NaN).
+//! From it come:
+//! - the **runs** ([`Scan::runs`]): consecutive returns that lie on one surface, split at
+//!   depth jumps and gaps by the adaptive breakpoint test (Borges & Aldon 2004): two
+//!   returns `dphi` apart in bearing belong together when they are closer than
+//!   `r sin(dphi) / sin(lambda - dphi) + 3 sigma sqrt(2)`, the spacing of a surface
+//!   seen at incidence `90 - lambda` degrees, plus the range noise;
+//! - the **free space** ([`Scan::free_space`]): the star-shaped polygon swept by the
+//!   rays, from the origin to each return, and to `range_max` along a beam that returned
+//!   nothing; a beam with no return between two returns of one run is a dropout, not a
+//!   hole in the surface, and is closed at the run's range;
+//! - the **scales** ([`Scan::scales`]): the range noise, estimated from how far each
+//!   return lies off the chord of its neighbours, and the beam spacing, `r dphi`.
+//!
+//! Everything here is in the frame's coordinates: the sensor at `origin`, bearings
+//! counter-clockwise from the x axis.
+
+use std::f64::consts::TAU;
+
+use crate::error::{Error, Result};
+use crate::field::{MeshParams, MetricField};
+use crate::geom::{add, dist, point_segment_dist2, sub, Placement, Point, Polyline};
+
+/// How scan frames are read: the breakpoint test, dropouts and small clusters.
+#[derive(Clone, Debug, PartialEq)]
+#[non_exhaustive]
+pub struct ScanParams {
+    /// Range noise (standard deviation, data units). Default: estimated per frame from
+    /// the returns ([`Scan::scales`]).
+    pub range_noise: Option<f64>,
+    /// The breakpoint test's `lambda`, in degrees: consecutive returns stay on one
+    /// surface while it is seen at incidence below `90 - lambda`. Default 10.
+    pub incidence_limit: f64,
+    /// Runs of fewer returns are features (legs, clutter), not curves. Default 3.
+    pub min_run: usize,
+    /// At most this many consecutive beams without a return inside a run are dropouts
+    /// rather than gaps. Default 2.
+    pub dropout_beams: usize,
+    /// Set by the daemon's refinement over frames (`[pipeline] accumulate`), not a key
+    /// of `[scan]`: the window's average takes the noise down, so a frame's returns are
+    /// not smoothed along their runs (which rounds corners) and its mesh resolves half
+    /// the noise.
+    pub refine: bool,
+}
+
+impl Default for ScanParams {
+    fn default() -> Self {
+        ScanParams {
+            range_noise: None,
+            incidence_limit: 10.0,
+            min_run: 3,
+            dropout_beams: 2,
+            refine: false,
+        }
+    }
+}
+
+impl ScanParams {
+    /// The same parameters with every length multiplied by `s` (into other units).
+    pub fn scaled(&self, s: f64) -> ScanParams {
+        ScanParams {
+            range_noise: self.range_noise.map(|x| x * s),
+            ..self.clone()
+        }
+    }
+
+    /// Checks the values; every problem is listed with its key in `[scan]`.
+    pub fn validate(&self) -> std::result::Result<(), Vec<String>> {
+        let mut problems = Vec::new();
+        crate::error::check_positive(&mut problems, "scan.range_noise", self.range_noise);
+        if !(self.incidence_limit > 0.0 && self.incidence_limit < 90.0) {
+            problems.push(format!(
+                "scan.incidence_limit = {}: must be in (0, 90) degrees",
+                self.incidence_limit
+            ));
+        }
+        if !(1..=1000).contains(&self.min_run) {
+            problems.push(format!(
+                "scan.min_run = {}: must be in 1..=1000",
+                self.min_run
+            ));
+        }
+        if self.dropout_beams > 100 {
+            problems.push(format!(
+                "scan.dropout_beams = {}: must be at most 100",
+                self.dropout_beams
+            ));
+        }
+        if problems.is_empty() {
+            Ok(())
+        } else {
+            Err(problems)
+        }
+    }
+}
+
+/// One frame's beams, in increasing bearing.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Scan {
+    /// The sensor's position, in the frame's coordinates.
+    pub origin: Point,
+    /// Each beam's bearing in radians, counter-clockwise from the frame's x axis,
+    /// strictly increasing over less than a full turn plus one step.
+    pub angles: Vec<f64>,
+    /// Each beam's range, NaN where it returned nothing.
+    pub ranges: Vec<f64>,
+    /// Returns beyond this are no returns; a beam without one is free up to it.
+    pub range_max: f64,
+    /// The angular step between beams (radians, positive): the sensor's, or for points
+    /// given around an origin the median step between their bearings.
+    pub step: f64,
+    /// Whether a beam without a return is evidence of free space (a sensor's beams), or
+    /// the frame had only points, whose bearing gaps say nothing: they are treated as
+    /// unseen.
+    pub free_rays: bool,
+}
+
+/// A set of beams like a ROS `sensor_msgs/LaserScan` message, in the frame's coordinates.
+#[derive(Clone, Debug, PartialEq)]
+pub struct LaserScan<'a> {
+    /// The sensor's position in the frame.
+    pub origin: Point,
+    /// Bearing of the first beam, radians.
+    pub angle_min: f64,
+    /// Angle between beams, radians (negative for a clockwise sweep).
+    pub angle_increment: f64,
+    /// Ranges, `None` (JSON `null`, the sensor's NaN or inf) where there was no return.
+    pub ranges: &'a [Option<f64>],
+    /// Returns nearer than this are no returns.
+    pub range_min: f64,
+    /// Returns at or beyond this are no returns.
+    pub range_max: f64,
+}
+
+/// Consecutive returns on one surface: indices into [`Scan::returns`] order.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Run {
+    /// Indices of the beams in the run, in bearing order (valid returns only).
+    pub beams: Vec<u32>,
+}
+
+/// Noise and sampling scales of a scan.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Scales {
+    /// Range noise: the configured value or the estimate.
+    pub noise: f64,
+    /// The estimate from the returns (the median deviation from their neighbours'
+    /// chord), `None` when fewer than 8 returns have two neighbours in their run.
+    pub noise_estimate: Option<f64>,
+    /// The median distance between neighbouring beams at the returns' ranges, `r dphi`.
+    pub spacing: f64,
+}
+
+impl Scan {
+    /// A scan from a sensor's beams. Ranges outside `[range_min, range_max)` or not
+    /// finite are no returns. Fails when the message is malformed: no beams, a step that
+    /// is zero, not finite or sweeps more than a turn, or a bad range limit.
+    pub fn from_laser(l: &LaserScan<'_>) -> Result<Scan> {
+        let bad = Error::Scan;
+        let n = l.ranges.len();
+        if n == 0 {
+            return Err(bad("\"ranges\" is empty".into()));
+        }
+        if !(l.angle_increment.is_finite() && l.angle_increment != 0.0) {
+            return Err(bad(format!(
+                "angle_increment = {}: must be finite and not zero",
+                l.angle_increment
+            )));
+        }
+        if !l.angle_min.is_finite() || l.angle_min.abs() > 1e3 {
+            return Err(bad(format!(
+                "angle_min = {}: must be a finite angle in radians",
+                l.angle_min
+            )));
+        }
+        let sweep = l.angle_increment.abs() * (n - 1) as f64;
+        if sweep > TAU + 1e-6 {
+            return Err(bad(format!(
+                "{n} beams {} rad apart sweep {sweep:.3} rad, more than a turn",
+                l.angle_increment
+            )));
+        }
+        if !(l.range_max.is_finite() && l.range_max > 0.0 && l.range_max <= 1e9) {
+            return Err(bad(format!(
+                "range_max = {}: must be positive and finite",
+                l.range_max
+            )));
+        }
+        if !(l.range_min.is_finite() && l.range_min >= 0.0 && l.range_min < l.range_max) {
+            return Err(bad(format!(
+                "range_min = {}: must be in [0, range_max)",
+                l.range_min
+            )));
+        }
+        if !(l.origin[0].is_finite() && l.origin[1].is_finite())
+            || l.origin[0].abs().max(l.origin[1].abs()) > crate::distance::MAX_COORDINATE
+        {
+            return Err(bad(format!("origin {:?} is not a finite point", l.origin)));
+        }
+        let valid = |r: Option<f64>| match r {
+            Some(r) if r.is_finite() && r >= l.range_min && r < l.range_max => r,
+            _ => f64::NAN,
+        };
+        let mut angles: Vec<f64> = (0..n)
+            .map(|i| l.angle_min + i as f64 * l.angle_increment)
+            .collect();
+        let mut ranges: Vec<f64> = l.ranges.iter().map(|&r| valid(r)).collect();
+        if l.angle_increment < 0.0 {
+            angles.reverse();
+            ranges.reverse();
+        }
+        Ok(Scan {
+            origin: l.origin,
+            angles,
+            ranges,
+            range_max: l.range_max,
+            step: l.angle_increment.abs(),
+            free_rays: true,
+        })
+    }
+
+    /// A scan from points seen from `origin`: each point is a return on its own beam,
+    /// in order of bearing; bearing gaps carry no free-space evidence. Points at the
+    /// origin itself are dropped (they have no bearing).
+    pub fn from_points(points: &[Point], origin: Point) -> Scan {
+        let mut beams: Vec<(f64, f64)> = points
+            .iter()
+            .map(|&p| {
+                let d = sub(p, origin);
+                (d[1].atan2(d[0]), dist(p, origin))
+            })
+            .filter(|&(_, r)| r > 0.0)
+            .collect();
+        beams.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.total_cmp(&b.1)));
+        // Points on one bearing: the nearest is the return, the others lie behind it and
+        // could not have been seen; keep them all as beams a hair apart in bearing, so
+        // that every point stays a return.
+        for i in 1..beams.len() {
+            if beams[i].0 <= beams[i - 1].0 {
+                beams[i].0 = next_up(beams[i - 1].0);
+            }
+        }
+        let mut gaps: Vec<f64> = beams.windows(2).map(|w| w[1].0 - w[0].0).collect();
+        let step = if gaps.is_empty() {
+            1e-3
+        } else {
+            let mid = gaps.len() / 2;
+            *gaps.select_nth_unstable_by(mid, f64::total_cmp).1
+        }
+        .max(1e-9);
+        let range_max = beams.iter().map(|b| b.1).fold(0.0, f64::max) * 1.5 + 1e-300;
+        Scan {
+            origin,
+            angles: beams.iter().map(|b| b.0).collect(),
+            ranges: beams.iter().map(|b| b.1).collect(),
+            range_max,
+            step,
+            free_rays: false,
+        }
+    }
+
+    /// The same scan in the local coordinates of `at` (lengths scaled with them).
+    pub fn placed(&self, at: &Placement) -> Scan {
+        Scan {
+            origin: at.to_local(self.origin),
+            ranges: self.ranges.iter().map(|&r| at.len_to_local(r)).collect(),
+            range_max: at.len_to_local(self.range_max),
+            ..self.clone()
+        }
+    }
+
+    /// Whether beam `i` returned.
+    #[inline]
+    pub fn valid(&self, i: usize) -> bool {
+        !self.ranges[i].is_nan()
+    }
+
+    /// The unit direction of beam `i`.
+    #[inline]
+    pub fn direction(&self, i: usize) -> Point {
+        let (s, c) = self.angles[i].sin_cos();
+        [c, s]
+    }
+
+    /// The point at range `r` on beam `i`.
+    #[inline]
+    pub fn at(&self, i: usize, r: f64) -> Point {
+        let d = self.direction(i);
+        add(self.origin, [r * d[0], r * d[1]])
+    }
+
+    /// Beam indices of the returns, in bearing order.
+    pub fn return_beams(&self) -> Vec<u32> {
+        (0..self.ranges.len())
+            .filter(|&i| self.valid(i))
+            .map(|i| i as u32)
+            .collect()
+    }
+
+    /// The returns as points, in bearing order.
+    pub fn returns(&self) -> Vec<Point> {
+        (0..self.ranges.len())
+            .filter(|&i| self.valid(i))
+            .map(|i| self.at(i, self.ranges[i]))
+            .collect()
+    }
+
+    /// Whether the beams cover a whole turn (the last beam is a neighbour of the first).
+    pub fn full_turn(&self) -> bool {
+        match (self.angles.first(), self.angles.last()) {
+            (Some(a), Some(b)) => b - a + 1.5 * self.step >= TAU,
+            _ => false,
+        }
+    }
+
+    /// Bearing difference from beam `i` to beam `j` (j after i, wrapping on a full turn).
+    fn gap(&self, i: usize, j: usize) -> f64 {
+        let d = self.angles[j] - self.angles[i];
+        if d < 0.0 {
+            d + TAU
+        } else {
+            d
+        }
+    }
+
+    /// Whether the returns of beams `i` and `j` lie on one surface by the adaptive
+    /// breakpoint test (see the module doc), `sigma` the range noise and `lambda` in
+    /// radians.
+    pub fn joined(&self, i: usize, j: usize, sigma: f64, lambda: f64) -> bool {
+        let dphi = self.gap(i, j);
+        if dphi >= lambda {
+            return false;
+        }
+        let (ri, rj) = (self.ranges[i], self.ranges[j]);
+        let reach = ri.min(rj) * dphi.sin() / (lambda - dphi).sin()
+            + 3.0 * std::f64::consts::SQRT_2 * sigma;
+        dist(self.at(i, ri), self.at(j, rj)) <= reach
+    }
+
+    /// The runs: consecutive returns joined by the breakpoint test, across at most
+    /// `params.dropout_beams` beams without a return, in bearing order; on a full turn a
+    /// run may wrap from the last beams to the first.
+    pub fn runs(&self, sigma: f64, params: &ScanParams) -> Vec<Run> {
+        let lambda = params.incidence_limit.to_radians();
+        let beams = self.return_beams();
+        let mut runs: Vec<Run> = Vec::new();
+        for (k, &b) in beams.iter().enumerate() {
+            let joined = k > 0 && {
+                let a = beams[k - 1];
+                (b - a - 1) as usize <= params.dropout_beams
+                    && self.joined(a as usize, b as usize, sigma, lambda)
+            };
+            if joined {
+                runs.last_mut().expect("a run before").beams.push(b);
+            } else {
+                runs.push(Run { beams: vec![b] });
+            }
+        }
+        if runs.len() > 1 && self.full_turn() {
+            let (first, last) = (beams[0], *beams.last().expect("returns"));
+            let skipped = (self.angles.len() as u32 - 1 - last) + first;
+            if skipped as usize <= params.dropout_beams
+                && self.joined(last as usize, first as usize, sigma, lambda)
+            {
+                let head = runs.remove(0);
+                runs.last_mut().expect("a run").beams.extend(head.beams);
+            }
+        }
+        runs
+    }
+
+    /// Range noise and beam spacing. The noise estimate: each return with both
+    /// neighbours in its run lies off their chord by about its own noise across the
+    /// surface (a straight surface; the chord error of a curved one is second order in
+    /// the spacing), which is the range noise times the cosine of the incidence. For
+    /// independent noise, that offset divided by the cosine has deviation
+    /// `sigma sqrt(1.5)`, and its median absolute value is `0.6745` of that. Returns seen
+    /// at more than 60 degrees of incidence, where the cosine amplifies the chord's own
+    /// error, are left out unless too few remain.
+    pub fn scales(&self, runs: &[Run], params: &ScanParams) -> Scales {
+        let mut offsets: Vec<f64> = Vec::new();
+        let mut grazing: Vec<f64> = Vec::new();
+        for run in runs {
+            for w in run.beams.windows(3) {
+                let [a, b, c] =
+                    [w[0], w[1], w[2]].map(|i| self.at(i as usize, self.ranges[i as usize]));
+                let off = point_segment_dist2(b, a, c).0.sqrt();
+                let chord = sub(c, a);
+                let len = crate::geom::norm(chord);
+                if len <= 0.0 {
+                    continue;
+                }
+                // Cosine of the incidence: the beam against the chord's normal.
+                let beam = self.direction(w[1] as usize);
+                let cos = (crate::geom::cross(beam, chord) / len).abs();
+                if cos >= 0.5 {
+                    offsets.push(off / cos);
+                } else {
+                    grazing.push(off / cos.max(1e-3));
+                }
+            }
+        }
+        if offsets.len() < 8 {
+            offsets.append(&mut grazing);
+        }
+        let noise_estimate = (offsets.len() >= 8).then(|| {
+            let mid = offsets.len() / 2;
+            let m = *offsets.select_nth_unstable_by(mid, f64::total_cmp).1;
+            m / (0.6745 * 1.5f64.sqrt())
+        });
+        let mut spacing: Vec<f64> = self
+            .ranges
+            .iter()
+            .filter(|r| !r.is_nan())
+            .map(|r| r * self.step)
+            .collect();
+        let spacing = if spacing.is_empty() {
+            0.0
+        } else {
+            let mid = spacing.len() / 2;
+            *spacing.select_nth_unstable_by(mid, f64::total_cmp).1
+        };
+        Scales {
+            noise: params
+                .range_noise
+                .or(noise_estimate)
+                .unwrap_or(0.25 * spacing),
+            noise_estimate,
+            spacing,
+        }
+    }
+
+    /// How far each beam saw free space: its range where it returned; inside a run, a
+    /// dropout's range interpolated between its neighbours; between two runs, a stretch
+    /// of at most `dropout_beams` beams without a return reaches the nearer of the two
+    /// (a dropout next to a corner or a depth jump, whose beam may well have hit the
+    /// near surface, must not pierce it as a thin ray of free space: claiming too little
+    /// free space costs nothing, the curve there is cut anyway); `range_max` on the
+    /// other beams with no return (or 0, unseen, when the scan has no free rays).
+    ///
+    /// A return's range is taken from `ranges` (the scan's own, or
+    /// [`smoothed_ranges`](Self::smoothed_ranges)).
+    pub fn reach(&self, runs: &[Run], dropout_beams: usize, ranges: &[f64]) -> Vec<f64> {
+        let n = self.angles.len();
+        let free = if self.free_rays { self.range_max } else { 0.0 };
+        let mut reach: Vec<f64> = (0..n)
+            .map(|i| if self.valid(i) { ranges[i] } else { free })
+            .collect();
+        // Short stretches without a return between two returns.
+        let beams = self.return_beams();
+        let pairs = beams.windows(2).map(|w| (w[0], w[1]));
+        let wrap = (self.full_turn() && beams.len() > 1)
+            .then(|| (*beams.last().expect("returns"), beams[0]));
+        for (a, b) in pairs.chain(wrap) {
+            let (a, b) = (a as usize, b as usize);
+            let missing: Vec<usize> = if b > a {
+                (a + 1..b).collect()
+            } else {
+                (a + 1..n).chain(0..b).collect()
+            };
+            if !missing.is_empty() && missing.len() <= dropout_beams {
+                let near = ranges[a].min(ranges[b]);
+                for i in missing {
+                    reach[i] = near;
+                }
+            }
+        }
+        for run in runs {
+            for w in run.beams.windows(2) {
+                let (a, b) = (w[0] as usize, w[1] as usize);
+                let missing: Vec<usize> = if b > a {
+                    (a + 1..b).collect()
+                } else {
+                    (a + 1..n).chain(0..b).collect()
+                };
+                let m = missing.len() as f64 + 1.0;
+                for (k, &i) in missing.iter().enumerate() {
+                    let f = (k + 1) as f64 / m;
+                    reach[i] = ranges[a] * (1.0 - f) + ranges[b] * f;
+                }
+            }
+        }
+        reach
+    }
+
+    /// The ranges of the returns with their noise smoothed along each run: a return
+    /// moves along its beam onto the line fitted to its run neighbours (up to `window`
+    /// on either side), unless the beam meets that line at a grazing angle (beyond 75
+    /// degrees) or the move exceeds `3 sigma` (a corner inside the window). NaN where
+    /// the beam returned nothing.
+    ///
+    /// The free space through the raw returns zigzags across the noise band at every
+    /// beam; on a mesh whose elements are long along the walls that zigzag folds the
+    /// P1 zero isoline back on itself. Through the smoothed returns it runs straight.
+    pub fn smoothed_ranges(&self, runs: &[Run], window: usize, sigma: f64) -> Vec<f64> {
+        let mut out = self.ranges.clone();
+        for run in runs {
+            let pts: Vec<Point> = run
+                .beams
+                .iter()
+                .map(|&b| self.at(b as usize, self.ranges[b as usize]))
+                .collect();
+            let m = pts.len();
+            if m < 3 {
+                continue;
+            }
+            for (k, &b) in run.beams.iter().enumerate() {
+                let lo = k.saturating_sub(window);
+                let hi = (k + window + 1).min(m);
+                let w = &pts[lo..hi];
+                let inv = 1.0 / w.len() as f64;
+                let c = w
+                    .iter()
+                    .fold([0.0, 0.0], |s, p| add(s, [p[0] * inv, p[1] * inv]));
+                let mut cov = crate::geom::Sym2::default();
+                for p in w {
+                    cov = cov.plus(crate::geom::Sym2::outer(sub(*p, c)));
+                }
+                let (_, _, t) = cov.eigen();
+                let d = self.direction(b as usize);
+                let den = crate::geom::cross(d, t);
+                if den.abs() < 0.25 {
+                    continue;
+                }
+                let r = crate::geom::cross(sub(c, self.origin), t) / den;
+                let raw = self.ranges[b as usize];
+                if r > 0.0 && (r - raw).abs() <= 3.0 * sigma {
+                    out[b as usize] = r;
+                }
+            }
+        }
+        out
+    }
+
+    /// The free space swept by the rays, as far as [`reach`](Self::reach) says (with
+    /// `ranges` for the returns): each pair of neighbouring beams sweeps the triangle from
+    /// the origin to their reaches. A bearing gap wider than three steps in a scan made
+    /// from points is unseen.
+    pub fn free_space(&self, runs: &[Run], dropout_beams: usize, ranges: &[f64]) -> FreeSpace {
+        FreeSpace {
+            origin: self.origin,
+            angles: self.angles.clone(),
+            reach: self.reach(runs, dropout_beams, ranges),
+            full_turn: self.full_turn(),
+            max_gap: if self.free_rays {
+                f64::INFINITY
+            } else {
+                3.0 * self.step
+            },
+        }
+    }
+}
+
+/// What the stages need of a scan frame, worked out once by the distance stage.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Analysis {
+    /// The scan.
+    pub scan: Scan,
+    /// Its runs.
+    pub runs: Vec<Run>,
+    /// Its noise and sampling scales.
+    pub scales: Scales,
+    /// The free space its rays swept.
+    pub free: FreeSpace,
+    /// Runs with at least `min_run` returns, as open polylines through their returns
+    /// smoothed along the run ([`Scan::smoothed_ranges`]; a run that wraps all the way
+    /// round a full turn closes): where curves may run.
+    pub support: Vec<Polyline>,
+    /// Analysed for refinement over frames ([`ScanParams::refine`]).
+    pub refine: bool,
+}
+
+impl Analysis {
+    /// Runs, scales, free space and support of `scan`. The runs are found twice: first
+    /// with a generous noise (half the beam spacing, or the configured noise) to estimate
+    /// the noise from, then with the estimate.
+    pub fn new(scan: Scan, params: &ScanParams) -> Analysis {
+        let first = {
+            let spacing = scan.scales(&[], params).spacing;
+            let sigma = params.range_noise.unwrap_or(0.5 * spacing);
+            scan.runs(sigma, params)
+        };
+        let scales = scan.scales(&first, params);
+        let runs = if params.range_noise.is_some() {
+            first
+        } else {
+            scan.runs(scales.noise, params)
+        };
+        // Four returns a side smooth a frame's noise along its runs; with refinement the
+        // window's average does, without rounding the corners.
+        let window = if params.refine { 0 } else { 4 };
+        let smooth = scan.smoothed_ranges(&runs, window, scales.noise);
+        let free = scan.free_space(&runs, params.dropout_beams, &smooth);
+        let n = scan.angles.len();
+        let support = runs
+            .iter()
+            .filter(|r| r.beams.len() >= params.min_run)
+            .map(|r| {
+                let points: Vec<Point> = r
+                    .beams
+                    .iter()
+                    .map(|&b| scan.at(b as usize, smooth[b as usize]))
+                    .collect();
+                // Closed only when the run goes round the whole turn back to its start.
+                let closed = runs.len() == 1
+                    && scan.full_turn()
+                    && r.beams.len() >= 3
+                    && scan.return_beams().len() == r.beams.len()
+                    && {
+                        let (a, b) = (*r.beams.last().expect("beams"), r.beams[0]);
+                        let skipped = (n as u32 - 1 - a) + b;
+                        skipped as usize <= params.dropout_beams
+                            && scan.joined(
+                                a as usize,
+                                b as usize,
+                                scales.noise,
+                                params.incidence_limit.to_radians(),
+                            )
+                    };
+                Polyline { closed, points }
+            })
+            .collect();
+        Analysis {
+            scan,
+            runs,
+            scales,
+            free,
+            support,
+            refine: params.refine,
+        }
+    }
+
+    /// The analysis in other coordinates: points mapped by `f`, a similarity that turns
+    /// by `turn` and maps lengths by `len`.
+    pub fn transformed(
+        &self,
+        f: &impl Fn(Point) -> Point,
+        turn: f64,
+        len: &impl Fn(f64) -> f64,
+    ) -> Analysis {
+        let turned = |angles: &[f64]| angles.iter().map(|a| a + turn).collect::<Vec<_>>();
+        Analysis {
+            scan: Scan {
+                origin: f(self.scan.origin),
+                angles: turned(&self.scan.angles),
+                ranges: self.scan.ranges.iter().map(|&r| len(r)).collect(),
+                range_max: len(self.scan.range_max),
+                ..self.scan.clone()
+            },
+            runs: self.runs.clone(),
+            scales: Scales {
+                noise: len(self.scales.noise),
+                noise_estimate: self.scales.noise_estimate.map(len),
+                spacing: len(self.scales.spacing),
+            },
+            free: FreeSpace {
+                origin: f(self.free.origin),
+                angles: turned(&self.free.angles),
+                reach: self.free.reach.iter().map(|&r| len(r)).collect(),
+                ..self.free.clone()
+            },
+            support: self
+                .support
+                .iter()
+                .map(|pl| Polyline {
+                    closed: pl.closed,
+                    points: pl.points.iter().map(|&p| f(p)).collect(),
+                })
+                .collect(),
+            refine: self.refine,
+        }
+    }
+
+    /// The mesh parameters for this scan from the configured ones: sizes from the sensor.
+    /// Far from the sensor the beams are sparse, but the noise is the range noise
+    /// everywhere: `hmin` resolves the noise band, or where the beams are denser than
+    /// that a quarter of their spacing (at least `1e-4 diag`, so that a noiseless, dense
+    /// scan does not mesh without bound). The curve starts on the data, so the fine band
+    /// only holds the noise band and the settle's moves (`4 hmin`), and the mesh may
+    /// coarsen faster away from it (gradation 0.6). Set values win.
+    pub fn mesh_params(&self, mesh: &MeshParams, diag: f64) -> MeshParams {
+        let mut p = mesh.clone();
+        let s = &self.scales;
+        // With refinement the window averages the noise down, and the mesh resolves
+        // half of it.
+        let share = if self.refine { 0.5 } else { 1.0 };
+        let hmin = p
+            .hmin
+            .unwrap_or_else(|| (share * s.noise).max(0.25 * s.spacing).max(1e-4 * diag));
+        p.hmin = Some(hmin);
+        p.band = Some(p.band.unwrap_or(4.0 * hmin));
+        p.gradation = Some(p.gradation.unwrap_or(0.6));
+        p
+    }
+
+    /// The distance field and metric frames of this scan's mesh: only the runs long
+    /// enough to become curves are meshed (a lone return, a spurious echo or a far table
+    /// leg, would cost as much mesh as a metre of wall), each sample's frame fitted along
+    /// its run (8 neighbours a side span the local shape without reaching across a
+    /// corner), and the mesh fine where a run ends, so that its end is resolved. A scan
+    /// with no such run falls back to the field of all its returns (`points`).
+    pub fn metric_field(&self, params: &MeshParams, points: &[Point]) -> Result<MetricField> {
+        let chains: Vec<Vec<Point>> = self.support.iter().map(|pl| pl.points.clone()).collect();
+        if chains.iter().map(Vec::len).sum::<usize>() < 2 {
+            return MetricField::new(points, params);
+        }
+        let hmin = params.hmin.unwrap_or(0.0);
+        let mut m = MetricField::along_chains(
+            &chains,
+            params,
+            8,
+            |h| 2.0 * h,
+            (4.0 * hmin).max(2.0 * self.scales.spacing),
+        )?;
+        m.noise_estimate = self.scales.noise;
+        Ok(m)
+    }
+
+    /// Each run's returns, in bearing order.
+    pub fn run_points(&self) -> Vec<Vec<Point>> {
+        self.runs
+            .iter()
+            .map(|r| {
+                r.beams
+                    .iter()
+                    .map(|&b| self.scan.at(b as usize, self.scan.ranges[b as usize]))
+                    .collect()
+            })
+            .collect()
+    }
+
+    /// The same analysis in the local coordinates of `at` (lengths scaled with them).
+    pub fn placed(&self, at: &Placement) -> Analysis {
+        self.transformed(&|p| at.to_local(p), 0.0, &|x| at.len_to_local(x))
+    }
+}
+
+/// The next float above `x` (towards +inf).
+fn next_up(x: f64) -> f64 {
+    if x.is_nan() || x == f64::INFINITY {
+        return x;
+    }
+    let bits = x.to_bits();
+    let next = if x == 0.0 {
+        1
+    } else if x > 0.0 {
+        bits + 1
+    } else {
+        bits - 1
+    };
+    f64::from_bits(next).max(x + x.abs() * 1e-15)
+}
+
+/// The star-shaped free space of a scan.
+#[derive(Clone, Debug, PartialEq)]
+pub struct FreeSpace {
+    /// The sensor.
+    pub origin: Point,
+    /// Beam bearings, increasing.
+    pub angles: Vec<f64>,
+    /// How far each beam saw free space (0: unseen).
+    pub reach: Vec<f64>,
+    /// Whether the last beam neighbours the first.
+    pub full_turn: bool,
+    /// Neighbouring beams farther apart than this sweep nothing between them.
+    pub max_gap: f64,
+}
+
+impl FreeSpace {
+    /// Whether `p` lies in the free space: between two neighbouring beams (of bearings
+    /// around `p`'s), on the origin's side of the segment joining their reaches.
+    pub fn contains(&self, p: Point) -> bool {
+        let n = self.angles.len();
+        if n == 0 {
+            return false;
+        }
+        let d = sub(p, self.origin);
+        if d == [0.0, 0.0] {
+            return self.reach.iter().any(|&r| r > 0.0);
+        }
+        let mut phi = d[1].atan2(d[0]);
+        let a0 = self.angles[0];
+        // Bring phi into [a0, a0 + 2 pi).
+        phi = a0 + (phi - a0).rem_euclid(TAU);
+        let k = self.angles.partition_point(|&a| a <= phi);
+        let (i, j) = if k == 0 {
+            return false;
+        } else if k < n {
+            (k - 1, k)
+        } else if self.full_turn {
+            (n - 1, 0)
+        } else {
+            // Past the last beam: inside only on it (within rounding).
+            return phi - self.angles[n - 1] <= 1e-12 && crate::geom::norm(d) < self.reach[n - 1];
+        };
+        let gap = (self.angles[j] - self.angles[i]).rem_euclid(TAU);
+        if gap > self.max_gap {
+            return false;
+        }
+        let (ri, rj) = (self.reach[i], self.reach[j]);
+        if ri <= 0.0 || rj <= 0.0 {
+            return false;
+        }
+        let a = self.point(i, ri);
+        let b = self.point(j, rj);
+        // The origin's side of a -> b (the triangle origin, a, b is counter-clockwise).
+        crate::geom::orient(a, b, p) > 0.0
+    }
+
+    fn point(&self, i: usize, r: f64) -> Point {
+        let (s, c) = self.angles[i].sin_cos();
+        add(self.origin, [r * c, r * s])
+    }
+
+    /// The boundary of the free space as a closed polygon (counter-clockwise): the origin,
+    /// then each beam's reach; an unseen stretch goes back through the origin.
+    pub fn polygon(&self) -> Polyline {
+        let n = self.angles.len();
+        let mut pts = Vec::with_capacity(n + 2);
+        if !self.full_turn {
+            pts.push(self.origin);
+        }
+        for i in 0..n {
+            if i > 0 {
+                let gap = self.angles[i] - self.angles[i - 1];
+                if gap > self.max_gap && pts.last() != Some(&self.origin) {
+                    pts.push(self.origin);
+                }
+            }
+            if self.reach[i] > 0.0 {
+                pts.push(self.point(i, self.reach[i]));
+            } else if pts.last() != Some(&self.origin) {
+                pts.push(self.origin);
+            }
+        }
+        Polyline {
+            closed: true,
+            points: pts,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,436 @@
+//! The JSON shapes of the file contract (docs/formats.md): frames, polylines, truth
+//! files and result records. Kept apart from the method's types, which know no serde:
+//! the contract and the library change apart, and each conversion is written here.
+
+use serde::{Deserialize, Serialize};
+
+use isoline_core::geom::{Point, Polyline};
+use isoline_core::Feature;
+
+/// One frame of an NDJSON stream, as on the wire (see docs/formats.md): points,
+/// `{"stream":..,"frame":..,"t":..,"points":[[x,y],..],"origin":[x,y]}`, or a scanner's
+/// beams, `{"frame":..,"ranges":[r,..],"angle_min":a,"angle_increment":da,
+/// "range_min":r0,"range_max":r1,"pose":[x,y,theta]}`. [`crate::ingest::Frame`] is the
+/// validated form.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct FrameRecord {
+    /// Stream id (optional).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub stream: Option<String>,
+    /// Frame number.
+    pub frame: u64,
+    /// Time stamp in seconds (optional).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub t: Option<f64>,
+    /// The points (absent in a frame of beams).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub points: Vec<Point>,
+    /// The sensor's position in the frame's coordinates (optional; `[0, 0]` for beams).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub origin: Option<Point>,
+    /// The pose `[x, y, theta]` of the frame's coordinates in a world frame (optional).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub pose: Option<[f64; 3]>,
+    /// Beams: each one's range, `null` where it returned nothing.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub ranges: Option<Vec<Option<f64>>>,
+    /// Beams: bearing of the first, radians counter-clockwise from the x axis.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub angle_min: Option<f64>,
+    /// Beams: angle from one to the next, radians.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub angle_increment: Option<f64>,
+    /// Beams: nearer returns are no returns (default 0).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub range_min: Option<f64>,
+    /// Beams: returns at or beyond this are no returns; a beam without one is free up to
+    /// it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub range_max: Option<f64>,
+    /// Beams: intensities (optional, one per beam; read and not used).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub intensities: Option<Vec<Option<f64>>>,
+}
+
+/// A polyline on the wire: `{"closed":..,"points":[[x,y],..]}`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct PolylineJson {
+    /// Whether the last point joins the first.
+    pub closed: bool,
+    /// Vertices.
+    pub points: Vec<Point>,
+}
+
+impl From<&Polyline> for PolylineJson {
+    fn from(p: &Polyline) -> Self {
+        PolylineJson {
+            closed: p.closed,
+            points: p.points.clone(),
+        }
+    }
+}
+
+impl From<PolylineJson> for Polyline {
+    fn from(p: PolylineJson) -> Self {
+        Polyline {
+            closed: p.closed,
+            points: p.points,
+        }
+    }
+}
+
+/// An opening in a wall (a doorway) on the wire: the segment across it, `[[x,y],[x,y]]`.
+pub type OpeningJson = [Point; 2];
+
+/// The sensor a simulated scan stream was made with (truth files of scenes).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct SensorJson {
+    /// The preset's name.
+    pub name: String,
+    /// Range noise (standard deviation).
+    pub range_noise: f64,
+    /// Probability that a beam returned nothing.
+    pub dropout: f64,
+    /// Probability that a beam returned a spurious short range.
+    pub outliers: f64,
+}
+
+/// The truth of one frame of a multi-frame stream.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct TruthFrame {
+    /// Frame number.
+    pub frame: u64,
+    /// Exact curves of that frame (for a scan, what the sensor could see of each
+    /// surface, in the sensor's frame).
+    pub polylines: Vec<PolylineJson>,
+    /// Scans: the openings in the walls (doorways), in the sensor's frame.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub openings: Option<Vec<OpeningJson>>,
+    /// Scans: the sensor's pose in the scene.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub pose: Option<[f64; 3]>,
+}
+
+/// A truth file: `{"polylines":[..]}` (frame 0, or the only frame), plus `"frames"` with
+/// each frame's curves when there are several; scans add the openings and the sensor.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct TruthFile {
+    /// Curves of the first frame.
+    pub polylines: Vec<PolylineJson>,
+    /// Scans: openings of the first frame.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub openings: Option<Vec<OpeningJson>>,
+    /// Curves of every frame, when there is more than one.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub frames: Option<Vec<TruthFrame>>,
+    /// Scans: the sensor.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sensor: Option<SensorJson>,
+    /// Scans: every surface of the scene, in the scene's (world) coordinates.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub scene: Option<Vec<PolylineJson>>,
+    /// Scans: the sensor's pose in the scene in the first frame.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub pose: Option<[f64; 3]>,
+}
+
+impl TruthFile {
+    /// The truth of frame `frame`: its own entry if listed, else the top-level curves.
+    pub fn for_frame(&self, frame: Option<u64>) -> Vec<Polyline> {
+        self.frame(frame)
+            .0
+            .iter()
+            .cloned()
+            .map(Into::into)
+            .collect()
+    }
+
+    /// The curves, openings and sensor pose of frame `frame`: its own entry if listed,
+    /// else the top-level ones.
+    pub fn frame(&self, frame: Option<u64>) -> (&[PolylineJson], &[OpeningJson], Option<[f64; 3]>) {
+        let listed = frame.and_then(|f| {
+            self.frames
+                .as_ref()
+                .and_then(|fs| fs.iter().find(|x| x.frame == f))
+        });
+        match listed {
+            Some(f) => (&f.polylines, f.openings.as_deref().unwrap_or(&[]), f.pose),
+            None => (
+                &self.polylines,
+                self.openings.as_deref().unwrap_or(&[]),
+                self.pose,
+            ),
+        }
+    }
+
+    /// Every surface of the scene in the frame of a sensor at `pose`; empty without a
+    /// scene or a pose.
+    pub fn surfaces(&self, pose: Option<[f64; 3]>) -> Vec<Polyline> {
+        let (Some(scene), Some(pose)) = (&self.scene, pose) else {
+            return Vec::new();
+        };
+        scene
+            .iter()
+            .map(|pl| Polyline {
+                closed: pl.closed,
+                points: pl
+                    .points
+                    .iter()
+                    .map(|&p| isoline_core::geom::to_sensor(pose, p))
+                    .collect(),
+            })
+            .collect()
+    }
+}
+
+/// Milliseconds per stage of one frame.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct StageMs {
+    /// kd-tree and distances at the mesh vertices.
+    pub distance: f64,
+    /// Metric and mesh adaptation.
+    pub adapt: f64,
+    /// Time stepping and stopping tests.
+    pub solve: f64,
+    /// Fast-marching renormalization.
+    pub renormalize: f64,
+    /// Isoline extraction and simplification.
+    pub export: f64,
+    /// The whole frame: the sum of the stages.
+    pub total: f64,
+    /// Daemon only: from the frame's arrival to its record, queueing included.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub latency: Option<f64>,
+}
+
+/// The `stats` of a result record (docs/formats.md), plus what a user tuning the
+/// solver wants to see.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct FrameStats {
+    /// Data points.
+    pub points: usize,
+    /// Mesh vertices.
+    pub vertices: usize,
+    /// Mesh triangles.
+    pub triangles: usize,
+    /// Solver time steps.
+    pub iterations: usize,
+    /// Eq. 11 residual: the largest `|u|` at a data point.
+    pub residual: f64,
+    /// Whether the residual got below `eps`.
+    pub converged: bool,
+    /// Whether the frame started from the previous frame's level set.
+    pub warm_start: bool,
+    /// Time per stage.
+    pub ms: StageMs,
+    /// Why the solver stopped: `converged`, `stagnated` or `max_iterations`.
+    #[serde(default)]
+    pub stop: String,
+    /// `explicit` or `semi-implicit`.
+    #[serde(default)]
+    pub scheme: String,
+    /// Conjugate-gradient iterations (semi-implicit).
+    #[serde(default)]
+    pub linear_iterations: usize,
+    /// Renormalizations.
+    #[serde(default)]
+    pub renormalizations: usize,
+    /// Smallest element size used.
+    #[serde(default)]
+    pub hmin: f64,
+    /// Stopping tolerance used.
+    #[serde(default)]
+    pub eps: f64,
+    /// Scan frames: returns that no curve explains (the `features`' returns).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub unexplained: Option<usize>,
+    /// Scan frames: the range noise used (configured, or estimated from the returns).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub range_noise: Option<f64>,
+    /// The share of the points within `3 sigma + 2 hmin` of a curve (the accuracy bound;
+    /// sigma the noise used).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub explained: Option<f64>,
+    /// The 90th percentile of the points' distances to the curves.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub fit_p90: Option<f64>,
+    /// A warm start was tried, came out clearly worse than the previous frame, and was
+    /// replaced by a cold one (`warm_start` is then false).
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub cold_fallback: bool,
+    /// With refinement over frames (`[pipeline] accumulate`): the window the frame was
+    /// reconstructed from; its curves are then in the world's coordinates.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub window: Option<WindowStats>,
+}
+
+/// The window of frames a record was reconstructed from.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct WindowStats {
+    /// Frames in it, this one included.
+    pub frames: usize,
+    /// Their returns.
+    pub points: usize,
+    /// Bytes the stream's window holds, roughly.
+    pub bytes: usize,
+}
+
+/// A cluster of returns that no curve explains, on the wire:
+/// `{"center":[x,y],"returns":n}`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct FeatureJson {
+    /// The returns' centroid.
+    pub center: Point,
+    /// How many returns.
+    pub returns: usize,
+}
+
+/// Where open strokes meet, on the wire: `{"at":[x,y],"polylines":[i,j,k]}`, the
+/// indices into the record's `polylines`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct JunctionJson {
+    /// The meeting point.
+    pub at: Point,
+    /// The polylines ending there.
+    pub polylines: Vec<usize>,
+}
+
+impl From<&isoline_core::Junction> for JunctionJson {
+    fn from(j: &isoline_core::Junction) -> Self {
+        JunctionJson {
+            at: j.at,
+            polylines: j.polylines.clone(),
+        }
+    }
+}
+
+impl From<&Feature> for FeatureJson {
+    fn from(f: &Feature) -> Self {
+        FeatureJson {
+            center: f.center,
+            returns: f.returns,
+        }
+    }
+}
+
+/// One line of a result stream: curves and stats, or an error, for one input frame.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct ResultRecord {
+    /// Stream id, as in the input.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub stream: Option<String>,
+    /// Frame number, as in the input; absent on the error record of a line whose frame
+    /// number could not be read (see `line`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub frame: Option<u64>,
+    /// Daemon error records: the input line (1-based, within its file or TCP client)
+    /// that the record answers.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub line: Option<u64>,
+    /// The frame's time stamp, as in the input (a bag's header stamp, a log's time).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub t: Option<f64>,
+    /// The frame's pose in the world, as in the input (or found in a bag's odometry or
+    /// transforms): the curves are in the frame's coordinates, and this places them.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub pose: Option<[f64; 3]>,
+    /// The curves.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub polylines: Option<Vec<PolylineJson>>,
+    /// Scan frames: clusters of returns that no curve explains (legs, clutter, spurious
+    /// returns).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub features: Option<Vec<FeatureJson>>,
+    /// Point clouds: where open strokes meet.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub junctions: Option<Vec<JunctionJson>>,
+    /// How they were made.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub stats: Option<FrameStats>,
+    /// Why the frame has no curves.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub error: Option<String>,
+    /// Daemon only: `true` when the frame was skipped for a newer one of its stream.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub skipped: Option<bool>,
+    /// What is wrong with a result that has one: no curve where the data have support,
+    /// or most of the data unexplained.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub warnings: Option<Vec<String>>,
+}
+
+impl ResultRecord {
+    /// The record of a reconstructed frame: its curves, features (scan frames) and stats.
+    pub fn of(
+        stream: Option<String>,
+        frame: u64,
+        r: &isoline_core::Reconstruction,
+    ) -> ResultRecord {
+        ResultRecord {
+            stream,
+            frame: Some(frame),
+            polylines: Some(r.polylines.iter().map(PolylineJson::from).collect()),
+            features: r
+                .stats
+                .unexplained
+                .map(|_| r.features.iter().map(FeatureJson::from).collect()),
+            junctions: (!r.junctions.is_empty())
+                .then(|| r.junctions.iter().map(JunctionJson::from).collect()),
+            stats: Some(FrameStats::from(&r.stats)),
+            warnings: (!r.warnings.is_empty())
+                .then(|| r.warnings.iter().map(ToString::to_string).collect()),
+            ..Default::default()
+        }
+    }
+}
+
+impl From<&isoline_core::StageMs> for StageMs {
+    fn from(ms: &isoline_core::StageMs) -> Self {
+        StageMs {
+            distance: ms.distance,
+            adapt: ms.adapt,
+            solve: ms.solve,
+            renormalize: ms.renormalize,
+            export: ms.export,
+            total: ms.total,
+            latency: None,
+        }
+    }
+}
+
+impl From<isoline_core::WindowStats> for WindowStats {
+    fn from(w: isoline_core::WindowStats) -> Self {
+        WindowStats {
+            frames: w.frames,
+            points: w.points,
+            bytes: w.bytes,
+        }
+    }
+}
+
+impl From<&isoline_core::Stats> for FrameStats {
+    fn from(s: &isoline_core::Stats) -> Self {
+        FrameStats {
+            points: s.points,
+            vertices: s.vertices,
+            triangles: s.triangles,
+            iterations: s.iterations,
+            residual: s.residual,
+            converged: s.converged,
+            warm_start: s.warm_start,
+            ms: StageMs::from(&s.ms),
+            stop: s.stop.as_str().into(),
+            scheme: s.scheme.to_string(),
+            linear_iterations: s.linear_iterations,
+            renormalizations: s.renormalizations,
+            hmin: s.hmin,
+            eps: s.eps,
+            unexplained: s.unexplained,
+            range_noise: s.range_noise,
+            explained: Some(s.explained),
+            fit_p90: s.fit_p90,
+            cold_fallback: s.cold_fallback,
+            window: s.window.map(WindowStats::from),
+        }
+    }
+}

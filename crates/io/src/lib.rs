@@ -1,0 +1,35 @@
+//! isoline-io reads and writes isoline's files: point files, NDJSON frames (points, or a
+//! scanner's beams shaped like a ROS `LaserScan`), ROS 2 bags (MCAP), CARMEN logs, and
+//! the results as NDJSON records, JSON, GeoJSON, CSV, SVG drawings and MCAP for
+//! Foxglove. The JSON shapes of the contract are [`format`]; readers give validated
+//! [`Frame`]s, which [`reconstruct_frame`] turns into result records.
+//!
+//! ```
+//! use isoline_core::Params;
+//! use isoline_io::{parse_frame, reconstruct_frame, write};
+//! let line = r#"{"frame":0,"points":[[0,0],[1,0],[1,1],[0,1],[0.5,0],[1,0.5],[0.5,1],[0,0.5]]}"#;
+//! let frame = parse_frame(line, "example", 1).unwrap();
+//! let (record, _) = reconstruct_frame(&frame, &Params::default());
+//! assert!(record.error.is_none());
+//! let mut out = Vec::new();
+//! write::write_ndjson(&mut out, &record).unwrap();
+//! assert!(out.starts_with(br#"{"frame":0,"polylines":[{"closed":true"#));
+//! ```
+
+#![forbid(unsafe_code)]
+#![warn(missing_docs)]
+#![deny(rustdoc::broken_intra_doc_links)]
+
+mod error;
+pub mod format;
+pub mod foxglove;
+mod ingest;
+mod record;
+pub mod write;
+
+pub use error::{Error, Result};
+pub use ingest::{
+    bag, carmen, is_bag, is_frame_stream, is_recording, parse_frame, parse_points, read_frames,
+    read_input, read_items, read_points, ros, BadFrame, Frame, Item,
+};
+pub use record::reconstruct_frame;

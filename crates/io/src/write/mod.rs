@@ -1,0 +1,298 @@
+//! Result writers. The format follows the output file's extension: `.ndjson` (one
+//! result record per line, the contract of DESIGN.md), `.json` (the same records as an
+//! array, pretty-printed), `.geojson` (a FeatureCollection of LineStrings), `.csv`
+//! (`stream,frame,polyline,closed,vertex,x,y,junction`) and `.svg` (see [`super::svg`]).
+
+pub mod svg;
+
+use std::fmt::Write as _;
+use std::io::Write;
+use std::path::Path;
+
+use serde_json::json;
+
+use crate::format::{PolylineJson, ResultRecord};
+use isoline_core::geom::dist;
+
+/// A result file format.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Format {
+    /// One JSON record per line.
+    Ndjson,
+    /// A JSON array of records (a single record for one frame).
+    Json,
+    /// GeoJSON FeatureCollection.
+    GeoJson,
+    /// Comma-separated vertices.
+    Csv,
+    /// SVG drawing.
+    Svg,
+}
+
+impl Format {
+    /// The format named by `path`'s extension.
+    pub fn from_path(path: &Path) -> Option<Format> {
+        let ext = path.extension()?.to_str()?.to_ascii_lowercase();
+        Some(match ext.as_str() {
+            "ndjson" | "jsonl" => Format::Ndjson,
+            "json" => Format::Json,
+            "geojson" => Format::GeoJson,
+            "csv" => Format::Csv,
+            "svg" => Format::Svg,
+            _ => return None,
+        })
+    }
+
+    /// The usual extension.
+    pub fn extension(&self) -> &'static str {
+        match self {
+            Format::Ndjson => "ndjson",
+            Format::Json => "json",
+            Format::GeoJson => "geojson",
+            Format::Csv => "csv",
+            Format::Svg => "svg",
+        }
+    }
+}
+
+/// The records as the text of `format` (not SVG, which needs the points and mesh: see
+/// [`super::svg`]).
+pub fn render(format: Format, recs: &[ResultRecord]) -> String {
+    match format {
+        Format::Ndjson => {
+            let mut buf = Vec::new();
+            for r in recs {
+                write_ndjson(&mut buf, r).expect("writing to memory");
+            }
+            String::from_utf8(buf).expect("JSON is UTF-8")
+        }
+        Format::Json => to_json(recs),
+        Format::GeoJson => to_geojson(recs),
+        Format::Csv => to_csv(recs),
+        Format::Svg => panic!("SVG needs the drawing, not only the records"),
+    }
+}
+
+/// Writes `text` to `path` through a temporary file renamed into place, so that an
+/// interrupted run never leaves a truncated file that looks finished, and a failed write
+/// (a full disk) leaves no temporary file behind.
+pub fn write_atomic(path: &Path, text: &[u8]) -> std::io::Result<()> {
+    let mut tmp = path.as_os_str().to_owned();
+    tmp.push(".part");
+    let tmp = std::path::PathBuf::from(tmp);
+    let written = std::fs::write(&tmp, text).and_then(|()| std::fs::rename(&tmp, path));
+    if written.is_err() {
+        let _ = std::fs::remove_file(&tmp);
+    }
+    written
+}
+
+/// Writes one record as an NDJSON line.
+pub fn write_ndjson(out: &mut impl Write, rec: &ResultRecord) -> std::io::Result<()> {
+    serde_json::to_writer(&mut *out, rec)?;
+    out.write_all(b"\n")
+}
+
+/// The records as pretty JSON: one object for one record, else an array.
+pub fn to_json(recs: &[ResultRecord]) -> String {
+    let v = if recs.len() == 1 {
+        serde_json::to_value(&recs[0])
+    } else {
+        serde_json::to_value(recs)
+    }
+    .expect("records serialise");
+    serde_json::to_string_pretty(&v).expect("values serialise") + "\n"
+}
+
+/// The curves of `recs` as a GeoJSON FeatureCollection: one LineString per polyline
+/// (closed ones repeat their first point, as GeoJSON rings do), with `stream`, `frame`,
+/// its index `polyline`, `closed` and, for closed ones, the signed `area` (positive
+/// counter-clockwise) as properties; one Point per junction, with the indices of the
+/// `polylines` that end there. Error records become features without geometry that
+/// carry the error.
+pub fn to_geojson(recs: &[ResultRecord]) -> String {
+    let mut features = Vec::new();
+    for r in recs {
+        if let Some(e) = &r.error {
+            features.push(json!({
+                "type": "Feature", "geometry": null,
+                "properties": {"stream": r.stream, "frame": r.frame, "error": e}
+            }));
+        }
+        for (k, pl) in r.polylines.iter().flatten().enumerate() {
+            let mut coords = pl.points.clone();
+            if pl.closed && !coords.is_empty() {
+                coords.push(coords[0]);
+            }
+            let poly = isoline_core::geom::Polyline::from(pl.clone());
+            features.push(json!({
+                "type": "Feature",
+                "geometry": {"type": "LineString", "coordinates": coords},
+                "properties": {
+                    "stream": r.stream, "frame": r.frame, "polyline": k, "closed": pl.closed,
+                    "area": if pl.closed { Some(poly.signed_area()) } else { None },
+                }
+            }));
+        }
+        for j in r.junctions.iter().flatten() {
+            features.push(json!({
+                "type": "Feature",
+                "geometry": {"type": "Point", "coordinates": j.at},
+                "properties": {"stream": r.stream, "frame": r.frame, "polylines": j.polylines}
+            }));
+        }
+    }
+    serde_json::to_string(&json!({"type": "FeatureCollection", "features": features}))
+        .expect("values serialise")
+        + "\n"
+}
+
+/// The curves as CSV rows `stream,frame,polyline,closed,vertex,x,y,junction`: the last
+/// column, at an open polyline's end vertex where strokes meet, is the index of that
+/// junction in the record (empty elsewhere), so that a reader of rows alone knows which
+/// polylines meet there (those whose ends carry the same index).
+pub fn to_csv(recs: &[ResultRecord]) -> String {
+    let mut s = String::from(
+        "stream,frame,polyline,closed,vertex,x,y,junction
+",
+    );
+    for r in recs {
+        let stream = r.stream.as_deref().unwrap_or("");
+        let frame = r.frame.map_or(String::new(), |f| f.to_string());
+        let polylines: Vec<&PolylineJson> = r.polylines.iter().flatten().collect();
+        // Each junction at the end of each polyline it names that lies nearer it (both
+        // ends where they lie equally near: a stroke from the junction back to it).
+        let mut at_end: Vec<[Option<usize>; 2]> = vec![[None, None]; polylines.len()];
+        for (j, junction) in r.junctions.iter().flatten().enumerate() {
+            for &k in &junction.polylines {
+                let Some(pl) = polylines.get(k).filter(|pl| !pl.points.is_empty()) else {
+                    continue;
+                };
+                let (first, last) = (pl.points[0], pl.points[pl.points.len() - 1]);
+                let (d0, d1) = (dist(first, junction.at), dist(last, junction.at));
+                if d0 <= d1 {
+                    at_end[k][0] = Some(j);
+                }
+                if d1 <= d0 {
+                    at_end[k][1] = Some(j);
+                }
+            }
+        }
+        for (k, pl) in polylines.iter().enumerate() {
+            let n = pl.points.len();
+            for (i, p) in pl.points.iter().enumerate() {
+                let junction = match i {
+                    _ if pl.closed => None,
+                    0 => at_end[k][0],
+                    _ if i + 1 == n => at_end[k][1],
+                    _ => None,
+                };
+                let _ = writeln!(
+                    s,
+                    "{stream},{frame},{k},{},{i},{},{},{}",
+                    pl.closed,
+                    p[0],
+                    p[1],
+                    junction.map_or(String::new(), |j| j.to_string())
+                );
+            }
+        }
+    }
+    s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::format::PolylineJson;
+
+    fn rec() -> ResultRecord {
+        ResultRecord {
+            stream: Some("s".into()),
+            frame: Some(3),
+            polylines: Some(vec![PolylineJson {
+                closed: true,
+                points: vec![[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]],
+            }]),
+            ..Default::default()
+        }
+    }
+
+    #[test]
+    fn formats_round_trip_or_parse() {
+        let mut nd = Vec::new();
+        write_ndjson(&mut nd, &rec()).unwrap();
+        let back: ResultRecord = serde_json::from_slice(&nd).unwrap();
+        assert_eq!(back, rec());
+        let mut with_junction = rec();
+        with_junction.junctions = Some(vec![crate::format::JunctionJson {
+            at: [0.0, 0.0],
+            polylines: vec![0],
+        }]);
+        let g: serde_json::Value = serde_json::from_str(&to_geojson(&[with_junction])).unwrap();
+        let f = &g["features"][0];
+        assert_eq!(f["geometry"]["coordinates"].as_array().unwrap().len(), 4);
+        assert_eq!(f["properties"]["area"], 0.5);
+        assert_eq!(f["properties"]["polyline"], 0);
+        let j = &g["features"][1];
+        assert_eq!(j["geometry"]["type"], "Point");
+        assert_eq!(j["properties"]["polylines"], serde_json::json!([0]));
+        let csv = to_csv(&[rec()]);
+        assert_eq!(csv.lines().count(), 4);
+        assert!(csv.contains("s,3,0,true,1,1,0,\n"));
+        // Three strokes meeting at (1, 0): each end there names junction 0, the far
+        // ends and the inner vertices nothing.
+        let mut strokes = rec();
+        strokes.polylines = Some(
+            [
+                [[0.0, 0.0], [0.5, 0.0], [1.0, 0.0]],
+                [[1.0, 0.0], [2.0, 0.0], [3.0, 0.0]],
+                [[1.0, 1.0], [1.0, 0.5], [1.0, 0.0]],
+            ]
+            .into_iter()
+            .map(|points| PolylineJson {
+                closed: false,
+                points: points.to_vec(),
+            })
+            .collect(),
+        );
+        strokes.junctions = Some(vec![crate::format::JunctionJson {
+            at: [1.0, 0.0],
+            polylines: vec![0, 1, 2],
+        }]);
+        let csv = to_csv(&[strokes]);
+        let ends: Vec<&str> = csv.lines().filter(|l| l.ends_with(",0")).collect();
+        assert_eq!(
+            ends,
+            [
+                "s,3,0,false,2,1,0,0",
+                "s,3,1,false,0,1,0,0",
+                "s,3,2,false,2,1,0,0"
+            ],
+            "{csv}"
+        );
+        assert_eq!(csv.lines().filter(|l| l.ends_with(',')).count(), 6);
+        assert_eq!(
+            Format::from_path(Path::new("a/b.GeoJSON")),
+            Some(Format::GeoJson)
+        );
+    }
+
+    #[test]
+    fn a_failed_atomic_write_leaves_nothing_behind() {
+        let dir = tempfile::tempdir().unwrap();
+        // A folder where the file should go: the rename fails, as a full disk would
+        // make the write fail.
+        let target = dir.path().join("out.ndjson");
+        std::fs::create_dir(&target).unwrap();
+        std::fs::write(target.join("keep"), "x").unwrap();
+        assert!(write_atomic(&target, b"data").is_err());
+        assert!(!dir.path().join("out.ndjson.part").exists());
+        write_atomic(&dir.path().join("ok.ndjson"), b"data").unwrap();
+        assert_eq!(
+            std::fs::read(dir.path().join("ok.ndjson")).unwrap(),
+            b"data"
+        );
+        assert!(!dir.path().join("ok.ndjson.part").exists());
+    }
+}

@@ -1,0 +1,326 @@
+//! Accuracy of a reconstruction against ground truth: symmetric Hausdorff and mean
+//! distances between polyline sets, and component counts; for scan frames, the scores a
+//! robotics user judges a wall extractor by ([`scan_scores`]).
+//!
+//! Distances are exact point-to-segment distances, found through a kd-tree over the
+//! midpoints of the segments cut into pieces of bounded length: the nearest piece by
+//! midpoint bounds the answer, and only pieces whose midpoint lies within that bound
+//! plus half a piece can do better. Each polyline is sampled at its vertices and at
+//! points at most `step` apart along its segments, so the reported Hausdorff distance
+//! is within `step / 2` below the continuous one (distance is 1-Lipschitz).
+
+use isoline_core::SegmentIndex;
+use rayon::prelude::*;
+
+use isoline_core::geom::{add, dist, scale, sub, Point, Polyline};
+
+/// Sample points of `polylines` (vertices plus points at most `step` apart) with their
+/// arc-length weights.
+fn samples(polylines: &[Polyline], step: f64) -> Vec<(Point, f64)> {
+    let mut out = Vec::new();
+    for pl in polylines {
+        let mut any = false;
+        for (a, b) in pl.segments() {
+            any = true;
+            let len = dist(a, b);
+            let n = ((len / step).ceil() as usize).max(1);
+            let w = len / n as f64;
+            for k in 0..n {
+                out.push((add(a, scale(sub(b, a), k as f64 / n as f64)), w));
+            }
+            if !pl.closed && b == *pl.points.last().unwrap() {
+                out.push((b, 0.0));
+            }
+        }
+        if !any {
+            out.extend(pl.points.iter().map(|&p| (p, 0.0)));
+        }
+    }
+    out
+}
+
+/// Directed distances from samples of `from` to `to`: (max, arc-length-weighted mean).
+fn directed(from: &[Polyline], to: &SegmentIndex, step: f64) -> (f64, f64) {
+    let s = samples(from, step);
+    let (mx, sum, wsum, cnt) = s
+        .par_iter()
+        .map(|&(p, w)| {
+            let d = to.distance(p);
+            (d, d * w, w, d)
+        })
+        .reduce(
+            || (0.0, 0.0, 0.0, 0.0),
+            |a, b| (a.0.max(b.0), a.1 + b.1, a.2 + b.2, a.3 + b.3),
+        );
+    let mean = if wsum > 0.0 {
+        sum / wsum
+    } else if !s.is_empty() {
+        cnt / s.len() as f64
+    } else {
+        0.0
+    };
+    (mx, mean)
+}
+
+/// Accuracy metrics of a reconstruction.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Accuracy {
+    /// Symmetric Hausdorff distance (`None` when either side is empty).
+    pub hausdorff: Option<f64>,
+    /// Mean of the two directed arc-length-weighted mean distances.
+    pub mean_distance: Option<f64>,
+    /// Largest distance from the reconstruction to the truth.
+    pub recon_to_truth: Option<f64>,
+    /// Largest distance from the truth to the reconstruction.
+    pub truth_to_recon: Option<f64>,
+    /// Polylines in the truth.
+    pub components_truth: usize,
+    /// Polylines in the reconstruction.
+    pub components_recon: usize,
+}
+
+/// Compares `recon` with `truth`. `step` bounds the sampling gap (see the module doc);
+/// `None` uses twice the shorter median segment length of the two sets: the finer set is
+/// then sampled at its vertices, the coarser one as finely, and the Hausdorff distance is
+/// exact to within one median segment length of the finer set.
+pub fn compare(recon: &[Polyline], truth: &[Polyline], step: Option<f64>) -> Accuracy {
+    compare_surfaces(recon, truth, truth, step)
+}
+
+/// [`compare`] with a truth in two parts: what the reconstruction must cover (`truth`,
+/// for a scan the visible, resolvable stretches of surface), and where it may lie
+/// (`surfaces`, every surface there is): the distance from the reconstruction is taken
+/// to `surfaces`, the distance to it from `truth`.
+pub fn compare_surfaces(
+    recon: &[Polyline],
+    truth: &[Polyline],
+    surfaces: &[Polyline],
+    step: Option<f64>,
+) -> Accuracy {
+    let ir = SegmentIndex::new(recon);
+    let it = SegmentIndex::new(truth);
+    let is = SegmentIndex::new(surfaces);
+    let base = Accuracy {
+        hausdorff: None,
+        mean_distance: None,
+        recon_to_truth: None,
+        truth_to_recon: None,
+        components_truth: truth.len(),
+        components_recon: recon.len(),
+    };
+    if ir.is_empty() || it.is_empty() {
+        return base;
+    }
+    let step = step
+        .unwrap_or_else(|| 2.0 * ir.piece().min(it.piece()))
+        .max(1e-12);
+    let (rt, mrt) = directed(recon, if is.is_empty() { &it } else { &is }, step);
+    let (tr, mtr) = directed(truth, &ir, step);
+    Accuracy {
+        hausdorff: Some(rt.max(tr)),
+        mean_distance: Some(0.5 * (mrt + mtr)),
+        recon_to_truth: Some(rt),
+        truth_to_recon: Some(tr),
+        ..base
+    }
+}
+
+/// Scan-aware scores of the curves of one scan frame (DESIGN.md section 7), with one
+/// tolerance `tol` (by default three times the range noise).
+#[derive(Clone, Debug, PartialEq)]
+pub struct ScanScores {
+    /// The tolerance used.
+    pub tolerance: f64,
+    /// Returns in the frame.
+    pub returns: usize,
+    /// Share of the returns within `tol` of a curve.
+    pub returns_explained: f64,
+    /// Share of the curves' length lying in space the rays saw as free by more than
+    /// `tol`: inside the polygon through the returns in beam order (a beam without a
+    /// return is spanned by the chord of returns within two beams on both sides, a
+    /// dropout; otherwise it is free up to the maximum range).
+    pub free_space_share: f64,
+    /// Openings (doorways) of which more than a fifth of the width, away from the jambs
+    /// by `max(0.1, 2 tol)`, has a curve within `tol`.
+    pub openings_bridged: usize,
+    /// Openings scored.
+    pub openings: usize,
+    /// Stretches of curve longer than `5 tol` farther than `tol` from every surface:
+    /// curves where the truth has none.
+    pub gaps_bridged: usize,
+    /// Visible stretches of surface of which less than half has a curve within `tol`.
+    pub walls_missed: usize,
+}
+
+/// The scan-aware scores of `curves` on `scan` (the frame's beams, in the curves'
+/// coordinates) against the visible `truth`, every `surfaces` there is (the visible
+/// truth when empty) and the `openings` in the walls.
+pub fn scan_scores(
+    curves: &[Polyline],
+    truth: &[Polyline],
+    surfaces: &[Polyline],
+    openings: &[(Point, Point)],
+    scan: &isoline_core::Scan,
+    tol: f64,
+) -> ScanScores {
+    let ic = SegmentIndex::new(curves);
+    let it = SegmentIndex::new(if surfaces.is_empty() { truth } else { surfaces });
+    let returns = scan.returns();
+    let explained = returns.iter().filter(|&&p| ic.distance(p) <= tol).count();
+    let step = 0.25 * tol;
+    // Curve in free space, by arc length: inside the polygon the rays swept (a beam
+    // without a return within two beams of returns on both sides is spanned by their
+    // chord, as a dropout; one farther from any is free to the maximum range) by more
+    // than the tolerance.
+    let n = scan.angles.len();
+    let reach: Vec<f64> = (0..n)
+        .map(|i| {
+            if scan.valid(i) {
+                return scan.ranges[i];
+            }
+            let before = (1..=2).find_map(|o| i.checked_sub(o).filter(|&j| scan.valid(j)));
+            let after = (1..=2).find_map(|o| Some(i + o).filter(|&j| j < n && scan.valid(j)));
+            match (before, after) {
+                (Some(a), Some(b)) => {
+                    let f = (i - a) as f64 / (b - a) as f64;
+                    scan.ranges[a] * (1.0 - f) + scan.ranges[b] * f
+                }
+                _ => scan.range_max,
+            }
+        })
+        .collect();
+    let free = isoline_core::FreeSpace {
+        origin: scan.origin,
+        angles: scan.angles.clone(),
+        reach,
+        full_turn: scan.full_turn(),
+        max_gap: if scan.free_rays {
+            f64::INFINITY
+        } else {
+            3.0 * scan.step
+        },
+    };
+    let boundary = SegmentIndex::new(&[free.polygon()]);
+    let (mut free_len, mut total_len) = (0.0, 0.0);
+    for (p, w) in samples(curves, step) {
+        total_len += w;
+        if free.contains(p) && boundary.distance(p) > tol {
+            free_len += w;
+        }
+    }
+    let openings_bridged = openings
+        .iter()
+        .filter(|&&(a, b)| {
+            let len = dist(a, b);
+            let keep = (0.1f64).max(2.0 * tol);
+            if len <= 2.0 * keep {
+                return false;
+            }
+            let m = ((len - 2.0 * keep) / step).ceil().max(1.0) as usize;
+            let covered = (0..m)
+                .filter(|&k| {
+                    let t = (keep + (k as f64 + 0.5) / m as f64 * (len - 2.0 * keep)) / len;
+                    ic.distance(add(a, scale(sub(b, a), t))) <= tol
+                })
+                .count();
+            covered as f64 > 0.2 * m as f64
+        })
+        .count();
+    // Stretches of curve away from the truth.
+    let mut gaps_bridged = 0;
+    for c in curves {
+        let mut run = 0.0;
+        let mut counted = false;
+        for (a, b) in c.segments() {
+            let m = ((dist(a, b) / step).ceil() as usize).max(1);
+            let w = dist(a, b) / m as f64;
+            for k in 0..m {
+                let p = add(a, scale(sub(b, a), (k as f64 + 0.5) / m as f64));
+                if it.distance(p) > tol {
+                    run += w;
+                    if run > 5.0 * tol && !counted {
+                        gaps_bridged += 1;
+                        counted = true;
+                    }
+                } else {
+                    run = 0.0;
+                    counted = false;
+                }
+            }
+        }
+    }
+    let walls_missed = truth
+        .iter()
+        .filter(|t| {
+            let s = samples(std::slice::from_ref(*t), step);
+            let total: f64 = s.iter().map(|x| x.1).sum();
+            let near: f64 = s
+                .iter()
+                .filter(|x| ic.distance(x.0) <= tol)
+                .map(|x| x.1)
+                .sum();
+            total > 0.0 && near < 0.5 * total
+        })
+        .count();
+    ScanScores {
+        tolerance: tol,
+        returns: returns.len(),
+        returns_explained: if returns.is_empty() {
+            1.0
+        } else {
+            explained as f64 / returns.len() as f64
+        },
+        free_space_share: if total_len > 0.0 {
+            free_len / total_len
+        } else {
+            0.0
+        },
+        openings_bridged,
+        openings: openings.len(),
+        gaps_bridged,
+        walls_missed,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn circle(r: f64, n: usize) -> Polyline {
+        Polyline {
+            closed: true,
+            points: (0..n)
+                .map(|i| {
+                    let a = std::f64::consts::TAU * i as f64 / n as f64;
+                    [0.5 + r * a.cos(), 0.5 + r * a.sin()]
+                })
+                .collect(),
+        }
+    }
+
+    #[test]
+    fn concentric_circles_differ_by_the_radius_difference() {
+        let a = circle(0.4, 2000);
+        let b = circle(0.3, 1500);
+        let acc = compare(&[a], &[b], None);
+        // Polygons inscribed in the circles: the chord sag r (1 - cos(pi/n)) is below 1e-6.
+        let h = acc.hausdorff.unwrap();
+        assert!((h - 0.1).abs() < 2e-6, "{h}");
+        assert!((acc.mean_distance.unwrap() - 0.1).abs() < 2e-6);
+        assert_eq!((acc.components_recon, acc.components_truth), (1, 1));
+    }
+
+    #[test]
+    fn one_sided_and_empty_cases() {
+        let a = circle(0.4, 400);
+        let b = Polyline {
+            closed: false,
+            points: vec![[0.9, 0.5], [0.9, 0.6]],
+        };
+        let acc = compare(std::slice::from_ref(&b), std::slice::from_ref(&a), None);
+        assert!(acc.recon_to_truth.unwrap() < 0.02);
+        assert!(acc.truth_to_recon.unwrap() > 0.5);
+        let none = compare(&[], &[a], None);
+        assert_eq!((none.hausdorff, none.components_recon), (None, 0));
+    }
+}

@@ -1,0 +1,29 @@
+//! isoline-sim makes data with known truth and scores results against it: digitized
+//! shapes sampled with noise, outliers and motion ([`generate`]), a 2D laser scanner
+//! ray-casting rooms, corridors and clutter from a trajectory ([`lidar`]), and the
+//! measures a user judges curves by: Hausdorff and mean distances ([`compare`]) and, for
+//! scans, returns explained, curve in free space, openings bridged and walls missed
+//! ([`scan_scores`]). Every simulator is deterministic in its seed.
+//!
+//! ```
+//! use isoline_core::{reconstruct, Params};
+//! use isoline_sim::{compare, generate, Shape, SynthParams};
+//! let mut p = SynthParams::new(Shape::Circle);
+//! p.points = 500;
+//! p.noise = 0.002;
+//! let frame = generate(&p).unwrap().remove(0);
+//! let r = reconstruct(&frame.points, &Params::default()).unwrap();
+//! let acc = compare(&r.polylines, &frame.truth, None);
+//! assert!(acc.hausdorff.unwrap() < 3.0 * 0.002 + 2.0 * r.stats.hmin);
+//! ```
+
+#![forbid(unsafe_code)]
+#![warn(missing_docs)]
+#![deny(rustdoc::broken_intra_doc_links)]
+
+mod eval;
+pub mod lidar;
+mod shapes;
+
+pub use eval::{compare, compare_surfaces, scan_scores, Accuracy, ScanScores};
+pub use shapes::{generate, Shape, SynthFrame, SynthParams};
