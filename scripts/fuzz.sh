@@ -4,10 +4,10 @@
 # SECONDS_BIG each, recording (bags and CARMEN logs) for SECONDS_SMALL (defaults 360
 # and 600: 38 minutes of fuzzing in all). Each target
 # starts from fuzz/seeds/TARGET; an input that crashes or hangs (10 s) is copied into
-# fuzz/regressions/TARGET, which `cargo test --test fuzz_regressions` replays on stable.
+# fuzz/regressions/TARGET, which `cargo test --test it fuzz_regressions` replays on stable.
 # Prints each target's executions and coverage and exits non-zero on any crash.
 # QUICK=1 (the docs test, which must stay fast on stable) only checks that every
-# target has its harness and seeds; `cargo test --test fuzz_regressions` runs them.
+# target has its harness and seeds; `cargo test --test it fuzz_regressions` runs them.
 # Usage: scripts/fuzz.sh [SECONDS_SMALL SECONDS_BIG]
 set -euo pipefail
 # The real checkout, also when run through a link to scripts/ (the docs test).

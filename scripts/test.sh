@@ -4,4 +4,4 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 scripts/kafka-broker.sh install
-cargo test --locked
+cargo test --workspace --locked

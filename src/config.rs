@@ -120,7 +120,8 @@ pub(crate) fn value_problem(e: &toml::de::Error, prefix: &str) -> String {
     let text = text.trim();
     match text.rsplit_once("\nin `") {
         Some((msg, key)) => format!("{prefix}{}: {}", key.trim_end_matches('`'), msg.trim()),
-        None => format!("{}{text}", prefix.trim_end_matches('.')),
+        None if prefix.is_empty() => text.to_string(),
+        None => format!("{}: {text}", prefix.trim_end_matches('.')),
     }
 }
 
@@ -249,6 +250,77 @@ impl MeshConfig {
         p.warm_change = self.warm_change.unwrap_or(p.warm_change);
         p.max_vertices = self.max_vertices.unwrap_or(p.max_vertices);
         p.validate().map(|()| p)
+    }
+}
+
+/// Reads `value` as a `T`; on failure adds the problem, with its key path under
+/// `prefix` (`"input."`), to `problems`.
+pub(crate) fn read<T: serde::de::DeserializeOwned>(
+    value: toml::Value,
+    prefix: &str,
+    problems: &mut Vec<String>,
+) -> Option<T> {
+    value
+        .try_into()
+        .map_err(|e| problems.push(value_problem(&e, prefix)))
+        .ok()
+}
+
+/// `v` if set and in `lo..=hi`, `default` if unset; out of range, `default` and a
+/// problem naming `key`.
+pub(crate) fn bounded(
+    key: &str,
+    v: Option<i64>,
+    default: usize,
+    lo: usize,
+    hi: usize,
+    problems: &mut Vec<String>,
+) -> usize {
+    match v {
+        None => default,
+        Some(v) if (lo as i64..=hi as i64).contains(&v) => v as usize,
+        Some(v) => {
+            problems.push(format!("{key} = {v}: must be in {lo}..={hi}"));
+            default
+        }
+    }
+}
+
+/// The address a listener of table `table` binds: `bind` (or `default`), refused when it
+/// is not loopback unless `allow_remote` says so.
+pub(crate) fn listen_address(
+    table: &str,
+    bind: Option<&str>,
+    allow_remote: Option<bool>,
+    default: &str,
+    problems: &mut Vec<String>,
+) -> Option<std::net::SocketAddr> {
+    let bind = bind.unwrap_or(default);
+    match bind.parse::<std::net::SocketAddr>() {
+        Ok(b) if !b.ip().is_loopback() && allow_remote != Some(true) => {
+            problems.push(format!(
+                "{table}.bind = {bind:?}: not a loopback address, so anyone on the network \
+                 could connect; set {table}.allow_remote = true to mean it"
+            ));
+            None
+        }
+        Ok(b) => Some(b),
+        Err(e) => {
+            problems.push(format!(
+                "{table}.bind = {bind:?}: {e} (expected e.g. \"{default}\")"
+            ));
+            None
+        }
+    }
+}
+
+/// A path as written in a configuration file, taken from the file's folder `base`
+/// when relative.
+pub(crate) fn resolve(base: &Path, p: &Path) -> std::path::PathBuf {
+    if p.is_absolute() {
+        p.to_path_buf()
+    } else {
+        base.join(p)
     }
 }
 

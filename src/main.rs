@@ -30,6 +30,7 @@ enum Command {
     Batch(cli::batch::Args),
     /// Publish a recording's frames to a Kafka topic, keyed by stream, at the recorded
     /// pace.
+    #[cfg(feature = "kafka")]
     Publish(cli::publish::Args),
     /// The streaming daemon: frames from a file, stdin, TCP or Kafka through the staged
     /// pipeline, each warm-started from the previous frame of its stream.
@@ -50,6 +51,7 @@ fn main() {
             Command::Batch(a) => cli::batch::run(a),
             Command::Convert(a) => cli::convert::run(a),
             Command::Mesh(a) => cli::mesh::run(a),
+            #[cfg(feature = "kafka")]
             Command::Publish(a) => cli::publish::run(a),
             Command::Run(_) => unreachable!("matched above"),
         }),

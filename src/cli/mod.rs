@@ -4,6 +4,7 @@ pub mod batch;
 pub mod convert;
 pub mod eval;
 pub mod mesh;
+#[cfg(feature = "kafka")]
 pub mod publish;
 pub mod reconstruct;
 pub mod run;

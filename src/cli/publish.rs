@@ -9,9 +9,9 @@ use std::time::Instant;
 
 use anyhow::{bail, Context, Result};
 
-use isoline::pipeline::config::{MAX_RATE, MIN_RATE};
 use isoline::pipeline::kafka::{KafkaTopic, KafkaWriter};
 use isoline::pipeline::source::{sleep_until, Pacer};
+use isoline::pipeline::source::{MAX_RATE, MIN_RATE};
 use isoline::pipeline::Replay;
 
 /// `isoline publish` options.

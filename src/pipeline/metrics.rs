@@ -55,6 +55,7 @@ pub struct Metrics {
     /// Frames waiting in each queue, by the stage that reads it (as last seen by it).
     pub(crate) queue_depth: IntGaugeVec,
     /// Kafka input: messages behind the committed offset, by assigned partition.
+    #[cfg_attr(not(feature = "kafka"), allow(dead_code))]
     pub(crate) consumer_lag: IntGaugeVec,
     /// Each queue's capacity.
     capacity: usize,

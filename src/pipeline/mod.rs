@@ -1,5 +1,5 @@
-//! The streaming daemon (`isoline run`): the stages of [`mod@crate::reconstruct`] as threads
-//! connected by bounded crossbeam channels (DESIGN.md sections 2-5).
+//! The streaming daemon (`isoline run`): the stages of `isoline_core::stages` as threads
+//! connected by bounded crossbeam channels (docs/daemon.md).
 //!
 //! ```text
 //! sources -> ingest -> distance -> adapt -> solve -> renormalize -> export -> sinks
@@ -17,8 +17,36 @@
 //! waits for it before solving the stream's next frame.
 
 pub mod config;
+#[cfg(feature = "kafka")]
 pub mod kafka;
+mod ledger;
+#[cfg(feature = "live")]
 mod live;
+/// A build without the live view: the configuration refuses `[live]`, so none starts.
+#[cfg(not(feature = "live"))]
+mod live {
+    use crate::error::{Error, Result};
+    use isoline_io::foxglove::FrameView;
+
+    /// Stands in for the live view of a build without it.
+    pub struct LiveView;
+
+    impl LiveView {
+        pub fn start(bind: std::net::SocketAddr) -> Result<LiveView> {
+            Err(Error::Internal(format!(
+                "no live view on {bind}: built without the live feature"
+            )))
+        }
+
+        pub fn addr(&self) -> std::net::SocketAddr {
+            unreachable!("never started")
+        }
+
+        pub fn show(&self, _: FrameView) -> bool {
+            false
+        }
+    }
+}
 pub mod metrics;
 mod sink;
 pub mod source;
@@ -32,7 +60,8 @@ use std::time::Instant;
 use crossbeam_channel::bounded;
 use serde::Serialize;
 
-pub use config::{DaemonConfig, Policy, Replay, Source};
+pub use config::{DaemonConfig, Policy, Source};
+pub use source::Replay;
 
 use crate::error::{Error, Result};
 
@@ -112,13 +141,158 @@ impl std::fmt::Display for RunSummary {
     }
 }
 
+/// A stage's thread, by the stage's name.
+type StageThread = (&'static str, std::thread::JoinHandle<()>);
+
+/// The compute stages (ingest to renormalize) as threads, each reading its bounded
+/// queue; returns them by name and the queue the export stage reads.
+fn spawn_compute(
+    cfg: &DaemonConfig,
+    line_rx: crossbeam_channel::Receiver<source::Line>,
+    stop: &Arc<AtomicBool>,
+    metrics: &Arc<metrics::Metrics>,
+    streams: stages::StreamBounds,
+) -> Result<(Vec<StageThread>, crossbeam_channel::Receiver<stages::Msg>)> {
+    let q = cfg.queue;
+    let (to_distance, distance_rx) = bounded(q);
+    let (to_adapt, adapt_rx) = bounded(q);
+    let (to_solve, solve_rx) = bounded(q);
+    let (to_renorm, renorm_rx) = bounded(q);
+    let (to_export, export_rx) = bounded(q);
+    // The renormalize stage can finish at most its queue plus the frame in hand while
+    // the solve stage is blocked sending: that bounds the level sets in flight.
+    let (feedback_tx, feedback_rx) = bounded(q + 2);
+    let mut params = cfg.params.clone();
+    params.scan.refine = cfg.accumulate.is_some();
+    let params = Arc::new(params);
+    let (warm, policy) = (cfg.warm_start, cfg.policy);
+    let threads = vec![
+        (
+            "ingest",
+            stages::spawn_ingest(
+                line_rx,
+                to_distance,
+                stop.clone(),
+                cfg.poll,
+                metrics.clone(),
+            )?,
+        ),
+        (
+            "distance",
+            stages::spawn_distance(distance_rx, to_adapt, policy, params, metrics.clone())?,
+        ),
+        (
+            "adapt",
+            stages::spawn_adapt(
+                adapt_rx,
+                to_solve,
+                policy,
+                warm,
+                streams.clone(),
+                metrics.clone(),
+            )?,
+        ),
+        (
+            "solve",
+            stages::spawn_solve(
+                solve_rx,
+                to_renorm,
+                feedback_rx,
+                policy,
+                warm,
+                streams,
+                metrics.clone(),
+            )?,
+        ),
+        (
+            "renormalize",
+            stages::spawn_renormalize(
+                renorm_rx,
+                to_export,
+                warm.then_some(feedback_tx),
+                metrics.clone(),
+            )?,
+        ),
+    ];
+    Ok((threads, export_rx))
+}
+
+/// A source, started.
+struct Started {
+    handle: std::thread::JoinHandle<Result<()>>,
+    /// The address a TCP source listens on.
+    tcp_addr: Option<std::net::SocketAddr>,
+    /// The partitions a Kafka source holds.
+    leases: Option<Arc<ledger::Leases>>,
+}
+
+/// Starts the configured source, sending lines into `tx` until `stop`; a Kafka source
+/// makes its last commit once `drained` says the pipeline has ended.
+#[cfg_attr(not(feature = "kafka"), allow(unused_variables))]
+fn start_source(
+    cfg: &DaemonConfig,
+    tx: crossbeam_channel::Sender<source::Line>,
+    stop: &Arc<AtomicBool>,
+    drained: &Arc<AtomicBool>,
+    metrics: &Arc<metrics::Metrics>,
+) -> Result<Started> {
+    let limits = cfg.limits;
+    let plain = |handle| Started {
+        handle,
+        tcp_addr: None,
+        leases: None,
+    };
+    Ok(match &cfg.source {
+        Source::File(f) if isoline_io::is_recording(&f.path) => plain(source::spawn_recording(
+            &f.path,
+            f.replay,
+            f.bag.clone(),
+            tx,
+            stop.clone(),
+        )?),
+        Source::File(f) => plain(source::spawn_file(
+            &f.path,
+            f.replay,
+            limits,
+            tx,
+            stop.clone(),
+        )?),
+        Source::Stdin => plain(source::spawn_stdin(limits, tx, stop.clone())?),
+        Source::Tcp { bind } => {
+            let (addr, handle) = source::spawn_tcp(*bind, limits, tx, stop.clone(), cfg.poll)?;
+            Started {
+                handle,
+                tcp_addr: Some(addr),
+                leases: None,
+            }
+        }
+        #[cfg(feature = "kafka")]
+        Source::Kafka(input) => {
+            let (handle, leases) = kafka::spawn_kafka(
+                input,
+                limits,
+                tx,
+                stop.clone(),
+                drained.clone(),
+                metrics.clone(),
+                cfg.poll,
+            )?;
+            Started {
+                handle,
+                tcp_addr: None,
+                leases: Some(leases),
+            }
+        }
+    })
+}
+
 /// Handles of a running daemon.
 pub struct Daemon {
     source: std::thread::JoinHandle<Result<()>>,
     stdin: bool,
     /// Set once the export stage has ended: a Kafka source then makes its last commit.
     drained: Arc<AtomicBool>,
-    threads: Vec<(&'static str, std::thread::JoinHandle<()>)>,
+    threads: Vec<StageThread>,
     export: std::thread::JoinHandle<Result<RunSummary>>,
     /// The TCP address listened on, when the source is TCP.
     pub tcp_addr: Option<std::net::SocketAddr>,
@@ -137,7 +311,13 @@ impl Daemon {
     /// ingest stops, frames in flight finish and the sinks flush.
     pub fn start(cfg: &DaemonConfig, stop: Arc<AtomicBool>) -> Result<Daemon> {
         cfg.check_paths()?;
-        let sink = sink::Sink::open(cfg.output.as_deref(), cfg.output_kafka.as_ref())?;
+        #[cfg(feature = "kafka")]
+        let sink = match &cfg.output_kafka {
+            Some(topic) => sink::Sink::kafka(topic)?,
+            None => sink::Sink::open(cfg.output.as_deref())?,
+        };
+        #[cfg(not(feature = "kafka"))]
+        let sink = sink::Sink::open(cfg.output.as_deref())?;
         if let Some(dir) = &cfg.svg_dir {
             std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
         }
@@ -146,108 +326,18 @@ impl Daemon {
         // Read lines wait here for ingest; on shutdown each still gets its record, so
         // this queue is no longer than the others.
         let (line_tx, line_rx) = bounded(q);
-        let mut threads = Vec::new();
-        let mut tcp_addr = None;
-        let mut leases = None;
         let drained = Arc::new(AtomicBool::new(false));
-        let limits = cfg.limits;
-        let source = match &cfg.source {
-            Source::File { path, replay } if isoline_io::is_recording(path) => {
-                source::spawn_recording(path, *replay, cfg.bag.clone(), line_tx, stop.clone())?
-            }
-            Source::File { path, replay } => {
-                source::spawn_file(path, *replay, limits, line_tx, stop.clone())?
-            }
-            Source::Stdin => source::spawn_stdin(limits, line_tx, stop.clone())?,
-            Source::Tcp { bind } => {
-                let (addr, h) = source::spawn_tcp(*bind, limits, line_tx, stop.clone(), cfg.poll)?;
-                tcp_addr = Some(addr);
-                h
-            }
-            Source::Kafka(input) => {
-                let (h, l) = kafka::spawn_kafka(
-                    input,
-                    limits,
-                    line_tx,
-                    stop.clone(),
-                    drained.clone(),
-                    metrics.clone(),
-                    cfg.poll,
-                )?;
-                leases = Some(l);
-                h
-            }
-        };
+        let Started {
+            handle: source,
+            tcp_addr,
+            leases,
+        } = start_source(cfg, line_tx, &stop, &drained, &metrics)?;
         let streams = stages::StreamBounds {
             max: cfg.max_streams,
             idle: cfg.stream_idle,
             leases,
         };
-        let (to_distance, distance_rx) = bounded(q);
-        let (to_adapt, adapt_rx) = bounded(q);
-        let (to_solve, solve_rx) = bounded(q);
-        let (to_renorm, renorm_rx) = bounded(q);
-        let (to_export, export_rx) = bounded(q);
-        // The renormalize stage can finish at most its queue plus the frame in hand while
-        // the solve stage is blocked sending: that bounds the level sets in flight.
-        let (feedback_tx, feedback_rx) = bounded(q + 2);
-        let mut params = cfg.params.clone();
-        params.scan.refine = cfg.accumulate.is_some();
-        let params = Arc::new(params);
-        let warm = cfg.warm_start;
-        let policy = cfg.policy;
-        threads.push((
-            "ingest",
-            stages::spawn_ingest(
-                line_rx,
-                to_distance,
-                stop.clone(),
-                cfg.poll,
-                metrics.clone(),
-            )?,
-        ));
-        threads.push((
-            "distance",
-            stages::spawn_distance(
-                distance_rx,
-                to_adapt,
-                policy,
-                params.clone(),
-                metrics.clone(),
-            )?,
-        ));
-        threads.push((
-            "adapt",
-            stages::spawn_adapt(
-                adapt_rx,
-                to_solve,
-                policy,
-                warm,
-                streams.clone(),
-                metrics.clone(),
-            )?,
-        ));
-        threads.push((
-            "solve",
-            stages::spawn_solve(
-                solve_rx,
-                to_renorm,
-                feedback_rx,
-                policy,
-                warm,
-                streams.clone(),
-                metrics.clone(),
-            )?,
-        ));
-        threads.push((
-            "renormalize",
-            stages::spawn_renormalize(
-                renorm_rx,
-                to_export,
-                warm.then_some(feedback_tx),
-                metrics.clone(),
-            )?,
-        ));
+        let (threads, export_rx) = spawn_compute(cfg, line_rx, &stop, &metrics, streams.clone())?;
         let live = match cfg.live {
             Some(bind) => Some(crate::pipeline::live::LiveView::start(bind)?),
             None => None,
@@ -266,7 +356,7 @@ impl Daemon {
                 metrics: metrics.clone(),
             },
             stop,
-            warm,
+            cfg.warm_start,
             cfg.accumulate,
             streams,
         )?;

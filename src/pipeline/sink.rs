@@ -12,10 +12,26 @@ use std::fs::File;
 use std::io::{Seek, SeekFrom, Write};
 use std::path::{Path, PathBuf};
 
-use super::kafka::{KafkaTopic, KafkaWriter, Receipt};
+use serde::Deserialize;
+
+#[cfg(feature = "kafka")]
+use super::kafka::{KafkaTopic, KafkaWriter};
+use super::ledger::Receipt;
 use crate::error::{Error, Result};
 use isoline_io::format::ResultRecord;
 use isoline_io::foxglove::{FrameView, McapOut};
+
+/// `[output] kind = "file"` (the default): NDJSON records to a file or standard output,
+/// or an MCAP file for Foxglove when the path ends in `.mcap`.
+#[derive(Clone, Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FileOutput {
+    /// The results, relative to the configuration file's folder; `"-"` or unset:
+    /// standard output.
+    pub path: Option<PathBuf>,
+    /// A folder for one SVG drawing per frame.
+    pub svg_dir: Option<PathBuf>,
+}
 
 /// A writer that can be cut back to a length.
 pub(crate) trait Truncate: Write {
@@ -43,16 +59,19 @@ pub(crate) enum Sink {
     /// An MCAP file for Foxglove.
     Mcap(Box<McapOut>),
     /// A Kafka topic.
+    #[cfg(feature = "kafka")]
     Kafka(Box<KafkaWriter>),
 }
 
 impl Sink {
-    /// Opens the output: a Kafka topic, or `path`, its folder created, or standard
-    /// output.
-    pub(crate) fn open(path: Option<&Path>, kafka: Option<&KafkaTopic>) -> Result<Sink> {
-        if let Some(topic) = kafka {
-            return Ok(Sink::Kafka(Box::new(KafkaWriter::open(topic)?)));
-        }
+    /// Opens a Kafka topic's writer.
+    #[cfg(feature = "kafka")]
+    pub(crate) fn kafka(topic: &KafkaTopic) -> Result<Sink> {
+        Ok(Sink::Kafka(Box::new(KafkaWriter::open(topic)?)))
+    }
+
+    /// Opens the output: `path`, its folder created, or standard output.
+    pub(crate) fn open(path: Option<&Path>) -> Result<Sink> {
         let Some(p) = path else {
             return Ok(Sink::Stdout(std::io::stdout()));
         };
@@ -79,6 +98,7 @@ impl Sink {
     /// (MCAP); `receipt` is handed in once the record is written.
     pub(crate) fn write_frame(&mut self, view: &FrameView, receipt: Option<Receipt>) -> Result<()> {
         match self {
+            #[cfg(feature = "kafka")]
             Sink::Kafka(k) => {
                 let payload =
                     serde_json::to_vec(&view.record).map_err(|e| Error::Internal(e.to_string()))?;
@@ -98,6 +118,7 @@ impl Sink {
     pub(crate) fn finish(self) -> Result<()> {
         match self {
             Sink::Mcap(m) => Ok(m.finish()?),
+            #[cfg(feature = "kafka")]
             Sink::Kafka(k) => k.finish(),
             _ => Ok(()),
         }
@@ -108,7 +129,15 @@ impl Sink {
         let mut line = serde_json::to_vec(rec).map_err(|e| Error::Internal(e.to_string()))?;
         line.push(b'\n');
         match self {
-            Sink::Kafka(_) | Sink::Mcap(_) => self.write_frame(
+            #[cfg(feature = "kafka")]
+            Sink::Kafka(_) => self.write_frame(
+                &FrameView {
+                    record: rec.clone(),
+                    ..Default::default()
+                },
+                None,
+            ),
+            Sink::Mcap(_) => self.write_frame(
                 &FrameView {
                     record: rec.clone(),
                     ..Default::default()
@@ -212,7 +241,7 @@ mod tests {
     #[cfg(target_os = "linux")]
     #[test]
     fn dev_full_is_an_error_not_a_silent_loss() {
-        let mut sink = Sink::open(Some(Path::new("/dev/full")), None).unwrap();
+        let mut sink = Sink::open(Some(Path::new("/dev/full"))).unwrap();
         let e = sink.write_record(&ResultRecord::default()).unwrap_err();
         assert!(e.to_string().contains("/dev/full"), "{e}");
     }

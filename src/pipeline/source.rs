@@ -9,7 +9,7 @@
 
 use std::io::{BufRead, BufReader, ErrorKind, Write};
 use std::net::{SocketAddr, TcpListener};
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::thread::JoinHandle;
@@ -17,7 +17,10 @@ use std::time::{Duration, Instant};
 
 use crossbeam_channel::Sender;
 
-use super::config::Replay;
+use serde::Deserialize;
+
+use super::ledger::Receipt;
+use crate::config::{bounded, listen_address, resolve};
 use crate::error::{Error, Result};
 
 /// One line as read, with where it came from.
@@ -38,7 +41,7 @@ pub struct Line {
     /// When it was read.
     pub arrived: Instant,
     /// A Kafka message's claim on its offset, handed in when its record is written.
-    pub receipt: Option<super::kafka::Receipt>,
+    pub receipt: Option<Receipt>,
 }
 
 /// The bounds every source keeps.
@@ -56,6 +59,179 @@ impl Default for Limits {
             max_line_bytes: 16 << 20,
             max_clients: 64,
         }
+    }
+}
+
+/// The pace of a file replay: `"recorded"`, `"fast"`, or a number of frames per second
+/// in `[MIN_RATE, MAX_RATE]`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Replay {
+    /// At the frames' recorded time stamps `t` (relative to the first frame's); frames
+    /// without one are not delayed.
+    Recorded,
+    /// At a fixed number of frames per second.
+    Rate(f64),
+    /// As fast as the pipeline takes them.
+    Fast,
+}
+
+/// The slowest and fastest fixed replay rates, frames per second.
+pub const MIN_RATE: f64 = 1e-3;
+/// See [`MIN_RATE`].
+pub const MAX_RATE: f64 = 1e6;
+
+impl<'de> Deserialize<'de> for Replay {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> std::result::Result<Self, D::Error> {
+        struct Pace;
+        impl serde::de::Visitor<'_> for Pace {
+            type Value = Replay;
+            fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+                write!(
+                    f,
+                    "\"recorded\", \"fast\" or frames per second in [{MIN_RATE}, {MAX_RATE}]"
+                )
+            }
+            fn visit_str<E: serde::de::Error>(self, v: &str) -> std::result::Result<Replay, E> {
+                match v {
+                    "recorded" => Ok(Replay::Recorded),
+                    "fast" => Ok(Replay::Fast),
+                    _ => Err(E::invalid_value(serde::de::Unexpected::Str(v), &self)),
+                }
+            }
+            fn visit_f64<E: serde::de::Error>(self, v: f64) -> std::result::Result<Replay, E> {
+                if (MIN_RATE..=MAX_RATE).contains(&v) {
+                    Ok(Replay::Rate(v))
+                } else {
+                    Err(E::invalid_value(serde::de::Unexpected::Float(v), &self))
+                }
+            }
+            fn visit_i64<E: serde::de::Error>(self, v: i64) -> std::result::Result<Replay, E> {
+                self.visit_f64(v as f64)
+            }
+        }
+        d.deserialize_any(Pace)
+    }
+}
+
+/// `[input] kind = "file"` (the kind when `path` is set): an NDJSON frame file, a ROS 2
+/// bag (`.mcap`) or a CARMEN log, replayed.
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FileInput {
+    /// The file, relative to the configuration file's folder.
+    pub path: PathBuf,
+    /// The pace. Default `"recorded"`.
+    pub replay: Option<Replay>,
+    /// The longest NDJSON line, bytes, in `1024..=2^30`. Default 16 MiB.
+    pub max_line_bytes: Option<i64>,
+    /// MCAP input: the `LaserScan` topics. Default: all.
+    pub topics: Option<Vec<String>>,
+    /// MCAP input: the `Odometry` topic giving poses.
+    pub odometry: Option<String>,
+    /// MCAP input: the frame the poses are in, through `/tf`.
+    pub world_frame: Option<String>,
+}
+
+/// `[input] kind = "stdin"` (the kind without `path`): NDJSON frames on standard input.
+#[derive(Clone, Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct StdinInput {
+    /// The longest line, bytes, in `1024..=2^30`. Default 16 MiB.
+    pub max_line_bytes: Option<i64>,
+}
+
+/// `[input] kind = "tcp"`: a listener, one NDJSON frame per line, any number of clients.
+#[derive(Clone, Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TcpInput {
+    /// The address to listen on. Default `127.0.0.1:7878`.
+    pub bind: Option<String>,
+    /// A bind address other than loopback must be asked for. Default false.
+    pub allow_remote: Option<bool>,
+    /// Clients served at once, in `1..=4096`. Default 64.
+    pub max_clients: Option<i64>,
+    /// The longest line, bytes, in `1024..=2^30`. Default 16 MiB.
+    pub max_line_bytes: Option<i64>,
+}
+
+/// The default TCP address: loopback only, so a daemon is not reachable from the network
+/// unless its configuration says so.
+pub const DEFAULT_BIND: &str = "127.0.0.1:7878";
+
+/// `input.max_line_bytes`, checked.
+pub(crate) fn line_limit(v: Option<i64>, problems: &mut Vec<String>) -> Limits {
+    Limits {
+        max_line_bytes: bounded(
+            "input.max_line_bytes",
+            v,
+            Limits::default().max_line_bytes,
+            1 << 10,
+            1 << 30,
+            problems,
+        ),
+        ..Limits::default()
+    }
+}
+
+impl FileInput {
+    /// The source this table describes, its paths taken from `base`, with its limits
+    /// and, for a bag, what to read of it.
+    pub(crate) fn validate(self, base: &Path, problems: &mut Vec<String>) -> (FileSource, Limits) {
+        let path = resolve(base, &self.path);
+        let bag = isoline_io::bag::BagOptions {
+            topics: self.topics.unwrap_or_default(),
+            odometry: self.odometry,
+            world_frame: self.world_frame,
+        };
+        if bag != Default::default() && !isoline_io::is_bag(&path) {
+            problems.push(
+                "input.topics, input.odometry and input.world_frame apply to an MCAP input \
+                 (input.path = \"....mcap\")"
+                    .into(),
+            );
+        }
+        let source = FileSource {
+            path,
+            replay: self.replay.unwrap_or(Replay::Recorded),
+            bag,
+        };
+        (source, line_limit(self.max_line_bytes, problems))
+    }
+}
+
+/// A file source, validated.
+#[derive(Clone, Debug, PartialEq)]
+pub struct FileSource {
+    /// The file.
+    pub path: PathBuf,
+    /// At what pace.
+    pub replay: Replay,
+    /// What to read from an MCAP input.
+    pub bag: isoline_io::bag::BagOptions,
+}
+
+impl TcpInput {
+    /// The address to listen on and the limits.
+    pub(crate) fn validate(self, problems: &mut Vec<String>) -> (Option<SocketAddr>, Limits) {
+        let bind = listen_address(
+            "input",
+            self.bind.as_deref(),
+            self.allow_remote,
+            DEFAULT_BIND,
+            problems,
+        );
+        let limits = Limits {
+            max_clients: bounded(
+                "input.max_clients",
+                self.max_clients,
+                Limits::default().max_clients,
+                1,
+                4096,
+                problems,
+            ),
+            ..line_limit(self.max_line_bytes, problems)
+        };
+        (bind, limits)
     }
 }
 

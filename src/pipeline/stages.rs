@@ -15,7 +15,7 @@ use crossbeam_channel::{Receiver, RecvTimeoutError, Sender};
 use hdrhistogram::Histogram;
 
 use super::config::Policy;
-use super::kafka::{Leases, Receipt};
+use super::ledger::{Leases, Receipt};
 use super::metrics::Metrics;
 use super::sink::Sink;
 use super::source::Line;
@@ -26,8 +26,8 @@ use isoline_core::stages::AdaptedMesh;
 use isoline_core::stages::Previous;
 use isoline_core::stages::Solved;
 use isoline_core::stages::{self as reconstruct, Prepared};
-use isoline_core::Mesh;
 use isoline_core::Params;
+use isoline_core::{Mesh, Reconstruction};
 use isoline_core::{Window, WindowLimits};
 use isoline_io::format::ResultRecord;
 
@@ -696,154 +696,216 @@ pub(crate) fn spawn_export(
     accumulate: Option<WindowLimits>,
     streams: StreamBounds,
 ) -> Result<JoinHandle<Result<RunSummary>>> {
-    let Outputs {
-        mut sink,
-        live,
-        svg_dir,
-        metrics,
-    } = outputs;
     spawn("export", move || {
-        let mut summary = RunSummary::default();
-        let mut tally = Tally::new();
-        let mut windows: Streams<Window> = Streams::new(&streams);
-        let mut first: Option<Instant> = None;
-        let mut result = Ok(());
-        let wants_frames = sink.wants_frames() || live.is_some();
-        let export_depth = metrics.queue_depth.with_label_values(&["export"]);
-        let export_seconds = metrics.stage_seconds.with_label_values(&["export"]);
+        let depth = outputs.metrics.queue_depth.with_label_values(&["export"]);
+        let seconds = outputs.metrics.stage_seconds.with_label_values(&["export"]);
+        let mut ex = Exporter {
+            wants_frames: outputs.sink.wants_frames() || outputs.live.is_some(),
+            outputs,
+            warm,
+            accumulate,
+            windows: Streams::new(&streams),
+            summary: RunSummary::default(),
+            tally: Tally::new(),
+            first: None,
+        };
         while let Ok(m) = rx.recv() {
             let s = stage_span!("export", m, rx.len());
             let _e = s.enter();
             let t0 = Instant::now();
-            export_depth.set(rx.len() as i64);
-            first = Some(first.map_or(m.arrived, |f| f.min(m.arrived)));
-            let mut rec = ResultRecord {
-                stream: m.stream.clone(),
-                frame: m.frame,
-                t: m.t,
-                pose: m.pose,
-                ..Default::default()
-            };
-            let frame = m.number();
-            let mut drawing = None;
-            let mut shown = Vec::new();
-            // A panic while extracting the curves (a bug) fails this frame only.
-            let lease = m.lease();
-            let work = match m.work {
-                Work::Solved(b) => {
-                    let (p, adapted, solved) = *b;
-                    let points: Vec<Point> = if svg_dir.is_some() || wants_frames {
-                        p.local.iter().map(|&q| p.placement.to_data(q)).collect()
-                    } else {
-                        Vec::new()
-                    };
-                    let refine = accumulate.as_ref().zip(m.pose).filter(|_| p.scan.is_some());
-                    let (key, t) = (m.stream.as_deref().unwrap_or(""), m.t);
-                    catch_unwind(AssertUnwindSafe(|| match refine {
-                        Some((limits, pose)) => {
-                            let window =
-                                windows.seen(key, lease, Instant::now(), |_| true, Window::default);
-                            reconstruct::export_refined(
-                                &p, adapted, solved, frame, t, pose, window, limits,
-                            )
-                        }
-                        None => reconstruct::export(&p, adapted, solved),
-                    }))
-                    .map(|r| Work::Exported(Box::new(r), points))
-                    .unwrap_or_else(|panic| Work::Failed(internal_error("export", panic.as_ref())))
-                }
-                other => other,
-            };
-            match work {
-                Work::Exported(r, points) => {
-                    rec = ResultRecord {
-                        t: m.t,
-                        pose: m.pose,
-                        ..ResultRecord::of(m.stream.clone(), frame, &r)
-                    };
-                    let stats = rec.stats.as_mut().expect("a reconstruction has stats");
-                    let latency = m.arrived.elapsed();
-                    stats.ms.latency = Some(latency.as_secs_f64() * 1e3);
-                    tally.latency(latency);
-                    if stats.warm_start {
-                        summary.warm += 1;
-                    }
-                    summary.cold_fallbacks += usize::from(stats.cold_fallback);
-                    summary.warnings += usize::from(rec.warnings.is_some());
-                    summary.empty += usize::from(r.polylines.is_empty());
-                    if warm {
-                        let window = stats.window.map_or(0, |w| w.bytes);
-                        let state = 2 * r.mesh.bytes() + r.u.len() * 8 + window;
-                        summary.state_bytes_max = summary.state_bytes_max.max(state);
-                    }
-                    tally.iterations(stats.warm_start, stats.iterations);
-                    summary.reconstructed += 1;
-                    if wants_frames {
-                        shown.clone_from(&points);
-                    }
-                    if svg_dir.is_some() {
-                        drawing = Some((points, r));
-                    }
-                }
-                Work::Failed(e) => {
-                    summary.errors += 1;
-                    rec.error = Some(e);
-                    rec.line = Some(m.line);
-                }
-                Work::Skipped => {
-                    summary.skipped += 1;
-                    rec.error = Some(
-                        "skipped: a newer frame of the stream was waiting (pipeline.policy = \"latest\")"
-                            .into(),
-                    );
-                    rec.skipped = Some(true);
-                }
-                Work::Input(_) | Work::Prepared(_) | Work::Adapted(_) | Work::Solved(_) => {
-                    unreachable!("export takes frames that went through every stage")
-                }
-            }
-            let view = isoline_io::foxglove::FrameView {
-                record: rec,
-                points: shown,
-                t: m.t,
-                pose: m.pose,
-            };
-            if let Err(e) = sink.write_frame(&view, m.receipt) {
-                result = Err(e);
+            depth.set(rx.len() as i64);
+            if let Err(e) = ex.frame(m) {
+                // Whatever is still queued behind a failed sink is dropped with the
+                // pipeline.
                 stop.store(true, Ordering::Relaxed);
-                break;
+                return Err(e);
             }
-            summary.records += 1;
-            count(&metrics, &view.record, m.arrived);
-            export_seconds.observe(t0.elapsed().as_secs_f64());
-            if let Some(l) = &live {
-                if !l.show(view) {
-                    summary.live_dropped += 1;
-                    metrics.live_dropped.inc();
+            seconds.observe(t0.elapsed().as_secs_f64());
+        }
+        ex.finish()
+    })
+}
+
+/// The export stage's state: where records go, the streams' refinement windows, and
+/// the run's tallies.
+struct Exporter {
+    outputs: Outputs,
+    /// Whether the sink or the live view show each frame's points.
+    wants_frames: bool,
+    warm: bool,
+    accumulate: Option<WindowLimits>,
+    windows: Streams<Window>,
+    summary: RunSummary,
+    tally: Tally,
+    /// When the first frame was read.
+    first: Option<Instant>,
+}
+
+impl Exporter {
+    /// One frame: its curves (refined over its stream's window when asked), its
+    /// record written, shown and drawn.
+    fn frame(&mut self, m: Msg) -> Result<()> {
+        self.first = Some(self.first.map_or(m.arrived, |f| f.min(m.arrived)));
+        let frame = m.number();
+        let lease = m.lease();
+        let work = match m.work {
+            Work::Solved(b) => self.export(*b, &m.stream, frame, m.t, m.pose, lease),
+            other => other,
+        };
+        let mut rec = ResultRecord {
+            stream: m.stream.clone(),
+            frame: m.frame,
+            t: m.t,
+            pose: m.pose,
+            ..Default::default()
+        };
+        let mut shown = Vec::new();
+        let mut drawing = None;
+        match work {
+            Work::Exported(r, points) => {
+                rec = ResultRecord {
+                    t: m.t,
+                    pose: m.pose,
+                    ..ResultRecord::of(m.stream.clone(), frame, &r)
+                };
+                self.tally_frame(&mut rec, &r, m.arrived);
+                if self.wants_frames {
+                    shown.clone_from(&points);
+                }
+                if self.outputs.svg_dir.is_some() {
+                    drawing = Some((points, r));
                 }
             }
-            if let (Some(dir), Some((points, r))) = (&svg_dir, drawing) {
-                let features: Vec<Point> = r.features.iter().map(|f| f.center).collect();
-                let doc = isoline_io::write::svg::render(
-                    &isoline_io::write::svg::of_reconstruction(&points, &r, &features, &[], false),
-                    800.0,
+            Work::Failed(e) => {
+                self.summary.errors += 1;
+                rec.error = Some(e);
+                rec.line = Some(m.line);
+            }
+            Work::Skipped => {
+                self.summary.skipped += 1;
+                rec.error = Some(
+                    "skipped: a newer frame of the stream was waiting (pipeline.policy = \"latest\")"
+                        .into(),
                 );
-                let path = super::svg_path(dir, m.stream.as_deref(), frame);
-                if let Err(e) = std::fs::write(&path, doc) {
-                    tracing::warn!(path = %path.display(), error = %e, "SVG not written");
-                }
+                rec.skipped = Some(true);
+            }
+            Work::Input(_) | Work::Prepared(_) | Work::Adapted(_) | Work::Solved(_) => {
+                unreachable!("export takes frames that went through every stage")
             }
         }
-        // Whatever is still queued behind a failed sink is dropped with the pipeline.
-        result?;
-        sink.finish()?;
+        let view = isoline_io::foxglove::FrameView {
+            record: rec,
+            points: shown,
+            t: m.t,
+            pose: m.pose,
+        };
+        self.outputs.sink.write_frame(&view, m.receipt)?;
+        self.summary.records += 1;
+        count(&self.outputs.metrics, &view.record, m.arrived);
+        if let Some(l) = &self.outputs.live {
+            if !l.show(view) {
+                self.summary.live_dropped += 1;
+                self.outputs.metrics.live_dropped.inc();
+            }
+        }
+        if let (Some(dir), Some((points, r))) = (&self.outputs.svg_dir, drawing) {
+            draw(
+                &super::svg_path(dir, m.stream.as_deref(), frame),
+                &points,
+                &r,
+            );
+        }
+        Ok(())
+    }
+
+    /// The export kernel on a solved frame (refined over its stream's window when the
+    /// frame is a scan with a pose and refinement is on), with the frame's points in
+    /// data coordinates when something shows them. A panic (a bug) fails this frame
+    /// only.
+    fn export(
+        &mut self,
+        (p, adapted, solved): (Prepared, AdaptedMesh, Solved),
+        stream: &Option<String>,
+        frame: u64,
+        t: Option<f64>,
+        pose: Option<Pose>,
+        lease: Option<u64>,
+    ) -> Work {
+        let points: Vec<Point> = if self.outputs.svg_dir.is_some() || self.wants_frames {
+            p.local.iter().map(|&q| p.placement.to_data(q)).collect()
+        } else {
+            Vec::new()
+        };
+        let refine = self
+            .accumulate
+            .as_ref()
+            .zip(pose)
+            .filter(|_| p.scan.is_some());
+        let key = stream.as_deref().unwrap_or("");
+        let windows = &mut self.windows;
+        catch_unwind(AssertUnwindSafe(|| match refine {
+            Some((limits, pose)) => {
+                let window = windows.seen(key, lease, Instant::now(), |_| true, Window::default);
+                reconstruct::export_refined(&p, adapted, solved, frame, t, pose, window, limits)
+            }
+            None => reconstruct::export(&p, adapted, solved),
+        }))
+        .map(|r| Work::Exported(Box::new(r), points))
+        .unwrap_or_else(|panic| Work::Failed(internal_error("export", panic.as_ref())))
+    }
+
+    /// Counts a reconstructed frame in the run's summary and puts its latency in its
+    /// record.
+    fn tally_frame(&mut self, rec: &mut ResultRecord, r: &Reconstruction, arrived: Instant) {
+        let summary = &mut self.summary;
+        let stats = rec.stats.as_mut().expect("a reconstruction has stats");
+        let latency = arrived.elapsed();
+        stats.ms.latency = Some(latency.as_secs_f64() * 1e3);
+        self.tally.latency(latency);
+        if stats.warm_start {
+            summary.warm += 1;
+        }
+        summary.cold_fallbacks += usize::from(stats.cold_fallback);
+        summary.warnings += usize::from(rec.warnings.is_some());
+        summary.empty += usize::from(r.polylines.is_empty());
+        if self.warm {
+            let window = stats.window.map_or(0, |w| w.bytes);
+            let state = 2 * r.mesh.bytes() + r.u.len() * 8 + window;
+            summary.state_bytes_max = summary.state_bytes_max.max(state);
+        }
+        self.tally.iterations(stats.warm_start, stats.iterations);
+        summary.reconstructed += 1;
+    }
+
+    /// The run's summary, once the sink is complete.
+    fn finish(self) -> Result<RunSummary> {
+        let Exporter {
+            outputs,
+            mut summary,
+            tally,
+            first,
+            ..
+        } = self;
+        outputs.sink.finish()?;
         summary.seconds = first.map_or(0.0, |f| f.elapsed().as_secs_f64());
         if summary.seconds > 0.0 {
             summary.frames_per_second = summary.records as f64 / summary.seconds;
         }
         tally.summarize(&mut summary);
         Ok(summary)
-    })
+    }
+}
+
+/// Draws a frame to `path`; a drawing that cannot be written is logged, not fatal.
+fn draw(path: &std::path::Path, points: &[Point], r: &Reconstruction) {
+    let features: Vec<Point> = r.features.iter().map(|f| f.center).collect();
+    let doc = isoline_io::write::svg::render(
+        &isoline_io::write::svg::of_reconstruction(points, r, &features, &[], false),
+        800.0,
+    );
+    if let Err(e) = std::fs::write(path, doc) {
+        tracing::warn!(path = %path.display(), error = %e, "SVG not written");
+    }
 }
 
 /// Counts a written record in the metrics.

@@ -1,4 +1,4 @@
-//! The whole method as one call: points in, curves out (DESIGN.md section 1).
+//! The whole method as one call: points in, curves out (docs/method.md).
 //!
 //! This module only runs the stages in order and moves data between them; each stage's
 //! algorithm lives in its own module ([`mod@crate::field`] for the distance field
@@ -437,21 +437,7 @@ fn export_with(
         crate::export::curves(&mesh, &solved.u, &at, prepared.diag, hmin, scan, params);
     let min_run = prepared.params.scan.min_run;
     let residual = match &scan_analysis {
-        // Eq. 11 over the returns of runs: isolated returns (spurious, or too few to
-        // place a curve by) get no curve by design, and |u| at them follows whatever
-        // the mesh happens to resolve there, which a warm and a cold mesh do not share.
-        Some(a) => {
-            let returns: Vec<Point> = a
-                .run_points()
-                .into_iter()
-                .filter(|r| r.len() >= min_run)
-                .flatten()
-                .collect();
-            crate::fem::locate::locate_all(&mesh, &returns)
-                .iter()
-                .map(|l| l.interpolate(&mesh, &solved.u).abs())
-                .fold(0.0, f64::max)
-        }
+        Some(a) => residual_at_runs(a, min_run, &mesh, &solved.u),
         None => solved.report.residual,
     };
     for p in &mut mesh.coords {
@@ -488,21 +474,13 @@ fn export_with(
         None => data.len(),
     };
     let warnings = crate::export::fit::warnings(supported, &polylines, &fit, tolerance);
+    let ms = stage_ms(
+        prepared,
+        &adapted.ms,
+        &solved,
+        t0.elapsed().as_secs_f64() * 1e3,
+    );
     let report = solved.report;
-    let ms_export = t0.elapsed().as_secs_f64() * 1e3;
-    let renormalize = report.ms_renormalize + solved.ms_renormalize;
-    let ms = StageMs {
-        distance: prepared.ms + solved.ms_distance,
-        adapt: adapted.ms.adapt,
-        solve: solved.ms - solved.ms_distance - solved.ms_renormalize - report.ms_renormalize,
-        renormalize,
-        export: ms_export,
-        total: 0.0,
-    };
-    let ms = StageMs {
-        total: ms.distance + ms.adapt + ms.solve + ms.renormalize + ms.export,
-        ..ms
-    };
     let stats = Stats {
         points: prepared.points,
         vertices: mesh.num_vertices(),
@@ -549,6 +527,45 @@ fn export_with(
             (at.to_data(a.free.origin), poly)
         }),
         warnings,
+    }
+}
+
+/// Eq. 11 over the returns of the scan's runs of at least `min_run` returns: isolated
+/// returns (spurious, or too few to place a curve by) get no curve by design, and `|u|`
+/// at them follows whatever the mesh happens to resolve there, which a warm and a cold
+/// mesh do not share.
+fn residual_at_runs(scan: &Analysis, min_run: usize, mesh: &Mesh, u: &[f64]) -> f64 {
+    let returns: Vec<Point> = scan
+        .run_points()
+        .into_iter()
+        .filter(|r| r.len() >= min_run)
+        .flatten()
+        .collect();
+    crate::fem::locate::locate_all(mesh, &returns)
+        .iter()
+        .map(|l| l.interpolate(mesh, u).abs())
+        .fold(0.0, f64::max)
+}
+
+/// The milliseconds of each stage of a frame, `export` taking `ms_export`.
+fn stage_ms(
+    prepared: &Prepared,
+    adapt: &crate::field::MeshTimings,
+    solved: &Solved,
+    ms_export: f64,
+) -> StageMs {
+    let report = &solved.report;
+    let ms = StageMs {
+        distance: prepared.ms + solved.ms_distance,
+        adapt: adapt.adapt,
+        solve: solved.ms - solved.ms_distance - solved.ms_renormalize - report.ms_renormalize,
+        renormalize: report.ms_renormalize + solved.ms_renormalize,
+        export: ms_export,
+        total: 0.0,
+    };
+    StageMs {
+        total: ms.distance + ms.adapt + ms.solve + ms.renormalize + ms.export,
+        ..ms
     }
 }
 

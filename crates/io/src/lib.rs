@@ -7,13 +7,22 @@
 //! ```
 //! use isoline_core::Params;
 //! use isoline_io::{parse_frame, reconstruct_frame, write};
-//! let line = r#"{"frame":0,"points":[[0,0],[1,0],[1,1],[0,1],[0.5,0],[1,0.5],[0.5,1],[0,0.5]]}"#;
-//! let frame = parse_frame(line, "example", 1).unwrap();
+//! // A frame of 200 points round a circle, as an NDJSON line.
+//! let points: Vec<String> = (0..200)
+//!     .map(|i| {
+//!         let a = i as f64 * std::f64::consts::TAU / 200.0;
+//!         format!("[{},{}]", a.cos(), a.sin())
+//!     })
+//!     .collect();
+//! let line = format!(r#"{{"stream":"demo","frame":0,"points":[{}]}}"#, points.join(","));
+//! let frame = parse_frame(&line, "example", 1).unwrap();
 //! let (record, _) = reconstruct_frame(&frame, &Params::default());
-//! assert!(record.error.is_none());
+//! let curves = record.polylines.as_ref().unwrap();
+//! assert_eq!(curves.len(), 1);
+//! assert!(curves[0].closed);
 //! let mut out = Vec::new();
 //! write::write_ndjson(&mut out, &record).unwrap();
-//! assert!(out.starts_with(br#"{"frame":0,"polylines":[{"closed":true"#));
+//! assert!(out.starts_with(br#"{"stream":"demo","frame":0,"polylines":[{"closed":true"#));
 //! ```
 
 #![forbid(unsafe_code)]

@@ -125,7 +125,7 @@ pub fn compare_surfaces(
     }
 }
 
-/// Scan-aware scores of the curves of one scan frame (DESIGN.md section 7), with one
+/// Scan-aware scores of the curves of one scan frame (docs/formats.md), with one
 /// tolerance `tol` (by default three times the range noise).
 #[derive(Clone, Debug, PartialEq)]
 pub struct ScanScores {

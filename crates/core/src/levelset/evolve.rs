@@ -75,126 +75,146 @@ pub fn solve(
     params: &SolverParams,
 ) -> Solved {
     let t0 = Instant::now();
-    let mesh = &adapted.mesh;
-    let kd = &field.field;
-    let hmin = adapted.params.hmin;
-    let space = P1Space::new(mesh);
-    let pts = kd.points();
-    let (dist, nearest): (Vec<f64>, Vec<u32>) = if adapted.nearest.len() == mesh.coords.len()
-        && adapted.nearest.iter().all(|&j| (j as usize) < pts.len())
-    {
-        mesh.coords
-            .iter()
-            .zip(&adapted.nearest)
-            .map(|(&x, &j)| (crate::geom::dist(x, pts[j as usize]), j))
-            .unzip()
-    } else {
-        kd.nearest_all(&mesh.coords)
-            .iter()
-            .map(|n| (n.dist, n.index))
-            .unzip()
-    };
-    // The field's points: the data with exact duplicates merged, so that the stopping
-    // test and the median settle weigh each sample once.
-    let data = locate_all(mesh, pts);
+    let frame = Frame::new(field, adapted, diag, params);
     let ms_distance = t0.elapsed().as_secs_f64() * 1e3;
+    let mut attempt = frame.attempt(start, at);
+    let mut cold_fallback = false;
+    if let (Start::Warm(prev), true) = (start, attempt.warm_start) {
+        // Never worse than a cold start: a warm result that explains clearly less of
+        // the data than the previous frame did, or lies clearly farther from it, is
+        // replaced by a cold one (robust measures: a maximum would follow outliers).
+        let prev_spread = at.len_to_local(prev.spread);
+        let worse = attempt.report.near < prev.near - 0.03
+            || attempt.report.spread > 2.0 * prev_spread.max(frame.criteria.settle_width);
+        if worse {
+            tracing::info!(
+                near = attempt.report.near,
+                previous_near = prev.near,
+                spread = attempt.report.spread,
+                "warm start worse than the previous frame: cold start"
+            );
+            let ms_first = attempt.ms_renormalize + attempt.report.ms_solve;
+            attempt = frame.attempt(Start::Cold, at);
+            attempt.report.ms_solve += ms_first;
+            cold_fallback = true;
+        }
+    }
+    Solved {
+        u: attempt.u,
+        space: frame.space,
+        report: attempt.report,
+        settings: attempt.settings,
+        warm_start: attempt.warm_start,
+        enclosed: attempt.enclosed,
+        cold_fallback,
+        renormalized: attempt.renormalized,
+        ms_distance,
+        ms: t0.elapsed().as_secs_f64() * 1e3,
+        ms_renormalize: attempt.ms_renormalize,
+    }
+}
 
-    let settings = params.resolve(diag, hmin);
-    let warm_patience = params
-        .warm_patience
-        .unwrap_or((settings.patience / 2).max(1));
-    let tube_radius = params
-        .tube
-        .unwrap_or_else(|| crate::distance::tube_radius(kd, 2.0 * hmin));
-    let settle_width = 4.0 * adapted.noise_estimate + 4.0 * hmin;
-    let criteria = WarmCriteria {
-        settle_width,
-        tube_radius,
-        eps: settings.eps,
-        median_settle: params.settle == Settle::Median,
-    };
-    let run = |start: Start<'_>| -> Attempt {
-        let mut settings = settings.clone();
+/// What every attempt at one frame's level set shares: the mesh, its P1 space, the
+/// distances and nearest samples at its vertices, the samples located in it, and the
+/// settings resolved for the frame.
+struct Frame<'a> {
+    field: &'a MetricField,
+    adapted: &'a AdaptedMesh,
+    diag: f64,
+    params: &'a SolverParams,
+    space: P1Space,
+    dist: Vec<f64>,
+    nearest: Vec<u32>,
+    /// The field's points (the data with exact duplicates merged, so that the stopping
+    /// test and the median settle weigh each sample once), located in the mesh.
+    data: Vec<crate::fem::locate::Location>,
+    settings: SolverSettings,
+    warm_patience: usize,
+    tube_radius: f64,
+    criteria: WarmCriteria,
+}
+
+/// The start of one attempt: the level set, and what it changes in the settings.
+struct Started {
+    u: Vec<f64>,
+    settings: SolverSettings,
+    warm_start: bool,
+    enclosed: bool,
+    ms_renormalize: f64,
+}
+
+impl<'a> Frame<'a> {
+    fn new(
+        field: &'a MetricField,
+        adapted: &'a AdaptedMesh,
+        diag: f64,
+        params: &'a SolverParams,
+    ) -> Frame<'a> {
+        let mesh = &adapted.mesh;
+        let kd = &field.field;
+        let hmin = adapted.params.hmin;
+        let pts = kd.points();
+        // The adapt stage found each vertex's nearest sample; a mesh adapted elsewhere
+        // (a test's) has them found here.
+        let (dist, nearest): (Vec<f64>, Vec<u32>) = if adapted.nearest.len() == mesh.coords.len()
+            && adapted.nearest.iter().all(|&j| (j as usize) < pts.len())
+        {
+            mesh.coords
+                .iter()
+                .zip(&adapted.nearest)
+                .map(|(&x, &j)| (crate::geom::dist(x, pts[j as usize]), j))
+                .unzip()
+        } else {
+            kd.nearest_all(&mesh.coords)
+                .iter()
+                .map(|n| (n.dist, n.index))
+                .unzip()
+        };
+        let settings = params.resolve(diag, hmin);
+        let tube_radius = params
+            .tube
+            .unwrap_or_else(|| crate::distance::tube_radius(kd, 2.0 * hmin));
+        Frame {
+            field,
+            adapted,
+            diag,
+            params,
+            space: P1Space::new(mesh),
+            dist,
+            nearest,
+            data: locate_all(mesh, pts),
+            warm_patience: params
+                .warm_patience
+                .unwrap_or((settings.patience / 2).max(1)),
+            criteria: WarmCriteria {
+                settle_width: 4.0 * adapted.noise_estimate + 4.0 * hmin,
+                tube_radius,
+                eps: settings.eps,
+                median_settle: params.settle == Settle::Median,
+            },
+            tube_radius,
+            settings,
+        }
+    }
+
+    /// One try from `start`: the starting level set, the evolution (none from free
+    /// space) and the median settle.
+    fn attempt(&self, start: Start<'_>, at: &Placement) -> Attempt {
         let mut fm = Redistancer::new();
-        let mut ms_renormalize = 0.0;
-        let warm = match start {
-            Start::Warm(prev) if prev.enclosed => warm_start(prev, at, mesh, &data, &criteria),
-            _ => None,
-        };
-        let warm_start = warm.is_some();
-        let mut enclosed = true;
-        let mut u = match (warm, start) {
-            (Some((u, near)), _) => {
-                if near {
-                    settings.patience = warm_patience;
-                }
-                u
-            }
-            (None, Start::FreeSpace(free)) => {
-                let t = Instant::now();
-                let u = init::free_space(mesh, &space, free, &mut fm);
-                ms_renormalize += t.elapsed().as_secs_f64() * 1e3;
-                u
-            }
-            (None, _) => {
-                let t = Instant::now();
-                let corridor = matches!(params.init, Init::Medial | Init::Tube).then(|| {
-                    init::corridors(
-                        kd,
-                        &mesh.coords,
-                        &dist,
-                        &nearest,
-                        2.0 * hmin,
-                        4.0 * tube_radius,
-                    )
-                });
-                let oriented = matches!(params.init, Init::Medial | Init::Tube)
-                    .then(|| {
-                        crate::levelset::orient::oriented_offsets(
-                            kd,
-                            adapted.noise_estimate,
-                            2.0 * adapted.noise_estimate + tube_radius,
-                            &mesh.coords,
-                        )
-                    })
-                    .flatten();
-                let start = init::cold_start(
-                    params.init,
-                    mesh,
-                    &space,
-                    &dist,
-                    pts,
-                    tube_radius,
-                    corridor.as_ref(),
-                    oriented.as_deref().map(|offsets| init::Oriented {
-                        offsets,
-                        clean: adapted.noise_estimate < tube_radius / 8.0,
-                    }),
-                    params.margin * diag,
-                    &mut fm,
-                );
-                ms_renormalize += t.elapsed().as_secs_f64() * 1e3;
-                enclosed =
-                    !(matches!(params.init, Init::Medial | Init::Tube) && start.init == Init::Box);
-                if start.init == Init::Medial && params.settle == Settle::Median {
-                    // Like a warm start at the data: nothing to capture, the settle
-                    // places the curve.
-                    settings.patience = warm_patience;
-                }
-                if params.init == Init::Tube {
-                    // The pinned vertices must lie inside the starting curve, or nothing
-                    // moves.
-                    settings.tube = settings.tube.min(0.5 * tube_radius);
-                }
-                start.u
-            }
-        };
+        let Started {
+            mut u,
+            settings,
+            warm_start,
+            enclosed,
+            ms_renormalize,
+        } = self.start(start, at, &mut fm);
+        let mesh = &self.adapted.mesh;
         let mut report = if let Start::FreeSpace(_) = start {
             // The free-space start already lies on the returns, and the evolution could
             // only move what lies away from them, which export cuts: it would pinch thin
             // shadows (behind a leg, say) into loops and cost time for nothing. The
             // settle alone places the curve in the noise band.
-            let (residual, mean) = crate::levelset::solver::residual(mesh, &data, &u);
+            let (residual, mean) = crate::levelset::solver::residual(mesh, &self.data, &u);
             SolveReport {
                 residual,
                 mean_residual: mean,
@@ -209,29 +229,11 @@ pub fn solve(
                 ..Default::default()
             }
         } else {
-            Solver::new().solve(mesh, &space, &dist, &data, &mut u, &settings)
+            Solver::new().solve(mesh, &self.space, &self.dist, &self.data, &mut u, &settings)
         };
-        let mut renormalized = false;
-        if params.settle == Settle::Median {
-            let t = Instant::now();
-            let settled =
-                center_on_data(mesh, &space, field, &data, &nearest, &mut u, settle_width);
-            renormalized = settled.moved;
-            report.residual = settled.residual;
-            report.mean_residual = settled.mean;
-            // Rounds are kept by the mean distance, so the maximum can move either way.
-            let converged = settled.residual < settings.eps;
-            if converged != report.converged {
-                report.converged = converged;
-                report.stop = if converged {
-                    StopReason::Converged
-                } else {
-                    StopReason::Settled
-                };
-            }
-            report.ms_solve += t.elapsed().as_secs_f64() * 1e3;
-        }
-        (report.spread, report.near) = spread(mesh, &data, &u, settle_width);
+        let renormalized =
+            self.params.settle == Settle::Median && self.settle(&mut u, &settings, &mut report);
+        (report.spread, report.near) = spread(mesh, &self.data, &u, self.criteria.settle_width);
         Attempt {
             u,
             report,
@@ -241,41 +243,126 @@ pub fn solve(
             renormalized,
             ms_renormalize,
         }
-    };
-    let mut attempt = run(start);
-    let mut cold_fallback = false;
-    if let (Start::Warm(prev), true) = (start, attempt.warm_start) {
-        // Never worse than a cold start: a warm result that explains clearly less of
-        // the data than the previous frame did, or lies clearly farther from it, is
-        // replaced by a cold one (robust measures: a maximum would follow outliers).
-        let prev_spread = at.len_to_local(prev.spread);
-        let worse = attempt.report.near < prev.near - 0.03
-            || attempt.report.spread > 2.0 * prev_spread.max(settle_width);
-        if worse {
-            tracing::info!(
-                near = attempt.report.near,
-                previous_near = prev.near,
-                spread = attempt.report.spread,
-                "warm start worse than the previous frame: cold start"
-            );
-            let ms_first = attempt.ms_renormalize + attempt.report.ms_solve;
-            attempt = run(Start::Cold);
-            attempt.report.ms_solve += ms_first;
-            cold_fallback = true;
+    }
+
+    /// The starting level set: the previous frame's where it is a good start, the free
+    /// space a scan's rays swept, or a cold start.
+    fn start(&self, start: Start<'_>, at: &Placement, fm: &mut Redistancer) -> Started {
+        let mesh = &self.adapted.mesh;
+        let mut settings = self.settings.clone();
+        let warm = match start {
+            Start::Warm(prev) if prev.enclosed => {
+                warm_start(prev, at, mesh, &self.data, &self.criteria)
+            }
+            _ => None,
+        };
+        if let Some((u, near)) = warm {
+            if near {
+                settings.patience = self.warm_patience;
+            }
+            return Started {
+                u,
+                settings,
+                warm_start: true,
+                enclosed: true,
+                ms_renormalize: 0.0,
+            };
+        }
+        let t = Instant::now();
+        let (u, enclosed) = match start {
+            Start::FreeSpace(free) => (init::free_space(mesh, &self.space, free, fm), true),
+            _ => self.cold_start(&mut settings, fm),
+        };
+        Started {
+            u,
+            settings,
+            warm_start: false,
+            enclosed,
+            ms_renormalize: t.elapsed().as_secs_f64() * 1e3,
         }
     }
-    Solved {
-        u: attempt.u,
-        space,
-        report: attempt.report,
-        settings: attempt.settings,
-        warm_start: attempt.warm_start,
-        enclosed: attempt.enclosed,
-        cold_fallback,
-        renormalized: attempt.renormalized,
-        ms_distance,
-        ms: t0.elapsed().as_secs_f64() * 1e3,
-        ms_renormalize: attempt.ms_renormalize,
+
+    /// A cold start by `params.init`, and whether the data enclosed anything; adjusts
+    /// the settings the start asks for.
+    fn cold_start(&self, settings: &mut SolverSettings, fm: &mut Redistancer) -> (Vec<f64>, bool) {
+        let (mesh, kd, params) = (&self.adapted.mesh, &self.field.field, self.params);
+        let (hmin, noise) = (self.adapted.params.hmin, self.adapted.noise_estimate);
+        let medial = matches!(params.init, Init::Medial | Init::Tube);
+        let corridor = medial.then(|| {
+            init::corridors(
+                kd,
+                &mesh.coords,
+                &self.dist,
+                &self.nearest,
+                2.0 * hmin,
+                4.0 * self.tube_radius,
+            )
+        });
+        let oriented = medial
+            .then(|| {
+                crate::levelset::orient::oriented_offsets(
+                    kd,
+                    noise,
+                    2.0 * noise + self.tube_radius,
+                    &mesh.coords,
+                )
+            })
+            .flatten();
+        let start = init::cold_start(
+            params.init,
+            mesh,
+            &self.space,
+            &self.dist,
+            kd.points(),
+            self.tube_radius,
+            corridor.as_ref(),
+            oriented.as_deref().map(|offsets| init::Oriented {
+                offsets,
+                clean: noise < self.tube_radius / 8.0,
+            }),
+            params.margin * self.diag,
+            fm,
+        );
+        let enclosed = !(medial && start.init == Init::Box);
+        if start.init == Init::Medial && params.settle == Settle::Median {
+            // Like a warm start at the data: nothing to capture, the settle places the
+            // curve.
+            settings.patience = self.warm_patience;
+        }
+        if params.init == Init::Tube {
+            // The pinned vertices must lie inside the starting curve, or nothing moves.
+            settings.tube = settings.tube.min(0.5 * self.tube_radius);
+        }
+        (start.u, enclosed)
+    }
+
+    /// The median settle of `u` on the data, its outcome written into `report`;
+    /// whether it left `u` renormalized.
+    fn settle(&self, u: &mut [f64], settings: &SolverSettings, report: &mut SolveReport) -> bool {
+        let t = Instant::now();
+        let settled = center_on_data(
+            &self.adapted.mesh,
+            &self.space,
+            self.field,
+            &self.data,
+            &self.nearest,
+            u,
+            self.criteria.settle_width,
+        );
+        report.residual = settled.residual;
+        report.mean_residual = settled.mean;
+        // Rounds are kept by the mean distance, so the maximum can move either way.
+        let converged = settled.residual < settings.eps;
+        if converged != report.converged {
+            report.converged = converged;
+            report.stop = if converged {
+                StopReason::Converged
+            } else {
+                StopReason::Settled
+            };
+        }
+        report.ms_solve += t.elapsed().as_secs_f64() * 1e3;
+        settled.moved
     }
 }
 

@@ -20,8 +20,8 @@ pub enum Init {
     /// A rounded rectangle around the data's bounding box with the same margin. It hugs
     /// elongated data much more closely than a circle, so the curve has less far to go.
     Box,
-    /// The outer boundary of the tube `{d < delta}` around the data (DESIGN.md section
-    /// 2): the regions outside the tube are labelled inside or outside by how many tube
+    /// The outer boundary of the tube `{d < delta}` around the data (docs/method.md,
+    /// starting curve): the regions outside the tube are labelled inside or outside by how many tube
     /// crossings separate them from the domain boundary, so holes and separate components
     /// start out right, and the curve starts `delta` from the data everywhere, concavities
     /// included.

@@ -1,5 +1,5 @@
 //! The sensor's view of a frame: beams from a known origin, what each one saw, and what
-//! follows from it (DESIGN.md section 7).
+//! follows from it (docs/method.md, scanner frames).
 //!
 //! A [`Scan`] holds one frame's beams in bearing order: each beam either returned (a
 //! point at its range) or did not (no echo, beyond `range_max`, below `range_min`, NaN).

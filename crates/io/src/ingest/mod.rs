@@ -162,7 +162,7 @@ pub fn read_items(path: &Path, bag: &bag::BagOptions) -> Result<Vec<Item>> {
 /// `#` starts a comment, blank lines are skipped. `name` labels errors.
 ///
 /// ```
-/// let pts = isoline::ingest::parse_points("# scan\n0 1\n2.5,3 extra\n\n", "demo").unwrap();
+/// let pts = isoline_io::parse_points("# scan\n0 1\n2.5,3 extra\n\n", "demo").unwrap();
 /// assert_eq!(pts, vec![[0.0, 1.0], [2.5, 3.0]]);
 /// ```
 pub fn parse_points(text: &str, name: &str) -> Result<Vec<Point>> {

@@ -1,5 +1,5 @@
 //! Result writers. The format follows the output file's extension: `.ndjson` (one
-//! result record per line, the contract of DESIGN.md), `.json` (the same records as an
+//! result record per line, the contract of docs/formats.md), `.json` (the same records as an
 //! array, pretty-printed), `.geojson` (a FeatureCollection of LineStrings), `.csv`
 //! (`stream,frame,polyline,closed,vertex,x,y,junction`) and `.svg` (see [`super::svg`]).
 

@@ -3,15 +3,13 @@
 //! view over the Foxglove WebSocket protocol, and `convert` both ways. Every recording
 //! is written here, from the simulator's scenes; the curves are scored against its truth.
 
-mod common;
-
 use std::collections::{BTreeMap, BTreeSet};
 use std::io::{BufRead, BufReader, Write};
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
-use common::{ok, p};
+use crate::common::{ok, p};
 use isoline_io::format::FrameRecord;
 use isoline_io::ros;
 use serde_json::Value;

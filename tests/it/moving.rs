@@ -1,11 +1,9 @@
 //! Streams from moving sensors through the daemon, warm against cold on the same frames:
 //! a warm start must never leave a frame worse than a cold start would.
 
-mod common;
-
 use std::path::{Path, PathBuf};
 
-use common::{ok, p};
+use crate::common::{ok, p};
 
 use serde_json::Value;
 

@@ -3,8 +3,6 @@
 //! daemons in one consumer group share 8 streams on a 4-partition topic, one is killed
 //! with SIGKILL mid-stream, and the other takes its partitions over.
 
-mod common;
-
 use std::collections::{BTreeMap, BTreeSet};
 use std::io::{BufRead, BufReader};
 use std::net::TcpListener;
@@ -18,7 +16,7 @@ use rdkafka::consumer::{BaseConsumer, Consumer};
 use rdkafka::{Message, Offset, TopicPartitionList};
 use serde_json::Value;
 
-use common::{ok, p};
+use crate::common::{ok, p};
 
 const STREAMS: usize = 8;
 const FRAMES: u64 = 40;

@@ -1,11 +1,9 @@
 //! Scanner frames end to end, through the real binary: the simulator's scans of a room
 //! and a corridor, reconstructed and scored by `isoline eval`.
 
-mod common;
-
 use std::path::Path;
 
-use common::{ok, p};
+use crate::common::{ok, p};
 use serde_json::Value;
 
 fn json_file(path: &Path) -> Value {

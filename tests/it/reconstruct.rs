@@ -1,11 +1,9 @@
 //! `isoline reconstruct` end to end, through the real binary.
 
-mod common;
-
 use std::path::Path;
 use std::process::Command;
 
-use common::{ok, p};
+use crate::common::{ok, p};
 use serde_json::Value;
 
 fn isoline(args: &[&str]) -> std::process::Output {

@@ -3,7 +3,7 @@
 //! fuzzers use, on the stable toolchain. The inputs of the hardening issue that once
 //! panicked are replayed here too.
 
-#[path = "../fuzz/harness.rs"]
+#[path = "../../fuzz/harness.rs"]
 mod harness;
 
 use std::path::Path;

@@ -1,0 +1,17 @@
+//! The tests through the `isoline` binary, in one test binary (one link of the
+//! workspace instead of one per file): each module is one area of the contract.
+
+mod architecture;
+mod batch;
+mod cli;
+mod common;
+mod daemon;
+mod docs;
+mod fuzz_regressions;
+#[cfg(feature = "kafka")]
+mod kafka;
+mod moving;
+mod reconstruct;
+mod robotics;
+mod scan;
+mod soak;
