@@ -23,7 +23,7 @@ use super::RunSummary;
 use crate::error::{Error, Result};
 use isoline_core::geom::{Point, Pose};
 use isoline_core::stages::AdaptedMesh;
-use isoline_core::stages::Previous;
+use isoline_core::stages::LevelSet;
 use isoline_core::stages::Solved;
 use isoline_core::stages::{self as reconstruct, Prepared};
 use isoline_core::Params;
@@ -189,24 +189,21 @@ enum Work {
 /// The renormalized level set of a stream's last frame, sent back to the solve stage.
 pub(crate) struct Feedback {
     key: String,
-    level_set: Option<LevelSet>,
+    level_set: Option<Kept>,
 }
 
-/// A level set in data coordinates: what the next frame of the stream starts from.
-struct LevelSet {
-    mesh: Mesh,
-    u: Vec<f64>,
-    spread: f64,
-    near: f64,
-    enclosed: bool,
+/// What the next frame of a stream starts from: the level set in data coordinates, and
+/// the pose of the frame it is in.
+struct Kept {
+    level_set: LevelSet,
     pose: Option<Pose>,
 }
 
-/// Moves a stream's state (a mesh in the coordinates of the frame at `from`) into the
+/// Moves a stream's state (in the coordinates of the frame at `from`) into the
 /// coordinates of the next frame, at `to`, when both frames carry poses.
-fn follow(mesh: &mut Mesh, from: &mut Option<Pose>, to: Option<Pose>) {
+fn follow(map: impl FnOnce(&dyn Fn(Point) -> Point), from: &mut Option<Pose>, to: Option<Pose>) {
     if let (Some(a), Some(b)) = (*from, to) {
-        mesh.map_coords(|p| isoline_core::geom::to_sensor(b, isoline_core::geom::to_world(a, p)));
+        map(&|p| isoline_core::geom::to_sensor(b, isoline_core::geom::to_world(a, p)));
         *from = Some(b);
     }
 }
@@ -511,9 +508,7 @@ pub(crate) fn spawn_adapt(
                     let motion = previous.and_then(|(_, _, pose)| pose.zip(m.pose));
                     let adapted =
                         reconstruct::adapt_moving(&p, previous.map(|(_, mesh, _)| mesh), motion);
-                    let mut mesh = adapted.mesh.clone();
-                    mesh.map_coords(|c| p.placement.to_data(c));
-                    *slot = Some((frame, mesh, m.pose));
+                    *slot = Some((frame, p.mesh_in_data(&adapted), m.pose));
                     adapted
                 } else {
                     reconstruct::adapt(&p, None)
@@ -530,7 +525,7 @@ struct SolveState {
     /// Frames sent to renormalization whose level set has not come back.
     pending: usize,
     last_frame: Option<u64>,
-    level_set: Option<LevelSet>,
+    level_set: Option<Kept>,
 }
 
 /// Solve: the level set of each frame, warm-started from the stream's last renormalized
@@ -592,15 +587,10 @@ pub(crate) fn spawn_solve(
                     s.level_set = None;
                 }
                 s.last_frame = Some(frame);
-                let previous = s.level_set.as_mut().filter(|_| warm).map(|l| {
-                    follow(&mut l.mesh, &mut l.pose, m.pose);
-                    Previous {
-                        mesh: &l.mesh,
-                        u: &l.u,
-                        spread: l.spread,
-                        near: l.near,
-                        enclosed: l.enclosed,
-                    }
+                let previous = s.level_set.as_mut().filter(|_| warm).map(|k| {
+                    let level_set = &mut k.level_set;
+                    follow(|f| level_set.map_coords(f), &mut k.pose, m.pose);
+                    k.level_set.as_previous()
                 });
                 let solved = reconstruct::solve(&p, &adapted, previous);
                 if warm {
@@ -639,20 +629,11 @@ pub(crate) fn spawn_renormalize(
                 let level_set = catch_unwind(AssertUnwindSafe(|| {
                     let (p, adapted, solved) = &mut **b;
                     reconstruct::renormalize(&adapted.mesh, solved);
-                    feedback.as_ref().map(|_| {
-                        // Kept in data coordinates and units: the next frame is placed
-                        // differently.
-                        let at = p.placement;
-                        let mut mesh = adapted.mesh.clone();
-                        mesh.map_coords(|c| at.to_data(c));
-                        LevelSet {
-                            mesh,
-                            u: solved.u.iter().map(|&x| at.len_to_data(x)).collect(),
-                            spread: at.len_to_data(solved.report.spread),
-                            near: solved.report.near,
-                            enclosed: solved.enclosed,
-                            pose,
-                        }
+                    // Kept in data coordinates and units: the next frame is placed
+                    // differently.
+                    feedback.as_ref().map(|_| Kept {
+                        level_set: p.level_set(adapted, solved),
+                        pose,
                     })
                 }));
                 let level_set = match level_set {
@@ -832,15 +813,11 @@ impl Exporter {
         lease: Option<u64>,
     ) -> Work {
         let points: Vec<Point> = if self.outputs.svg_dir.is_some() || self.wants_frames {
-            p.local.iter().map(|&q| p.placement.to_data(q)).collect()
+            p.data()
         } else {
             Vec::new()
         };
-        let refine = self
-            .accumulate
-            .as_ref()
-            .zip(pose)
-            .filter(|_| p.scan.is_some());
+        let refine = self.accumulate.as_ref().zip(pose).filter(|_| p.is_scan());
         let key = stream.as_deref().unwrap_or("");
         let windows = &mut self.windows;
         catch_unwind(AssertUnwindSafe(|| match refine {

@@ -46,24 +46,21 @@ fn cold(c: &mut Criterion) {
 
 fn renormalize(c: &mut Criterion) {
     let pts = circle(2000, 0.002);
-    let prepared = stages::prepare(&pts, None, &Params::default()).unwrap();
-    let adapted = stages::adapt(&prepared, None);
-    let mut solved = stages::solve(&prepared, &adapted, None);
-    stages::renormalize(&adapted.mesh, &mut solved);
+    let r = reconstruct(&pts, &Params::default()).unwrap();
     // A level set with the right zero isoline but |grad u| = 3 everywhere.
-    let distorted: Vec<f64> = solved.u.iter().map(|u| 3.0 * u).collect();
+    let distorted: Vec<f64> = r.u.iter().map(|u| 3.0 * u).collect();
+    let mut u = distorted.clone();
     c.bench_function("fast_marching_full_mesh", |b| {
         b.iter(|| {
-            solved.u.copy_from_slice(&distorted);
-            solved.renormalized = false;
-            stages::renormalize(&adapted.mesh, &mut solved);
-            solved.u[0]
+            u.copy_from_slice(&distorted);
+            stages::redistance(&r.mesh, &mut u);
+            u[0]
         })
     });
     println!(
         "fast marching: {} vertices, {} triangles",
-        adapted.mesh.num_vertices(),
-        adapted.mesh.num_triangles()
+        r.mesh.num_vertices(),
+        r.mesh.num_triangles()
     );
 }
 

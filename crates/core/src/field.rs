@@ -8,7 +8,7 @@ use crate::distance::DistanceField;
 use crate::error::{Error, Result};
 use rayon::prelude::*;
 
-use crate::geom::{dot, BBox, Point, Sym2};
+use crate::geom::{dot, BBox, Point};
 use crate::mesh::adapt::{AdaptOptions, AdaptReport, Adapter};
 use crate::mesh::metric::{CurveMetric, MetricParams};
 use crate::mesh::quality::{mesh_stats, MeshStats};
@@ -222,11 +222,9 @@ pub struct MeshTimings {
 pub struct AdaptedMesh {
     /// The mesh, in data coordinates.
     pub mesh: Mesh,
-    /// The metric at each vertex.
-    pub metrics: Vec<Sym2>,
     /// Each vertex's nearest data point, as an index into the distance field's points
     /// (found by adaptation anyway, so later stages need not search again).
-    pub nearest: Vec<u32>,
+    pub(crate) nearest: Vec<u32>,
     /// The concrete parameters used (derived ones filled in).
     pub params: MetricParams,
     /// The meshed domain.
@@ -236,10 +234,9 @@ pub struct AdaptedMesh {
     pub warm: bool,
     /// Median local-fit residual of the data: a noise estimate.
     pub noise_estimate: f64,
-    /// The residual over windows that see one wall (see
-    /// [`NoiseScale::one_wall`](crate::mesh::metric::NoiseScale::one_wall)): whether the
-    /// samples are clean where `noise_estimate` measures a shape's bends.
-    pub one_wall_noise: f64,
+    /// The residual over windows that see one wall: whether the samples are clean where
+    /// `noise_estimate` measures a shape's bends.
+    pub(crate) one_wall_noise: f64,
     /// What adaptation did.
     pub report: AdaptReport,
     /// Size and quality in the metric.
@@ -658,13 +655,11 @@ impl MetricField {
         }
         let mut adapter = Adapter::new();
         let report = adapter.adapt(&mut mesh, &metric, &opts);
-        let metrics = adapter.metrics().to_vec();
         let nearest = adapter.nearest().to_vec();
-        let stats = mesh_stats(&mesh, &metrics);
+        let stats = mesh_stats(&mesh, adapter.metrics());
         let ms = |d: std::time::Duration| d.as_secs_f64() * 1e3;
         AdaptedMesh {
             mesh,
-            metrics,
             nearest,
             params: self.params,
             domain: local_box,

@@ -38,7 +38,7 @@ pub struct WindowLimits {
 }
 
 /// One frame of a window, in the world's coordinates and the data's units.
-pub struct View {
+pub(crate) struct View {
     /// The frame's number.
     pub frame: u64,
     /// Its time stamp, if it had one.
@@ -59,7 +59,7 @@ pub struct View {
 impl View {
     /// A view of the frame with `mesh`, level set `u` and `analysis` (all in the world's
     /// coordinates), whose level set counts within `tol` of its support.
-    pub fn new(
+    pub(crate) fn new(
         frame: u64,
         t: Option<f64>,
         mesh: Mesh,
@@ -92,7 +92,7 @@ impl View {
     /// to 0 at the end, from `4 tol` away: round a run's end (an occluder's edge, a
     /// doorway) the frame's free space turns along the beam that grazed it, and its
     /// level set would bend a curve that another frame sees going on.
-    pub fn weight(&self, p: Point) -> f64 {
+    pub(crate) fn weight(&self, p: Point) -> f64 {
         if self.index.is_empty() {
             return 0.0;
         }
@@ -107,11 +107,6 @@ impl View {
             .map(|&e| crate::geom::dist(e, p))
             .fold(f64::INFINITY, f64::min);
         near * (end / (4.0 * self.tol)).clamp(0.0, 1.0)
-    }
-
-    /// The ends of its runs (those not closed).
-    pub fn ends(&self) -> &[Point] {
-        &self.ends
     }
 
     /// Bytes this view holds, roughly.
@@ -141,7 +136,7 @@ impl Window {
     /// Adds the newest view and lets the views the limits no longer allow leave. A
     /// frame number that does not follow the last one's (a restarted stream) or a time
     /// that goes back empties the window first.
-    pub fn push(&mut self, view: View, limits: &WindowLimits) {
+    pub(crate) fn push(&mut self, view: View, limits: &WindowLimits) {
         let restarted = self.views.back().is_some_and(|last| {
             view.frame <= last.frame || matches!((last.t, view.t), (Some(a), Some(b)) if b < a)
         });
@@ -164,7 +159,9 @@ impl Window {
     }
 
     /// The views, oldest first.
-    pub fn views(&self) -> impl DoubleEndedIterator<Item = &View> + ExactSizeIterator + Clone {
+    pub(crate) fn views(
+        &self,
+    ) -> impl DoubleEndedIterator<Item = &View> + ExactSizeIterator + Clone {
         self.views.iter()
     }
 
@@ -180,7 +177,7 @@ impl Window {
 
     /// The median position of the run ends of the window's views within `radius` of
     /// `end` (the nearest of each view's), or `None` when no view has one there.
-    pub fn median_end(&self, end: Point, radius: f64) -> Option<Point> {
+    pub(crate) fn median_end(&self, end: Point, radius: f64) -> Option<Point> {
         let mut xs = Vec::new();
         let mut ys = Vec::new();
         for v in &self.views {
@@ -217,10 +214,10 @@ impl Window {
     }
 
     /// Replaces `u` (at `points`, in the world's coordinates) by the weighted average of
-    /// the window's level sets ([`View::weight`]) that lie within their tolerance of the
+    /// the window's level sets (`View::weight`) that lie within their tolerance of the
     /// median of them all; where none counts, or `u` is farther from zero than twice the
     /// largest tolerance, `u` stays.
-    pub fn fuse(&self, points: &[Point], u: &mut [f64]) {
+    pub(crate) fn fuse(&self, points: &[Point], u: &mut [f64]) {
         const CHUNK: usize = 256;
         let views: Vec<&View> = self.views.iter().collect();
         // Far from zero `u` keeps its sign whatever the other frames say, and the

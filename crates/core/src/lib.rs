@@ -93,8 +93,10 @@ pub use stats::{StageMs, Stats, WindowStats};
 pub use warning::Warning;
 
 /// The pipeline's stages one by one, for a caller that runs them apart (the daemon runs
-/// each on its own thread): [`prepare`] (the distance stage), [`adapt`] or
-/// [`adapt_moving`], [`solve`], [`renormalize`], then [`export`] or [`export_refined`].
+/// each on its own thread): [`prepare`](stages::prepare) (the distance stage),
+/// [`adapt`](stages::adapt) or [`adapt_moving`](stages::adapt_moving),
+/// [`solve`](stages::solve), [`renormalize`](stages::renormalize), then
+/// [`export`](stages::export) or [`export_refined`](stages::export_refined).
 /// [`reconstruct`](crate::reconstruct()) is the five in turn.
 ///
 /// ```
@@ -113,10 +115,13 @@ pub use warning::Warning;
 /// assert_eq!(r.polylines.len(), 1);
 /// ```
 pub mod stages {
-    pub use crate::field::{adapt_to_points, AdaptedMesh};
-    pub use crate::levelset::evolve::Solved;
+    pub use crate::field::{adapt_to_points, AdaptedMesh, MeshTimings};
+    pub use crate::levelset::evolve::{redistance, LevelSet, Solved};
     pub use crate::levelset::warm::Previous;
     pub use crate::levelset::MAX_STEPS;
+    pub use crate::mesh::adapt::AdaptReport;
+    pub use crate::mesh::metric::MetricParams;
+    pub use crate::mesh::quality::MeshStats;
     pub use crate::reconstruct::{
         adapt, adapt_moving, export, export_refined, prepare, reconstruct_with, renormalize, solve,
         Prepared,

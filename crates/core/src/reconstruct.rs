@@ -17,9 +17,9 @@ use crate::export::support::Feature;
 use crate::export::ExportParams;
 use crate::field::{AdaptedMesh, MeshParams, MetricField};
 use crate::geom::{BBox, Placement, Point, Polyline};
-use crate::levelset::evolve::{self, Solved};
+use crate::levelset::evolve::{self, LevelSet, Solved};
 use crate::levelset::init::Init;
-use crate::levelset::solver::{SolveReport, SolverSettings};
+use crate::levelset::solver::SolveReport;
 use crate::levelset::warm::Previous;
 use crate::levelset::SolverParams;
 use crate::mesh::Mesh;
@@ -80,21 +80,20 @@ pub struct Reconstruction {
     /// Per-frame statistics (the `stats` of a result record).
     pub stats: Stats,
     /// The solver's report (lengths in the local units of the frame's placement).
-    pub solve: SolveReport,
+    pub(crate) solve: SolveReport,
     /// The 90th percentile of `|u|` at the data, in data units: how far the level set's
-    /// zero isoline is from the data, robustly ([`SolveReport::spread`]).
+    /// zero isoline is from the data, robustly.
     pub spread: f64,
-    /// The solver settings used.
-    pub settings: SolverSettings,
     /// The estimated noise of the data (median local-fit residual; for a scan, the range
     /// noise).
     pub noise_estimate: f64,
     /// Scan frames: the clusters of returns that no curve explains, in data coordinates.
     pub features: Vec<Feature>,
     /// Point clouds: where open strokes meet, and which of `polylines` meet there
-    /// ([`crate::repair::strokes`]).
+    /// (the strokes of a drawing).
     pub junctions: Vec<crate::repair::strokes::Junction>,
-    /// Whether the data enclosed anything ([`crate::levelset::evolve::Solved::enclosed`]).
+    /// Whether the data enclosed anything: false for a drawing of open strokes (the
+    /// level set then started from the box round them).
     pub enclosed: bool,
     /// Scan frames: the sensor's position and the boundary of the free space its rays
     /// swept, in data coordinates.
@@ -203,22 +202,51 @@ pub fn reconstruct_with(
 #[derive(Debug)]
 pub struct Prepared {
     /// Input points (before duplicates are merged).
-    pub points: usize,
+    pub(crate) points: usize,
     /// Where the data sit: every later stage works in coordinates centred on the data's
     /// bounding box and scaled by its diagonal ([`Placement`]).
-    pub placement: Placement,
+    pub(crate) placement: Placement,
     /// Diagonal `D` of the data's bounding box, in local units (1 but for rounding).
-    pub diag: f64,
+    pub(crate) diag: f64,
     /// The points, in local coordinates.
-    pub local: Vec<Point>,
+    pub(crate) local: Vec<Point>,
     /// The parameters in local units.
-    pub params: Params,
+    pub(crate) params: Params,
     /// Their distance field and metric frames.
-    pub metric: MetricField,
+    pub(crate) metric: MetricField,
     /// A scan frame's runs, scales, free space and support, centred.
-    pub scan: Option<Analysis>,
+    pub(crate) scan: Option<Analysis>,
     /// Milliseconds spent.
-    pub ms: f64,
+    pub(crate) ms: f64,
+}
+
+impl Prepared {
+    /// The frame's points, in data coordinates.
+    pub fn data(&self) -> Vec<Point> {
+        self.local
+            .iter()
+            .map(|&q| self.placement.to_data(q))
+            .collect()
+    }
+
+    /// Whether the frame was seen from a sensor (a scan).
+    pub fn is_scan(&self) -> bool {
+        self.scan.is_some()
+    }
+
+    /// This frame's adapted mesh in data coordinates: what the next frame of the stream
+    /// adapts from.
+    pub fn mesh_in_data(&self, adapted: &AdaptedMesh) -> Mesh {
+        let mut mesh = adapted.mesh.clone();
+        mesh.map_coords(|c| self.placement.to_data(c));
+        mesh
+    }
+
+    /// This frame's level set (`solved`, renormalized) on its mesh, in data coordinates
+    /// and units: what the next frame of the stream starts from.
+    pub fn level_set(&self, adapted: &AdaptedMesh, solved: &Solved) -> LevelSet {
+        solved.level_set(self.placement, adapted)
+    }
 }
 
 /// The distance stage: validates the points, centres them and builds their distance
@@ -318,7 +346,7 @@ pub fn adapt_moving(
     prepared.metric.adapt_from(starts)
 }
 
-/// The solve stage: see [`evolve::solve`] (with the parameters [`prepare`] put in local
+/// The solve stage: see `evolve::solve` (with the parameters [`prepare`] put in local
 /// units).
 pub fn solve(prepared: &Prepared, adapted: &AdaptedMesh, previous: Option<Previous<'_>>) -> Solved {
     let params = &prepared.params;
@@ -352,13 +380,13 @@ pub fn solve(prepared: &Prepared, adapted: &AdaptedMesh, previous: Option<Previo
     }
 }
 
-/// The export stage: the curves ([`crate::export::curves`]) in data coordinates, with the
+/// The export stage: the curves (`crate::export::curves`) in data coordinates, with the
 /// frame's statistics (lengths in data units).
 pub fn export(prepared: &Prepared, adapted: AdaptedMesh, solved: Solved) -> Reconstruction {
     export_with(prepared, prepared.scan.as_ref(), adapted, solved, None)
 }
 
-/// The export stage with refinement over frames ([`crate::fusion`]): the frame (a
+/// The export stage with refinement over frames (`crate::fusion`): the frame (a
 /// scan taken at `pose`) joins its stream's `window`, and its level set is replaced by
 /// the average of the window's that agree with it, on its mesh. The record stays in the
 /// frame's coordinates.
@@ -516,7 +544,6 @@ fn export_with(
         stats,
         spread: at.len_to_data(report.spread),
         solve: report,
-        settings: solved.settings,
         noise_estimate: at.len_to_data(adapted.noise_estimate),
         features,
         junctions,

@@ -3,7 +3,7 @@
 //! strokes), its points as a point cloud, its
 //! record as JSON and, with a pose, the frame's transform from `world`. The messages are
 //! made by one plain function, [`frame_messages`]; [`McapOut`] writes them to an MCAP
-//! file and [`LiveView`] serves them over the Foxglove WebSocket protocol.
+//! file, and the daemon's live view serves them over the Foxglove WebSocket protocol.
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};

@@ -1,7 +1,7 @@
 //! isoline-io reads and writes isoline's files: point files, NDJSON frames (points, or a
 //! scanner's beams shaped like a ROS `LaserScan`), ROS 2 bags (MCAP), CARMEN logs, and
 //! the results as NDJSON records, JSON, GeoJSON, CSV, SVG drawings and MCAP for
-//! Foxglove. The JSON shapes of the contract are [`format`]; readers give validated
+//! Foxglove. The JSON shapes of the contract are [`mod@format`]; readers give validated
 //! [`Frame`]s, which [`reconstruct_frame`] turns into result records.
 //!
 //! ```

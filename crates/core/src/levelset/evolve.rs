@@ -12,6 +12,7 @@ use crate::levelset::params::{Settle, SolverParams};
 use crate::levelset::settle::center_on_data;
 use crate::levelset::solver::{spread, SolveReport, Solver, SolverSettings, StopReason};
 use crate::levelset::warm::{warm_start, Previous, WarmCriteria};
+use crate::mesh::Mesh;
 use crate::redistance::Redistancer;
 use crate::scan::FreeSpace;
 
@@ -19,31 +20,93 @@ use crate::scan::FreeSpace;
 #[derive(Debug)]
 pub struct Solved {
     /// The level set at the mesh vertices (centred coordinates, negative inside).
-    pub u: Vec<f64>,
+    pub(crate) u: Vec<f64>,
     /// The P1 space of the mesh (reused by renormalization).
-    pub space: P1Space,
+    pub(crate) space: P1Space,
     /// The solver's report (its `ms_solve` includes the median settle).
-    pub report: SolveReport,
+    pub(crate) report: SolveReport,
     /// The settings used.
-    pub settings: SolverSettings,
+    pub(crate) settings: SolverSettings,
     /// Whether the level set started from the previous frame's.
-    pub warm_start: bool,
+    pub(crate) warm_start: bool,
     /// Whether a warm start was tried, found worse than the previous frame, and
     /// replaced by a cold one.
-    pub cold_fallback: bool,
+    pub(crate) cold_fallback: bool,
     /// Whether the data enclose anything: false when a tube start found no inside
     /// region (open strokes, or samples too sparse to close) and the level set started
     /// from the box around them, whose loop then explains nothing.
-    pub enclosed: bool,
+    pub(crate) enclosed: bool,
     /// Whether `u` is already the signed distance to its zero isoline over the whole mesh
     /// (the median settle's last accepted round leaves it so).
-    pub renormalized: bool,
+    pub(crate) renormalized: bool,
     /// Milliseconds: distances at the vertices and locating the data.
-    pub ms_distance: f64,
+    pub(crate) ms_distance: f64,
     /// Milliseconds: the whole solve stage.
-    pub ms: f64,
+    pub(crate) ms: f64,
     /// Milliseconds of fast marching outside the solver's loop (warm start, final pass).
-    pub ms_renormalize: f64,
+    pub(crate) ms_renormalize: f64,
+}
+
+impl Solved {
+    /// Whether the level set started from the previous frame.
+    pub fn warm_start(&self) -> bool {
+        self.warm_start
+    }
+
+    /// What the next frame of the stream starts from: this level set with its mesh
+    /// (`adapted`'s), in data coordinates and units (`at` places the frame).
+    pub(crate) fn level_set(&self, at: Placement, adapted: &AdaptedMesh) -> LevelSet {
+        let mut mesh = adapted.mesh.clone();
+        mesh.map_coords(|c| at.to_data(c));
+        LevelSet {
+            mesh,
+            u: self.u.iter().map(|&x| at.len_to_data(x)).collect(),
+            spread: at.len_to_data(self.report.spread),
+            near: self.report.near,
+            enclosed: self.enclosed,
+        }
+    }
+}
+
+/// A frame's level set as the next frame of its stream starts from it: the mesh and
+/// the renormalized level set in data coordinates and units, and how well it fitted
+/// its own data.
+#[derive(Clone, Debug)]
+pub struct LevelSet {
+    /// The mesh, in data coordinates.
+    pub mesh: Mesh,
+    /// The level set at its vertices, in data units (negative inside).
+    pub u: Vec<f64>,
+    /// The 90th percentile of `|u|` at the frame's data, in data units.
+    pub spread: f64,
+    /// The share of the data within the median settle's reach of the curve.
+    pub near: f64,
+    /// Whether the data enclosed anything.
+    pub enclosed: bool,
+}
+
+impl LevelSet {
+    /// Moves the level set into other coordinates (a moving sensor's next frame):
+    /// `f` must be a rigid motion.
+    pub fn map_coords(&mut self, f: impl FnMut(crate::geom::Point) -> crate::geom::Point) {
+        self.mesh.map_coords(f);
+    }
+
+    /// Bytes it holds, roughly.
+    pub fn bytes(&self) -> usize {
+        self.mesh.bytes() + self.u.len() * std::mem::size_of::<f64>()
+    }
+
+    /// This level set as a warm start takes it.
+    pub fn as_previous(&self) -> Previous<'_> {
+        Previous {
+            mesh: &self.mesh,
+            u: &self.u,
+            spread: self.spread,
+            near: self.near,
+            enclosed: self.enclosed,
+        }
+    }
 }
 
 /// Where a frame's level set may start.
@@ -381,7 +444,7 @@ struct Attempt {
 /// whole mesh (the solver's own passes stop at twice its narrow band), which is what the
 /// next frame's warm start interpolates. Nothing to do when the median settle already
 /// left it so.
-pub fn renormalize(mesh: &crate::mesh::Mesh, solved: &mut Solved) {
+pub fn renormalize(mesh: &Mesh, solved: &mut Solved) {
     if solved.renormalized {
         return;
     }
@@ -389,4 +452,11 @@ pub fn renormalize(mesh: &crate::mesh::Mesh, solved: &mut Solved) {
     Redistancer::new().run(mesh, &solved.space, &mut solved.u, f64::INFINITY);
     solved.renormalized = true;
     solved.ms_renormalize += t.elapsed().as_secs_f64() * 1e3;
+}
+
+/// Makes `u`, a level set at `mesh`'s vertices, the signed distance to its own zero
+/// isoline over the whole mesh, by fast marching on the triangles (the vertices of
+/// triangles the isoline cuts start from their exact distances to it).
+pub fn redistance(mesh: &Mesh, u: &mut [f64]) {
+    Redistancer::new().run(mesh, &P1Space::new(mesh), u, f64::INFINITY);
 }

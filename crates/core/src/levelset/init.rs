@@ -26,7 +26,7 @@ pub enum Init {
     /// start out right, and the curve starts `delta` from the data everywhere, concavities
     /// included.
     Tube,
-    /// The middle of that tube (see [`medial`]): the same labelling, the curve starting
+    /// The middle of that tube (see `medial`): the same labelling, the curve starting
     /// in the middle of the noise band instead of `delta` outside it.
     #[default]
     Medial,

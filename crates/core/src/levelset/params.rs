@@ -58,7 +58,7 @@ pub struct SolverParams {
     /// A solver phase ends when the mean residual improves by less than 1% over this
     /// many steps. Default 1,000 (explicit) or 10 (semi-implicit).
     pub patience: Option<usize>,
-    /// The patience of a frame warm-started at the data (see [`crate::levelset::warm`]): its curve is
+    /// The patience of a frame warm-started at the data (see `crate::levelset::warm`): its curve is
     /// already in place, so the capture phase only has to confirm it. Default
     /// `patience / 2`.
     pub warm_patience: Option<usize>,
@@ -206,7 +206,7 @@ impl SolverParams {
 
     /// The concrete settings for data of diagonal `diag` on a mesh of smallest size
     /// `hmin`.
-    pub fn resolve(&self, diag: f64, hmin: f64) -> SolverSettings {
+    pub(crate) fn resolve(&self, diag: f64, hmin: f64) -> SolverSettings {
         let explicit = self.scheme == Scheme::Explicit;
         let dt = self.dt_factor.unwrap_or(DT_FACTOR) * hmin;
         SolverSettings {

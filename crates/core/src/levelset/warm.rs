@@ -33,7 +33,7 @@ pub struct Previous<'a> {
     pub spread: f64,
     /// The share of its data within the median settle's reach of its curve.
     pub near: f64,
-    /// Whether its data enclosed anything ([`crate::levelset::evolve::Solved::enclosed`]):
+    /// Whether its data enclosed anything (false for a drawing of open strokes):
     /// the box's loop round a drawing of strokes is no start for the next frame.
     pub enclosed: bool,
 }

@@ -90,7 +90,7 @@ pub struct AdaptReport {
     pub flips: usize,
     /// Accepted vertex moves.
     pub moves: usize,
-    /// Whether refinement stopped at [`AdaptOptions::max_vertices`].
+    /// Whether refinement stopped at `AdaptOptions::max_vertices`.
     pub vertex_cap_reached: bool,
     /// Whether the last pass changed (almost) nothing.
     pub converged: bool,

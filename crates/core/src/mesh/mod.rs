@@ -212,12 +212,12 @@ impl Mesh {
         Mesh::from_triangles(coords, tris)
     }
 
-    /// Number of vertices (including removed ones until [`Mesh::compact`]).
+    /// Number of vertices (removed ones included).
     pub fn num_vertices(&self) -> usize {
         self.coords.len()
     }
 
-    /// Number of triangles (including removed ones until [`Mesh::compact`]).
+    /// Number of triangles (removed ones included).
     pub fn num_triangles(&self) -> usize {
         self.tris.len()
     }

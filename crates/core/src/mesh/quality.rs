@@ -39,11 +39,11 @@ pub struct MeshStats {
     pub triangles: usize,
     /// Edges.
     pub edges: usize,
-    /// Share of edges with metric length in [`UNIT_RANGE`].
+    /// Share of edges with metric length in `UNIT_RANGE`.
     pub edges_unit_share: f64,
     /// Median metric edge length.
     pub median_edge_length: f64,
-    /// Worst triangle quality (see [`quality`]); negative would mean an inverted triangle.
+    /// Worst triangle quality (see `quality`); negative would mean an inverted triangle.
     pub min_quality: f64,
     /// Mean triangle quality.
     pub mean_quality: f64,

@@ -30,7 +30,7 @@ use crate::geom::{add, dist, point_segment_dist2, sub, Placement, Point, Polylin
 #[non_exhaustive]
 pub struct ScanParams {
     /// Range noise (standard deviation, data units). Default: estimated per frame from
-    /// the returns ([`Scan::scales`]).
+    /// the returns (`Scan::scales`).
     pub range_noise: Option<f64>,
     /// The breakpoint test's `lambda`, in degrees: consecutive returns stay on one
     /// surface while it is seen at incidence below `90 - lambda`. Default 10.
@@ -264,7 +264,7 @@ impl Scan {
     }
 
     /// The same scan in the local coordinates of `at` (lengths scaled with them).
-    pub fn placed(&self, at: &Placement) -> Scan {
+    pub(crate) fn placed(&self, at: &Placement) -> Scan {
         Scan {
             origin: at.to_local(self.origin),
             ranges: self.ranges.iter().map(|&r| at.len_to_local(r)).collect(),
@@ -330,7 +330,7 @@ impl Scan {
     /// Whether the returns of beams `i` and `j` lie on one surface by the adaptive
     /// breakpoint test (see the module doc), `sigma` the range noise and `lambda` in
     /// radians.
-    pub fn joined(&self, i: usize, j: usize, sigma: f64, lambda: f64) -> bool {
+    pub(crate) fn joined(&self, i: usize, j: usize, sigma: f64, lambda: f64) -> bool {
         let dphi = self.gap(i, j);
         if dphi >= lambda {
             return false;
@@ -344,7 +344,7 @@ impl Scan {
     /// The runs: consecutive returns joined by the breakpoint test, across at most
     /// `params.dropout_beams` beams without a return, in bearing order; on a full turn a
     /// run may wrap from the last beams to the first.
-    pub fn runs(&self, sigma: f64, params: &ScanParams) -> Vec<Run> {
+    pub(crate) fn runs(&self, sigma: f64, params: &ScanParams) -> Vec<Run> {
         let lambda = params.incidence_limit.to_radians();
         let beams = self.return_beams();
         let mut runs: Vec<Run> = Vec::new();
@@ -381,7 +381,7 @@ impl Scan {
     /// `sigma sqrt(1.5)`, and its median absolute value is `0.6745` of that. Returns seen
     /// at more than 60 degrees of incidence, where the cosine amplifies the chord's own
     /// error, are left out unless too few remain.
-    pub fn scales(&self, runs: &[Run], params: &ScanParams) -> Scales {
+    pub(crate) fn scales(&self, runs: &[Run], params: &ScanParams) -> Scales {
         let mut offsets: Vec<f64> = Vec::new();
         let mut grazing: Vec<f64> = Vec::new();
         for run in runs {
@@ -444,7 +444,7 @@ impl Scan {
     ///
     /// A return's range is taken from `ranges` (the scan's own, or
     /// [`smoothed_ranges`](Self::smoothed_ranges)).
-    pub fn reach(&self, runs: &[Run], dropout_beams: usize, ranges: &[f64]) -> Vec<f64> {
+    pub(crate) fn reach(&self, runs: &[Run], dropout_beams: usize, ranges: &[f64]) -> Vec<f64> {
         let n = self.angles.len();
         let free = if self.free_rays { self.range_max } else { 0.0 };
         let mut reach: Vec<f64> = (0..n)
@@ -496,7 +496,7 @@ impl Scan {
     /// The free space through the raw returns zigzags across the noise band at every
     /// beam; on a mesh whose elements are long along the walls that zigzag folds the
     /// P1 zero isoline back on itself. Through the smoothed returns it runs straight.
-    pub fn smoothed_ranges(&self, runs: &[Run], window: usize, sigma: f64) -> Vec<f64> {
+    pub(crate) fn smoothed_ranges(&self, runs: &[Run], window: usize, sigma: f64) -> Vec<f64> {
         let mut out = self.ranges.clone();
         for run in runs {
             let pts: Vec<Point> = run
@@ -540,7 +540,12 @@ impl Scan {
     /// `ranges` for the returns): each pair of neighbouring beams sweeps the triangle from
     /// the origin to their reaches. A bearing gap wider than three steps in a scan made
     /// from points is unseen.
-    pub fn free_space(&self, runs: &[Run], dropout_beams: usize, ranges: &[f64]) -> FreeSpace {
+    pub(crate) fn free_space(
+        &self,
+        runs: &[Run],
+        dropout_beams: usize,
+        ranges: &[f64],
+    ) -> FreeSpace {
         FreeSpace {
             origin: self.origin,
             angles: self.angles.clone(),
@@ -731,11 +736,6 @@ impl Analysis {
                     .collect()
             })
             .collect()
-    }
-
-    /// The same analysis in the local coordinates of `at` (lengths scaled with them).
-    pub fn placed(&self, at: &Placement) -> Analysis {
-        self.transformed(&|p| at.to_local(p), 0.0, &|x| at.len_to_local(x))
     }
 }
 

@@ -1,7 +1,7 @@
 //! Result writers. The format follows the output file's extension: `.ndjson` (one
 //! result record per line, the contract of docs/formats.md), `.json` (the same records as an
 //! array, pretty-printed), `.geojson` (a FeatureCollection of LineStrings), `.csv`
-//! (`stream,frame,polyline,closed,vertex,x,y,junction`) and `.svg` (see [`super::svg`]).
+//! (`stream,frame,polyline,closed,vertex,x,y,junction`) and `.svg` (see `super::svg`).
 
 pub mod svg;
 
@@ -56,7 +56,7 @@ impl Format {
 }
 
 /// The records as the text of `format` (not SVG, which needs the points and mesh: see
-/// [`super::svg`]).
+/// `super::svg`).
 pub fn render(format: Format, recs: &[ResultRecord]) -> String {
     match format {
         Format::Ndjson => {
