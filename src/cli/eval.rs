@@ -1,4 +1,5 @@
-//! `isoline eval`: accuracy of reconstructed curves against the simulator's truth.
+//! `isoline eval`: accuracy of reconstructed curves against the simulator's truth, or,
+//! without truth, the scores a scan's own returns and free space give.
 
 use std::io::BufRead;
 use std::path::{Path, PathBuf};
@@ -15,10 +16,12 @@ use isoline_sim as eval;
 pub struct Args {
     /// Polylines: NDJSON result records or a JSON file with "polylines".
     recon: PathBuf,
-    /// Truth file written by `isoline synth`.
+    /// Truth file written by `isoline synth`. Without one, `--frames` is required and
+    /// the scores are the ones the scans alone give.
     #[arg(long)]
-    truth: PathBuf,
-    /// The input frames (NDJSON): for scan frames, adds the scan-aware scores.
+    truth: Option<PathBuf>,
+    /// The input frames (NDJSON, a bag or a CARMEN log): for scan frames, adds the
+    /// scan-aware scores.
     #[arg(long)]
     frames: Option<PathBuf>,
     /// Tolerance of the scan-aware scores; default three times the truth's range noise
@@ -30,8 +33,11 @@ pub struct Args {
 /// Prints the accuracy as JSON: one object, or the worst Hausdorff distance and one
 /// object per frame.
 pub fn run(a: Args) -> Result<()> {
-    let truth_file: TruthFile = serde_json::from_str(&super::read(&a.truth)?)
-        .with_context(|| format!("{}: not a truth file", a.truth.display()))?;
+    let Some(truth_path) = &a.truth else {
+        return run_without_truth(&a);
+    };
+    let truth_file: TruthFile = serde_json::from_str(&super::read(truth_path)?)
+        .with_context(|| format!("{}: not a truth file", truth_path.display()))?;
     let records = read_polyline_records(&a.recon)?;
     let frames: Vec<isoline_io::Frame> = match &a.frames {
         Some(p) => isoline_io::read_frames(p)?,
@@ -109,6 +115,85 @@ pub fn run(a: Args) -> Result<()> {
         v
     };
     super::print(&format!("{out}\n"))
+}
+
+/// Scores from the scans alone: per frame, the returns within the tolerance of a curve
+/// and their mean distance to it, the curve on the data, in free space, closed curves
+/// and phantoms near the sensor; then the medians and totals over the frames.
+fn run_without_truth(a: &Args) -> Result<()> {
+    let Some(frames_path) = &a.frames else {
+        bail!("without --truth, --frames names the scans the curves are scored against");
+    };
+    let tol = a.tolerance.unwrap_or(0.05);
+    if !(tol.is_finite() && tol > 0.0) {
+        bail!("--tolerance {tol}: must be a positive number");
+    }
+    let frames = isoline_io::read_items(frames_path, &Default::default())?;
+    let scans: std::collections::HashMap<(Option<String>, u64), &isoline_core::Scan> = frames
+        .iter()
+        .flatten()
+        .filter_map(|f| Some(((f.stream.clone(), f.frame), f.scan.as_ref()?)))
+        .collect();
+    let records = read_records(&a.recon)?;
+    let mut rows = Vec::new();
+    let mut errors = 0;
+    for r in &records {
+        let Some(pls) = &r.polylines else {
+            errors += 1;
+            continue;
+        };
+        let key = (r.stream.clone(), r.frame.unwrap_or(0));
+        let scan = scans
+            .get(&key)
+            .with_context(|| format!("no scan for stream {:?} frame {}", key.0, key.1))?;
+        let pls: Vec<Polyline> = pls.iter().cloned().map(Into::into).collect();
+        let s = eval::data_scores(&pls, scan, tol);
+        let ms = r.stats.as_ref().map(|st| st.ms.total);
+        rows.push(json!({
+            "stream": r.stream, "frame": r.frame, "returns": s.returns,
+            "returns_explained": s.returns_explained, "mean_distance": s.mean_distance,
+            "curve_on_data": s.curve_on_data, "free_space_share": s.free_space_share,
+            "length": s.length, "closed": s.closed, "phantoms": s.phantoms, "ms": ms,
+        }));
+    }
+    let median = |k: &str| -> serde_json::Value {
+        let mut v: Vec<f64> = rows.iter().filter_map(|r| r[k].as_f64()).collect();
+        v.sort_by(f64::total_cmp);
+        v.get(v.len() / 2)
+            .map_or(serde_json::Value::Null, |x| json!(x))
+    };
+    let count = |k: &str| {
+        rows.iter()
+            .filter(|r| r[k].as_u64().unwrap_or(0) > 0)
+            .count()
+    };
+    let out = json!({
+        "tolerance": tol,
+        "records": records.len(),
+        "errors": errors,
+        "returns_explained": median("returns_explained"),
+        "mean_distance": median("mean_distance"),
+        "curve_on_data": median("curve_on_data"),
+        "free_space_share": median("free_space_share"),
+        "ms": median("ms"),
+        "frames_with_closed_curves": count("closed"),
+        "frames_with_phantoms": count("phantoms"),
+        "frames": rows,
+    });
+    super::print(&format!("{out}\n"))
+}
+
+/// Every record of an NDJSON result file, error records included.
+fn read_records(path: &Path) -> Result<Vec<isoline_io::format::ResultRecord>> {
+    let text = super::read(path)?;
+    text.lines()
+        .enumerate()
+        .filter(|(_, l)| !l.trim().is_empty())
+        .map(|(i, l)| {
+            serde_json::from_str(l)
+                .with_context(|| format!("{}, line {}: not a result record", path.display(), i + 1))
+        })
+        .collect()
 }
 
 fn finite(x: f64) -> serde_json::Value {

@@ -128,7 +128,11 @@ fn scan_frame(c: &mut Criterion) {
     let params = Params::default();
     let run = |s: &Scan, prev| reconstruct_with(&s.returns(), Some(s), &params, prev).unwrap();
     let first = run(&scans[0], None);
-    assert!(run(&scans[1], Some(&first)).stats.warm_start);
+    // A scan frame is built from its own scan, warm stream or not.
+    assert_eq!(
+        run(&scans[1], Some(&first)).stats.start,
+        isoline_core::Start::Scan
+    );
     let mut g = c.benchmark_group("scan_frame");
     g.sample_size(20);
     g.bench_function("room_1080_beams_warm", |b| {

@@ -6,9 +6,8 @@ use std::time::Instant;
 
 use crate::distance::DistanceField;
 use crate::error::{Error, Result};
-use rayon::prelude::*;
 
-use crate::geom::{dot, BBox, Point};
+use crate::geom::{BBox, Point};
 use crate::mesh::adapt::{AdaptOptions, AdaptReport, Adapter};
 use crate::mesh::metric::{CurveMetric, MetricParams};
 use crate::mesh::quality::{mesh_stats, MeshStats};
@@ -418,47 +417,52 @@ impl MetricField {
         })
     }
 
-    /// A field whose samples are the points of `chains` (sequences of samples known to
-    /// follow one curve in order: a scan's runs of returns), with every frame fitted
-    /// along its chain ([`MetricField::refit_along_chains`] says how) and no fit to
-    /// spatial neighbours at all. `params.hmin` and `params.band` are taken as given
-    /// (an unset `hmin` is the median fit residual, at least `D / 1000`; an unset band
-    /// `8 hmin`).
-    pub fn along_chains(
+    /// The field of a scan's runs for its band mesh (`crate::band`): the kd-tree of
+    /// the `chains`' samples and each one's chain window (up to `window` on either side),
+    /// which is all the settle reads; no local frames are fitted (the band needs no
+    /// metric) and no spatial neighbour lists made. `params.hmin` is taken as given.
+    pub fn of_chains(
         chains: &[Vec<Point>],
         params: &MeshParams,
         window: usize,
-        end_size: impl Fn(f64) -> f64,
-        end_reach: f64,
     ) -> Result<MetricField> {
         let t0 = Instant::now();
         let points: Vec<Point> = chains.iter().flatten().copied().collect();
         crate::distance::validate_points(&points)?;
-        params.validate().map_err(|problems| Error::Config {
-            path: "mesh parameters".into(),
-            problems,
-        })?;
         let bbox = BBox::of(&points).ok_or(Error::EmptyPointSet)?;
-        let diag = bbox.diag();
-        let scale = if diag > 0.0 { diag } else { 1.0 };
+        let scale = if bbox.diag() > 0.0 { bbox.diag() } else { 1.0 };
         let field = DistanceField::new(&points)?;
-        let t_dist = t0.elapsed();
-        let k = params.neighbours.max(3).min(field.points().len());
-        // The nearest-sample search of adaptation starts from these lists.
-        let neighbours = crate::mesh::metric::neighbour_lists(&field, k);
         let n = field.points().len();
-        let mut me = MetricField {
+        let hmin = params.hmin.unwrap_or(scale / 1000.0);
+        let mut windows: Vec<Vec<u32>> = vec![Vec::new(); n];
+        for chain in chains {
+            let ids: Vec<u32> = chain.iter().map(|&p| field.nearest(p).index).collect();
+            for (i, &id) in ids.iter().enumerate() {
+                let lo = i.saturating_sub(window);
+                let hi = (i + window + 1).min(ids.len());
+                windows[id as usize] = ids[lo..hi].to_vec();
+            }
+        }
+        let mut chain_offsets = Vec::with_capacity(n + 1);
+        let mut chain_neighbours = Vec::new();
+        chain_offsets.push(0);
+        for w in windows {
+            chain_neighbours.extend(w);
+            chain_offsets.push(chain_neighbours.len() as u32);
+        }
+        let ms = t0.elapsed().as_secs_f64() * 1e3;
+        Ok(MetricField {
             field,
-            frames: vec![crate::mesh::metric::LocalFrame::default(); n],
-            neighbours,
-            k,
-            chain_neighbours: Vec::new(),
-            chain_offsets: Vec::new(),
+            frames: Vec::new(),
+            neighbours: Vec::new(),
+            k: 0,
+            chain_neighbours,
+            chain_offsets,
             params: MetricParams {
-                hmin: scale / 1000.0,
-                hmax: scale / 10.0,
-                eps: scale / 1000.0,
-                band: 0.0,
+                hmin,
+                hmax: params.hmax.unwrap_or(scale / 10.0).max(hmin),
+                eps: params.eps.unwrap_or(hmin),
+                band: params.band.unwrap_or(8.0 * hmin),
                 gradation: params.gradation.unwrap_or(0.3),
                 isotropic: params.isotropic,
                 neighbours: params.neighbours,
@@ -470,122 +474,12 @@ impl MetricField {
             max_passes: params.max_passes,
             warm_change: params.warm_change,
             max_vertices: params.max_vertices,
-            ms: MeshTimings::default(),
-        };
-        // The fits do not depend on the sizes but the end sizes do: without a given hmin,
-        // fit once to measure the noise, then again with the end sizes it gives.
-        let noise = if params.hmin.is_none() {
-            me.refit_along_chains(chains, window, scale, 0.0);
-            crate::mesh::metric::median_residual(&me.frames)
-        } else {
-            0.0
-        };
-        let hmin = params.hmin.unwrap_or((scale / 1000.0).max(noise));
-        me.params.hmin = hmin;
-        me.params.hmax = params.hmax.unwrap_or(scale / 10.0).max(hmin);
-        me.params.eps = params.eps.unwrap_or(hmin);
-        me.params.band = params.band.unwrap_or(8.0 * hmin);
-        me.noise_estimate = noise;
-        me.one_wall_noise = noise;
-        me.refit_along_chains(chains, window, end_size(hmin), end_reach);
-        let ms = |d: std::time::Duration| d.as_secs_f64() * 1e3;
-        me.ms = MeshTimings {
-            distance: ms(t_dist),
-            metric: ms(t0.elapsed() - t_dist),
-            adapt: 0.0,
-            total: ms(t0.elapsed()),
-        };
-        Ok(me)
-    }
-
-    /// Refits the local frames of the samples that lie on `chains`: sequences of
-    /// samples known to follow one curve in order (a scan's runs of returns). Each
-    /// sample's frame is fitted to its chain neighbours, up to `window` on either side,
-    /// instead of its nearest samples in space, which near a depth jump or on a short,
-    /// isolated run mix unrelated surfaces. Within `end_reach` of a chain's end, and at
-    /// least over its last two gaps (which at grazing incidence are wide), the size
-    /// along the curve is at most `end_size`, so that the mesh resolves where the curve
-    /// ends. Samples on no chain keep their frames; a chain of one or two samples gets an
-    /// undefined frame (an isotropic size). The same windows become the samples' chain
-    /// neighbourhoods ([`MetricField::chain_neighbours`]).
-    pub fn refit_along_chains(
-        &mut self,
-        chains: &[Vec<Point>],
-        window: usize,
-        end_size: f64,
-        end_reach: f64,
-    ) {
-        let eps = self.params.eps;
-        let end_curvature = eps / (end_size * end_size);
-        type Fit = (u32, crate::mesh::metric::LocalFrame, Vec<u32>);
-        let fits: Vec<Vec<Fit>> = chains
-            .par_iter()
-            .map(|chain| {
-                let n = chain.len();
-                let ids: Vec<u32> = chain.iter().map(|&p| self.field.nearest(p).index).collect();
-                // Arc length from the chain's start, for the distance to its ends.
-                let mut arc = vec![0.0; n];
-                for i in 1..n {
-                    arc[i] = arc[i - 1] + crate::geom::dist(chain[i - 1], chain[i]);
-                }
-                let total = arc.last().copied().unwrap_or(0.0);
-                let reach_start = end_reach.max(arc[2.min(n - 1)]);
-                let reach_end = end_reach.max(total - arc[n.saturating_sub(3)]);
-                let raw: Vec<crate::mesh::metric::LocalFrame> = (0..n)
-                    .map(|i| {
-                        let lo = i.saturating_sub(window);
-                        let hi = (i + window + 1).min(n);
-                        if n < 3 {
-                            crate::mesh::metric::LocalFrame::default()
-                        } else {
-                            crate::mesh::metric::fit_frame(chain[i], &chain[lo..hi])
-                        }
-                    })
-                    .collect();
-                (0..n)
-                    .map(|i| {
-                        let lo = i.saturating_sub(window);
-                        let hi = (i + window + 1).min(n);
-                        let f = raw[i];
-                        let (sum, cnt) = raw[lo..hi]
-                            .iter()
-                            .filter(|g| g.defined)
-                            .fold((0.0, 0usize), |(s, c), g| {
-                                (s + dot(g.normal, f.normal).signum() * g.curvature, c + 1)
-                            });
-                        // Curvature the noise can explain is no curvature: a straight
-                        // wall's fits scatter by their standard error, and meshing that
-                        // would cost a fine mesh along every wall.
-                        let mut curvature = if cnt > 0 {
-                            ((sum / cnt as f64).abs() - 2.0 * f.curvature_se).max(0.0)
-                        } else {
-                            0.0
-                        };
-                        if arc[i] <= reach_start || total - arc[i] <= reach_end {
-                            curvature = curvature.max(end_curvature);
-                        }
-                        (
-                            ids[i],
-                            crate::mesh::metric::LocalFrame { curvature, ..f },
-                            ids[lo..hi].to_vec(),
-                        )
-                    })
-                    .collect()
-            })
-            .collect();
-        let n = self.frames.len();
-        let mut windows: Vec<Vec<u32>> = vec![Vec::new(); n];
-        for (index, frame, window) in fits.into_iter().flatten() {
-            self.frames[index as usize] = frame;
-            windows[index as usize] = window;
-        }
-        self.chain_offsets = Vec::with_capacity(n + 1);
-        self.chain_neighbours.clear();
-        self.chain_offsets.push(0);
-        for w in windows {
-            self.chain_neighbours.extend(w);
-            self.chain_offsets.push(self.chain_neighbours.len() as u32);
-        }
+            ms: MeshTimings {
+                distance: ms,
+                total: ms,
+                ..MeshTimings::default()
+            },
+        })
     }
 
     /// The chain neighbourhood of sample `i` (empty when it is on no chain).

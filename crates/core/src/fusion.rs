@@ -22,7 +22,7 @@ use std::collections::VecDeque;
 
 use rayon::prelude::*;
 
-use crate::fem::locate::locate;
+use crate::fem::locate::VertexIndex;
 use crate::geom::Point;
 use crate::index::SegmentIndex;
 use crate::mesh::Mesh;
@@ -54,6 +54,9 @@ pub(crate) struct View {
     index: SegmentIndex,
     /// The ends of its runs that are not closed.
     ends: Vec<Point>,
+    /// Its mesh's vertices, to start a walk from the vertex nearest a point: a band
+    /// mesh has gaps that a walk from anywhere else cannot cross.
+    vertices: Option<VertexIndex>,
 }
 
 impl View {
@@ -75,6 +78,7 @@ impl View {
             .flat_map(|s| s.points.first().into_iter().chain(s.points.last()))
             .copied()
             .collect();
+        let vertices = VertexIndex::new(&mesh);
         View {
             frame,
             t,
@@ -84,7 +88,18 @@ impl View {
             tol,
             index,
             ends,
+            vertices,
         }
+    }
+
+    /// Its level set at `p`, or `None` where its mesh does not reach (farther than a
+    /// thousandth of its tolerance from every triangle).
+    pub(crate) fn sample(&self, p: Point) -> Option<f64> {
+        let at = self
+            .vertices
+            .as_ref()?
+            .locate_within(&self.mesh, p, 1e-3 * self.tol)?;
+        Some(at.interpolate(&self.mesh, &self.u))
     }
 
     /// How much this view's level set counts at `p`: 1 within `tol` of its support,
@@ -213,67 +228,196 @@ impl Window {
         self.views.iter().map(View::bytes).sum()
     }
 
-    /// Replaces `u` (at `points`, in the world's coordinates) by the weighted average of
-    /// the window's level sets (`View::weight`) that lie within their tolerance of the
-    /// median of them all; where none counts, or `u` is farther from zero than twice the
-    /// largest tolerance, `u` stays.
-    pub(crate) fn fuse(&self, points: &[Point], u: &mut [f64]) {
+    /// Replaces `u`, the newest view's level set at its own vertices `points` (in the
+    /// world's coordinates), by the weighted average (`View::weight`) of the views'
+    /// level sets that agree with it there: a view whose value lies farther from the
+    /// newest one's than the newest view's tolerance saw something else at this place
+    /// (a door since opened, a person since gone, a junction seen from elsewhere) and
+    /// is left out. So the fused zero crossing never leaves the newest frame's own
+    /// tolerance band, and no older evidence can remove a wall the newest frame sees.
+    /// Where `u` is farther from zero than twice the largest tolerance, it stays.
+    ///
+    /// Returns the older views' returns as the alignment placed them (the evidence the
+    /// fused level set is checked against).
+    pub(crate) fn fuse(&self, points: &[Point], u: &mut [f64]) -> Vec<Point> {
         const CHUNK: usize = 256;
         let views: Vec<&View> = self.views.iter().collect();
+        let Some((&newest, older)) = views.split_last() else {
+            return Vec::new();
+        };
         // Far from zero `u` keeps its sign whatever the other frames say, and the
         // curves' course does not depend on it.
-        let band = 2.0 * views.iter().map(|v| v.tol).fold(0.0, f64::max);
+        let band = 2.0 * self.views.iter().map(|v| v.tol).fold(0.0, f64::max);
+        // Each older view as the newest one's support places it: poses are off by
+        // more than the noise, and a view averaged where its pose put it would drag
+        // the newest frame's walls by its pose error.
+        let moves: Vec<Rigid> = older.iter().map(|v| align(v, newest)).collect();
         points
             .par_chunks(CHUNK)
             .zip(u.par_chunks_mut(CHUNK))
             .for_each(|(pts, us)| {
-                // Each walk starts where the previous point of the chunk was found.
-                let mut hints = vec![0u32; views.len()];
-                let mut found: Vec<(f64, f64, f64)> = Vec::with_capacity(views.len());
-                let mut sorted: Vec<f64> = Vec::with_capacity(views.len());
                 for (&p, x) in pts.iter().zip(us.iter_mut()) {
                     if x.abs() > band {
                         continue;
                     }
-                    found.clear();
-                    for (view, hint) in views.iter().zip(hints.iter_mut()) {
-                        let w = view.weight(p);
+                    let own = *x;
+                    // The newest view counts in full on its own mesh: its end fade only
+                    // speaks of where other frames may bend its curve.
+                    let (mut sum, mut total) = (own, 1.0);
+                    for (view, m) in older.iter().zip(&moves) {
+                        let q = m.inverse(p);
+                        let w = view.weight(q);
                         if w <= 0.0 {
                             continue;
                         }
-                        let at = locate(&view.mesh, p, *hint);
-                        *hint = at.tri;
-                        found.push((at.interpolate(&view.mesh, &view.u), w, view.tol));
-                    }
-                    if found.is_empty() {
-                        continue;
-                    }
-                    // Frames farther from the frames' median than their noise allows saw
-                    // something else here (a junction seen from elsewhere, a free space
-                    // that turned): only the agreeing ones average.
-                    sorted.clear();
-                    sorted.extend(found.iter().map(|f| f.0));
-                    sorted.sort_unstable_by(f64::total_cmp);
-                    let median = sorted[sorted.len() / 2];
-                    let (mut sum, mut total) = (0.0, 0.0);
-                    for &(v, w, tol) in &found {
-                        if (v - median).abs() <= tol {
-                            sum += w * v;
-                            total += w;
+                        if let Some(v) = view.sample(q) {
+                            if (v - own).abs() <= newest.analysis.scales.noise {
+                                sum += w * v;
+                                total += w;
+                            }
                         }
                     }
-                    if total > 0.0 {
-                        *x = sum / total;
-                    }
+                    *x = sum / total;
                 }
             });
+        older
+            .iter()
+            .zip(&moves)
+            .flat_map(|(v, m)| {
+                v.analysis
+                    .support
+                    .iter()
+                    .flat_map(move |s| s.points.iter().map(move |&q| m.apply(q)))
+            })
+            .collect()
     }
+}
+
+/// A rigid motion of the plane: `p -> R p + t`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Rigid {
+    cos: f64,
+    sin: f64,
+    t: Point,
+}
+
+impl Rigid {
+    const IDENTITY: Rigid = Rigid {
+        cos: 1.0,
+        sin: 0.0,
+        t: [0.0, 0.0],
+    };
+
+    fn apply(&self, p: Point) -> Point {
+        [
+            self.cos * p[0] - self.sin * p[1] + self.t[0],
+            self.sin * p[0] + self.cos * p[1] + self.t[1],
+        ]
+    }
+
+    fn inverse(&self, p: Point) -> Point {
+        let (x, y) = (p[0] - self.t[0], p[1] - self.t[1]);
+        [self.cos * x + self.sin * y, -self.sin * x + self.cos * y]
+    }
+
+    /// `self` followed by the small motion turning by `angle` about `c` and moving by
+    /// `d`.
+    fn then(&self, angle: f64, c: Point, d: Point) -> Rigid {
+        let (s, co) = angle.sin_cos();
+        let step = Rigid {
+            cos: co,
+            sin: s,
+            t: [
+                c[0] - (co * c[0] - s * c[1]) + d[0],
+                c[1] - (s * c[0] + co * c[1]) + d[1],
+            ],
+        };
+        let t = step.apply(self.t);
+        Rigid {
+            cos: co * self.cos - s * self.sin,
+            sin: s * self.cos + co * self.sin,
+            t,
+        }
+    }
+}
+
+/// The rigid motion that lays `view`'s support onto `newest`'s (point-to-line ICP, a
+/// few Gauss-Newton steps): each return of the older view pairs with the nearest point
+/// of the newest view's runs, if within `8 tol` (a pose error larger than that is not
+/// corrected), and the motion minimises their distances along the runs' normals. A
+/// direction the pairs do not constrain (along a straight corridor) is held still by a
+/// damping term, and the identity is kept when too few returns pair or the motion
+/// would reach past the gate.
+fn align(view: &View, newest: &View) -> Rigid {
+    use nalgebra::{Matrix3, Vector3};
+    const STEPS: usize = 6;
+    let gate = 8.0 * newest.tol;
+    let source: Vec<Point> = view
+        .analysis
+        .support
+        .iter()
+        .flat_map(|s| s.points.iter().copied())
+        .collect();
+    if source.len() < 8 || newest.index.is_empty() {
+        return Rigid::IDENTITY;
+    }
+    let segments = newest.index.segments();
+    let mut m = Rigid::IDENTITY;
+    for _ in 0..STEPS {
+        let (mut a, mut b) = (Matrix3::<f64>::zeros(), Vector3::<f64>::zeros());
+        let mut pairs = 0usize;
+        let moved: Vec<Point> = source.iter().map(|&q| m.apply(q)).collect();
+        let c = moved
+            .iter()
+            .fold([0.0, 0.0], |s, p| [s[0] + p[0], s[1] + p[1]]);
+        let c = [c[0] / moved.len() as f64, c[1] / moved.len() as f64];
+        for &q in &moved {
+            let Some((d, k, t)) = newest.index.nearest(q) else {
+                continue;
+            };
+            if d > gate {
+                continue;
+            }
+            let (s0, s1) = segments[k];
+            let dir = [s1[0] - s0[0], s1[1] - s0[1]];
+            let len = dir[0].hypot(dir[1]);
+            if len == 0.0 {
+                continue;
+            }
+            let n = [-dir[1] / len, dir[0] / len];
+            let on = [s0[0] + t * dir[0], s0[1] + t * dir[1]];
+            let r = n[0] * (q[0] - on[0]) + n[1] * (q[1] - on[1]);
+            let arm = [-(q[1] - c[1]), q[0] - c[0]];
+            let j = Vector3::new(n[0], n[1], n[0] * arm[0] + n[1] * arm[1]);
+            a += j * j.transpose();
+            b -= j * r;
+            pairs += 1;
+        }
+        if pairs < 8 {
+            return Rigid::IDENTITY;
+        }
+        // Damping: a thousandth of the constraint's strength, in each direction's
+        // own units (the angle's scaled by the spread of the returns).
+        let damp = 1e-3 * a.trace() / 3.0;
+        let x = match (a + Matrix3::identity() * damp).lu().solve(&b) {
+            Some(x) if x.iter().all(|v| v.is_finite()) => x,
+            _ => return Rigid::IDENTITY,
+        };
+        m = m.then(x[2], c, [x[0], x[1]]);
+        if x[0].hypot(x[1]) < 1e-3 * newest.tol && x[2].abs() < 1e-6 {
+            break;
+        }
+    }
+    if m.t[0].hypot(m.t[1]) > gate && m.sin.abs() > 0.1 {
+        return Rigid::IDENTITY;
+    }
+    m
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::geom::BBox;
+    use crate::geom::{BBox, Polyline};
 
     /// A view of a straight wall `y = wall` seen from below, its level set the signed
     /// distance `y - wall`, meshed over `[-2, 2]^2`.
@@ -299,32 +443,80 @@ mod tests {
             range_max: 10.0,
         })
         .unwrap();
-        let analysis = Analysis::new(scan, &crate::scan::ScanParams::default());
+        let params = crate::scan::ScanParams {
+            range_noise: Some(0.01),
+            ..Default::default()
+        };
+        let analysis = Analysis::new(scan, &params);
         View::new(frame, Some(t), mesh, u, analysis, 0.05)
     }
 
-    /// Near the walls the frames saw, the average crossing is the average of theirs; a
-    /// frame that saw the wall elsewhere (farther than its tolerance from the median) is
-    /// left out; far from the curve the newest frame's value stays.
+    /// A view that agrees with the newest one within the noise averages in by its
+    /// weight; one that saw something else here (farther than the noise) is left out,
+    /// so the newest frame's wall cannot move by more than its noise; far from the
+    /// curve the newest value stays.
     #[test]
-    fn level_sets_average_near_the_walls_the_frames_saw() {
+    fn agreeing_views_average_and_others_are_left_out() {
         let limits = WindowLimits {
             frames: 10,
             seconds: None,
         };
+        let newest = wall(3, 3.0, 1.0);
+        let sigma = newest.analysis.scales.noise;
+        assert!(sigma > 0.0 && sigma < 0.05, "{sigma}");
+        let shifted = |frame: u64, by: f64| {
+            let mut v = wall(frame, frame as f64, 1.0);
+            v.u.iter_mut().for_each(|x| *x += by);
+            v
+        };
         let mut w = Window::default();
-        for (i, y) in [1.3, 1.0, 1.02, 0.98, 1.04].into_iter().enumerate() {
-            w.push(wall(i as u64, i as f64, y), &limits);
-        }
-        let pts = [[0.0, 1.0], [0.3, 1.01], [0.0, -1.5]];
-        // The newest frame's own level set: its wall is at 1.04.
-        let mut u = pts.map(|p| p[1] - 1.04);
+        w.push(shifted(0, 10.0 * sigma), &limits);
+        w.push(shifted(1, 0.5 * sigma), &limits);
+        w.push(newest, &limits);
+        let p = [0.0, 1.0];
+        let weight = w.views().nth(1).unwrap().weight(p);
+        assert!(weight > 0.0);
+        let mut u = [0.0, -1.5 - 1.0];
+        let pts = [p, [0.0, -1.5]];
         w.fuse(&pts, &mut u);
-        // The median wall is at 1.02; the mean of those within 0.05 of it is at 1.01 (P1
-        // on a uniform mesh is exact for a linear field); the wall at 1.3 is left out.
-        assert!((u[0] - (1.0 - 1.01)).abs() < 1e-9, "{}", u[0]);
-        assert!(u[1].abs() < 1e-9, "{}", u[1]);
-        assert_eq!(u[2], -1.5 - 1.04);
+        let expected = weight * 0.5 * sigma / (1.0 + weight);
+        assert!(
+            (u[0] - expected).abs() < 1e-9,
+            "{} against {expected}",
+            u[0]
+        );
+        assert_eq!(u[1], -1.5 - 1.0);
+    }
+
+    /// Point-to-line alignment recovers a small pose error of a view that sees two
+    /// walls meeting at a corner (either wall alone leaves a direction free).
+    #[test]
+    fn alignment_recovers_a_small_pose_error() {
+        let corner = |m: Rigid| {
+            let pts: Vec<Point> = (0..60)
+                .map(|i| [-1.0 + i as f64 * 0.05, 1.0])
+                .chain((0..60).map(|i| [2.0, 1.0 - i as f64 * 0.05]))
+                .map(|p| m.apply(p))
+                .collect();
+            pts
+        };
+        let mut newest = wall(1, 1.0, 1.0);
+        let mut older = wall(0, 0.0, 1.0);
+        let error = Rigid::IDENTITY.then(0.01, [0.5, 0.5], [0.03, -0.02]);
+        newest.analysis.support = vec![Polyline {
+            closed: false,
+            points: corner(Rigid::IDENTITY),
+        }];
+        newest.index = SegmentIndex::new(&newest.analysis.support);
+        older.analysis.support = vec![Polyline {
+            closed: false,
+            points: corner(error),
+        }];
+        let m = align(&older, &newest);
+        for p in [[0.0, 1.0], [2.0, 0.0], [-1.0, 1.0]] {
+            let back = m.apply(error.apply(p));
+            assert!(crate::geom::dist(back, p) < 1e-3, "{p:?} -> {back:?}");
+        }
     }
 
     /// Frames leave by count and by age, and a restart empties the window.

@@ -242,6 +242,26 @@ impl Polyline {
         self.segments().map(|(a, b)| dist(a, b)).sum()
     }
 
+    /// Whether `p` lies inside the closed polyline (even-odd rule); false for an open
+    /// one.
+    pub fn encloses(&self, p: Point) -> bool {
+        if !self.closed {
+            return false;
+        }
+        let pts = &self.points;
+        let mut inside = false;
+        for (i, &a) in pts.iter().enumerate() {
+            let b = pts[(i + 1) % pts.len()];
+            if (a[1] > p[1]) != (b[1] > p[1]) {
+                let x = a[0] + (p[1] - a[1]) / (b[1] - a[1]) * (b[0] - a[0]);
+                if p[0] < x {
+                    inside = !inside;
+                }
+            }
+        }
+        inside
+    }
+
     /// Signed area (positive when counter-clockwise); zero for an open polyline.
     pub fn signed_area(&self) -> f64 {
         if !self.closed {

@@ -59,6 +59,7 @@
 #![warn(missing_docs)]
 #![deny(rustdoc::broken_intra_doc_links)]
 
+mod band;
 mod distance;
 mod error;
 mod export;
@@ -84,7 +85,7 @@ pub use field::MeshParams;
 pub use fusion::{Window, WindowLimits};
 pub use geom::{BBox, Point, Polyline, Pose};
 pub use index::SegmentIndex;
-pub use levelset::{Init, LinearSolver, Scheme, Settle, SolverParams, StopReason};
+pub use levelset::{Init, LinearSolver, Scheme, Settle, SolverParams, Start, StopReason};
 pub use mesh::Mesh;
 pub use reconstruct::{reconstruct, reconstruct_scan, reconstruct_warm, Params, Reconstruction};
 pub use repair::strokes::Junction;

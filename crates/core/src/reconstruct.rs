@@ -327,6 +327,19 @@ pub fn adapt_moving(
     previous: Option<&Mesh>,
     motion: Option<(crate::geom::Pose, crate::geom::Pose)>,
 ) -> AdaptedMesh {
+    // A scan's mesh is its band, built from the runs; a frame with no run to mesh (its
+    // field is then of all its returns) is adapted as a point cloud is.
+    if let Some(scan) = prepared
+        .scan
+        .as_ref()
+        .filter(|_| !prepared.metric.chain_offsets.is_empty())
+    {
+        let metric = &prepared.metric;
+        let h = metric.params.hmin;
+        // Twice the settle's reach, `4 sigma + 4 hmin`: the curve never leaves it.
+        let half_width = 8.0 * (scan.scales.noise + h);
+        return crate::band::band(&scan.support, metric, h, half_width);
+    }
     let local = |m: &Mesh, motion: Option<(crate::geom::Pose, crate::geom::Pose)>| {
         let mut m = m.clone();
         if let Some((from, to)) = motion {
@@ -352,20 +365,17 @@ pub fn solve(prepared: &Prepared, adapted: &AdaptedMesh, previous: Option<Previo
     let params = &prepared.params;
     match &prepared.scan {
         // A scan's free space is a better start than any earlier frame's level set
-        // (which, in a moving sensor's frame, is in the wrong place): the warm start is
-        // the mesh, adapted from the previous frame's.
-        Some(scan) => {
-            let mut solved = evolve::solve(
-                &prepared.metric,
-                adapted,
-                prepared.diag,
-                &prepared.placement,
-                evolve::Start::FreeSpace(&scan.free),
-                &params.solver,
-            );
-            solved.warm_start = adapted.warm;
-            solved
-        }
+        // (which, in a moving sensor's frame, is in the wrong place): a scan frame is
+        // always built from its own scan, and refinement (`export_refined`) is where
+        // earlier frames count.
+        Some(scan) => evolve::solve(
+            &prepared.metric,
+            adapted,
+            prepared.diag,
+            &prepared.placement,
+            evolve::Start::FreeSpace(&scan.free),
+            &params.solver,
+        ),
         None => evolve::solve(
             &prepared.metric,
             adapted,
@@ -405,6 +415,7 @@ pub fn export_refined(
     let Some(scan) = &prepared.scan else {
         return export(prepared, adapted, solved);
     };
+    let t0 = Instant::now();
     let at = prepared.placement;
     let world = |p: Point| to_world(pose, at.to_data(p));
     let mut mesh = adapted.mesh.clone();
@@ -417,13 +428,50 @@ pub fn export_refined(
         limits,
     );
     let newest = window.views().last().expect("the frame just pushed");
-    window.fuse(&newest.mesh.coords, &mut u);
+    let own_u = solved.u.clone();
+    let evidence = window.fuse(&newest.mesh.coords, &mut u);
     solved.u = u.iter().map(|&x| at.len_to_local(x)).collect();
+    // The invariant: a refined frame explains every return its own level set explains
+    // (within the accuracy bound `3 sigma + 2 hmin`), and fits the window's returns
+    // (its own and the older frames', as the alignment placed them) at least as well
+    // as its own level set does: the mean of their distances to it, capped at the
+    // bound so that returns no curve explains weigh alike. Where the window fails
+    // either (a pose error the alignment did not catch, a scene that changed) the
+    // frame keeps its own level set.
+    let bound = 3.0 * scan.scales.noise + 2.0 * adapted.params.hmin;
+    let own_returns: Vec<Point> = scan.run_points().into_iter().flatten().collect();
+    let to_local = |p: Point| at.to_local(crate::geom::to_sensor(pose, p));
+    let window_returns: Vec<Point> = evidence.into_iter().map(to_local).collect();
+    let located = |pts: &[Point]| crate::fem::locate::locate_all(&adapted.mesh, pts);
+    let (own_at, window_at) = (located(&own_returns), located(&window_returns));
+    let inside: Vec<&crate::fem::locate::Location> = window_at
+        .iter()
+        .zip(&window_returns)
+        .filter(|(l, &p)| crate::fem::locate::gap(&adapted.mesh, l, p) <= 1e-3 * bound)
+        .map(|(l, _)| l)
+        .collect();
+    let fit = |u: &[f64]| {
+        let d = |l: &crate::fem::locate::Location| l.interpolate(&adapted.mesh, u).abs().min(bound);
+        let explained = own_at.iter().filter(|l| d(l) < bound).count();
+        let sum: f64 = own_at.iter().chain(inside.iter().copied()).map(d).sum();
+        (explained, sum)
+    };
+    let ((fused_explained, fused_sum), (own_explained, own_sum)) = (fit(&solved.u), fit(&own_u));
+    let fused = fused_explained >= own_explained && fused_sum <= own_sum;
+    if !fused {
+        solved.u = own_u;
+    }
+    solved.start = if fused {
+        crate::levelset::Start::Fused
+    } else {
+        crate::levelset::Start::Fallback
+    };
     // A curve ends where its run's last return is; each frame's is off by its own
-    // noise, and the median over the window much less.
+    // noise, and the median over the window much less (a frame that keeps its own level
+    // set keeps its own ends too).
     let mut own = scan.clone();
     let local = |p: Point| at.to_local(crate::geom::to_sensor(pose, p));
-    for pl in own.support.iter_mut().filter(|pl| !pl.closed) {
+    for pl in own.support.iter_mut().filter(|pl| fused && !pl.closed) {
         let n = pl.points.len();
         for i in [0, n.saturating_sub(1)] {
             if let Some(m) = window.median_end(world(pl.points[i]), 2.0 * tol) {
@@ -436,7 +484,12 @@ pub fn export_refined(
         points: window.points(),
         bytes: window.bytes(),
     };
-    export_with(prepared, Some(&own), adapted, solved, Some(stats))
+    // The fusion is part of the export stage's time.
+    let mut r = export_with(prepared, Some(&own), adapted, solved, Some(stats));
+    let fusion = t0.elapsed().as_secs_f64() * 1e3 - r.stats.ms.export;
+    r.stats.ms.export += fusion.max(0.0);
+    r.stats.ms.total += fusion.max(0.0);
+    r
 }
 
 /// [`export`] with the scan analysis `scan_analysis` (the prepared one, or one with the
@@ -516,7 +569,11 @@ fn export_with(
         iterations: report.iterations,
         residual: at.len_to_data(residual),
         converged: report.converged,
-        warm_start: solved.warm_start,
+        start: solved.start,
+        warm_start: matches!(
+            solved.start,
+            crate::levelset::Start::Warm | crate::levelset::Start::Fused
+        ),
         ms,
         stop: report.stop,
         scheme: solved.settings.scheme,
@@ -534,7 +591,7 @@ fn export_with(
             .map(|a| at.len_to_data(a.scales.noise)),
         explained: fit.explained,
         fit_p90: fit.p90.is_finite().then_some(fit.p90),
-        cold_fallback: solved.cold_fallback,
+        cold_fallback: solved.start == crate::levelset::Start::Fallback,
         window,
     };
     Reconstruction {

@@ -1,7 +1,7 @@
 //! What one reconstruction did: sizes, the solver's outcome, the fit and the time per
 //! stage. Plain data: the file formats (isoline-io) render it as a record's `stats`.
 
-use crate::levelset::{Scheme, StopReason};
+use crate::levelset::{Scheme, Start, StopReason};
 
 /// Milliseconds per stage of one frame.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -50,11 +50,13 @@ pub struct Stats {
     pub residual: f64,
     /// Whether the residual got below `eps`.
     pub converged: bool,
-    /// Whether the frame started from the previous frame (its level set, or for a scan
-    /// its mesh).
+    /// Where the frame's level set came from.
+    pub start: Start,
+    /// Whether earlier frames shaped the result: a point frame's warm start, or a scan
+    /// refined over its window (`start` is `Warm` or `Fused`).
     pub warm_start: bool,
-    /// A warm start was tried, came out clearly worse than the previous frame, and was
-    /// replaced by a cold one (`warm_start` is then false).
+    /// Earlier frames were tried and rejected (`start` is `Fallback`; `warm_start` is
+    /// then false).
     pub cold_fallback: bool,
     /// Time per stage.
     pub ms: StageMs,

@@ -219,8 +219,15 @@ pub struct FrameStats {
     pub residual: f64,
     /// Whether the residual got below `eps`.
     pub converged: bool,
-    /// Whether the frame started from the previous frame's level set.
+    /// Whether earlier frames shaped the result: a point frame warm-started from the
+    /// previous one's level set, or a scan refined over its window.
     pub warm_start: bool,
+    /// Where the level set came from: `cold`, `warm` or `fallback` (a warm start
+    /// rejected for a cold one) for point frames; `scan` (its own scan), `fused`
+    /// (refined over its window) or `fallback` (the refinement explained fewer returns
+    /// than the frame's own level set, which it kept) for scans.
+    #[serde(default)]
+    pub start: String,
     /// Time per stage.
     pub ms: StageMs,
     /// Why the solver stopped: `converged`, `stagnated` or `max_iterations`.
@@ -254,8 +261,7 @@ pub struct FrameStats {
     /// The 90th percentile of the points' distances to the curves.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub fit_p90: Option<f64>,
-    /// A warm start was tried, came out clearly worse than the previous frame, and was
-    /// replaced by a cold one (`warm_start` is then false).
+    /// Earlier frames were tried and rejected (`start` is `fallback`).
     #[serde(default, skip_serializing_if = "std::ops::Not::not")]
     pub cold_fallback: bool,
     /// With refinement over frames (`[pipeline] accumulate`): the window the frame was
@@ -418,6 +424,7 @@ impl From<&isoline_core::Stats> for FrameStats {
             residual: s.residual,
             converged: s.converged,
             warm_start: s.warm_start,
+            start: s.start.name().into(),
             ms: StageMs::from(&s.ms),
             stop: s.stop.as_str().into(),
             scheme: s.scheme.to_string(),

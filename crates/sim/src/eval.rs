@@ -168,46 +168,8 @@ pub fn scan_scores(
     let returns = scan.returns();
     let explained = returns.iter().filter(|&&p| ic.distance(p) <= tol).count();
     let step = 0.25 * tol;
-    // Curve in free space, by arc length: inside the polygon the rays swept (a beam
-    // without a return within two beams of returns on both sides is spanned by their
-    // chord, as a dropout; one farther from any is free to the maximum range) by more
-    // than the tolerance.
-    let n = scan.angles.len();
-    let reach: Vec<f64> = (0..n)
-        .map(|i| {
-            if scan.valid(i) {
-                return scan.ranges[i];
-            }
-            let before = (1..=2).find_map(|o| i.checked_sub(o).filter(|&j| scan.valid(j)));
-            let after = (1..=2).find_map(|o| Some(i + o).filter(|&j| j < n && scan.valid(j)));
-            match (before, after) {
-                (Some(a), Some(b)) => {
-                    let f = (i - a) as f64 / (b - a) as f64;
-                    scan.ranges[a] * (1.0 - f) + scan.ranges[b] * f
-                }
-                _ => scan.range_max,
-            }
-        })
-        .collect();
-    let free = isoline_core::FreeSpace {
-        origin: scan.origin,
-        angles: scan.angles.clone(),
-        reach,
-        full_turn: scan.full_turn(),
-        max_gap: if scan.free_rays {
-            f64::INFINITY
-        } else {
-            3.0 * scan.step
-        },
-    };
-    let boundary = SegmentIndex::new(&[free.polygon()]);
-    let (mut free_len, mut total_len) = (0.0, 0.0);
-    for (p, w) in samples(curves, step) {
-        total_len += w;
-        if free.contains(p) && boundary.distance(p) > tol {
-            free_len += w;
-        }
-    }
+    let free = swept(scan);
+    let (free_len, total_len) = in_free_space(curves, &free, tol, step);
     let openings_bridged = openings
         .iter()
         .filter(|&&(a, b)| {
@@ -279,6 +241,149 @@ pub fn scan_scores(
         openings: openings.len(),
         gaps_bridged,
         walls_missed,
+    }
+}
+
+/// The polygon a scan's rays swept, as the scores read it: through the returns in beam
+/// order; a beam without a return within two beams of returns on both sides is spanned
+/// by their chord (a dropout), one farther from any is free to the maximum range.
+fn swept(scan: &isoline_core::Scan) -> isoline_core::FreeSpace {
+    let n = scan.angles.len();
+    let reach: Vec<f64> = (0..n)
+        .map(|i| {
+            if scan.valid(i) {
+                return scan.ranges[i];
+            }
+            let before = (1..=2).find_map(|o| i.checked_sub(o).filter(|&j| scan.valid(j)));
+            let after = (1..=2).find_map(|o| Some(i + o).filter(|&j| j < n && scan.valid(j)));
+            match (before, after) {
+                (Some(a), Some(b)) => {
+                    let f = (i - a) as f64 / (b - a) as f64;
+                    scan.ranges[a] * (1.0 - f) + scan.ranges[b] * f
+                }
+                _ => scan.range_max,
+            }
+        })
+        .collect();
+    isoline_core::FreeSpace {
+        origin: scan.origin,
+        angles: scan.angles.clone(),
+        reach,
+        full_turn: scan.full_turn(),
+        max_gap: if scan.free_rays {
+            f64::INFINITY
+        } else {
+            3.0 * scan.step
+        },
+    }
+}
+
+/// The length of `curves` lying in `free` space by more than `tol` (sampled every
+/// `step`), and their whole length.
+fn in_free_space(
+    curves: &[Polyline],
+    free: &isoline_core::FreeSpace,
+    tol: f64,
+    step: f64,
+) -> (f64, f64) {
+    let boundary = SegmentIndex::new(&[free.polygon()]);
+    let (mut free_len, mut total_len) = (0.0, 0.0);
+    for (p, w) in samples(curves, step) {
+        total_len += w;
+        if free.contains(p) && boundary.distance(p) > tol {
+            free_len += w;
+        }
+    }
+    (free_len, total_len)
+}
+
+/// Scores of a scan frame's curves that need no truth, only the scan: what a user
+/// checks on a real recording.
+#[derive(Clone, Debug, PartialEq)]
+pub struct DataScores {
+    /// The tolerance used (`tol`); curves "on the data" are within twice it.
+    pub tolerance: f64,
+    /// Returns in the frame.
+    pub returns: usize,
+    /// Share of the returns within `tol` of a curve.
+    pub returns_explained: f64,
+    /// Mean distance from the explained returns to the nearest curve.
+    pub mean_distance: f64,
+    /// Share of the curves' length within `2 tol` of a return.
+    pub curve_on_data: f64,
+    /// Share of the curves' length in space the rays saw as free, by more than `tol`.
+    pub free_space_share: f64,
+    /// Total length of the curves.
+    pub length: f64,
+    /// Closed curves.
+    pub closed: usize,
+    /// Curves with more than `2 tol` of their length in free space within
+    /// [`PHANTOM_REACH`] of the sensor: pieces a user would trip over.
+    pub phantoms: usize,
+}
+
+/// How near the sensor a curve in free space counts as a phantom, in the scan's units
+/// (metres for real sensors).
+pub const PHANTOM_REACH: f64 = 1.0;
+
+/// The scores of `curves` against `scan` alone (the frame's beams, in the curves'
+/// coordinates), with tolerance `tol` (5 cm for metres).
+pub fn data_scores(curves: &[Polyline], scan: &isoline_core::Scan, tol: f64) -> DataScores {
+    let ic = SegmentIndex::new(curves);
+    let returns = scan.returns();
+    let near: Vec<f64> = returns
+        .par_iter()
+        .map(|&p| ic.distance(p))
+        .filter(|&d| d <= tol)
+        .collect();
+    let step = 0.25 * tol;
+    let free = swept(scan);
+    let (free_len, total_len) = in_free_space(curves, &free, tol, step);
+    let returns_index = isoline_core::DistanceField::new(&returns).ok();
+    let mut on_data = 0.0;
+    for (p, w) in samples(curves, step) {
+        if returns_index
+            .as_ref()
+            .is_some_and(|f| f.distance(p) <= 2.0 * tol)
+        {
+            on_data += w;
+        }
+    }
+    let boundary = SegmentIndex::new(&[free.polygon()]);
+    let phantoms = curves
+        .iter()
+        .filter(|c| {
+            let near_free: f64 = samples(std::slice::from_ref(*c), step)
+                .iter()
+                .filter(|(p, _)| {
+                    dist(*p, scan.origin) <= PHANTOM_REACH
+                        && free.contains(*p)
+                        && boundary.distance(*p) > tol
+                })
+                .map(|x| x.1)
+                .sum();
+            near_free > 2.0 * tol
+        })
+        .count();
+    let share = |a: f64, b: f64| if b > 0.0 { a / b } else { 0.0 };
+    DataScores {
+        tolerance: tol,
+        returns: returns.len(),
+        returns_explained: if returns.is_empty() {
+            1.0
+        } else {
+            near.len() as f64 / returns.len() as f64
+        },
+        mean_distance: if near.is_empty() {
+            0.0
+        } else {
+            near.iter().sum::<f64>() / near.len() as f64
+        },
+        curve_on_data: share(on_data, total_len),
+        free_space_share: share(free_len, total_len),
+        length: total_len,
+        closed: curves.iter().filter(|c| c.closed).count(),
+        phantoms,
     }
 }
 

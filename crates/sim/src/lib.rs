@@ -25,5 +25,8 @@ mod eval;
 pub mod lidar;
 mod shapes;
 
-pub use eval::{compare, compare_surfaces, scan_scores, Accuracy, ScanScores};
+pub use eval::{
+    compare, compare_surfaces, data_scores, scan_scores, Accuracy, DataScores, ScanScores,
+    PHANTOM_REACH,
+};
 pub use shapes::{generate, Shape, SynthFrame, SynthParams};

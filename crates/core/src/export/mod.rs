@@ -56,6 +56,7 @@ pub fn curves(
     params: &ExportParams,
 ) -> (Vec<Polyline>, Vec<Feature>) {
     let mut polylines = zero_isoline(mesh, u, 1e-9 * diag);
+
     // Loops smaller than a disc of radius 3 hmin are below what the mesh resolves: specks
     // left where the level set grazes zero between samples. On a scan the support
     // decides what stays, and a small loop can be real (the tip of the wedge of free
@@ -70,7 +71,9 @@ pub fn curves(
     }
     let mut features = Vec::new();
     if let Some((a, tol)) = scan {
+        polylines = support::visible_from(polylines, &a.scan);
         polylines = support::cut_to_support(&polylines, &a.support, tol, hmin, 0.5 * tol, hmin);
+
         // Refined curves are precise enough for their walls' lines to be trusted.
         if a.refine {
             crate::repair::corners::sharpen(&mut polylines, tol);

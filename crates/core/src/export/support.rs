@@ -295,6 +295,89 @@ pub struct Feature {
     pub returns: usize,
 }
 
+/// What one scan can show of each closed curve: a scan sees a surface only from the
+/// sensor's side, so a closed curve is possible only round a sensor inside it (a 360°
+/// scanner in a room). Any other loop (a sliver round a thin wall, a fold through noisy
+/// returns; a loop round a sensor that does not see all round) is opened to the
+/// stretches the sensor sees: those whose midpoints lie in its field of view and that
+/// the straight line from the sensor reaches without crossing the loop.
+pub fn visible_from(polylines: Vec<Polyline>, scan: &crate::scan::Scan) -> Vec<Polyline> {
+    let origin = scan.origin;
+    let full_turn = scan.full_turn();
+    let (first, last) = match (scan.angles.first(), scan.angles.last()) {
+        (Some(&a), Some(&b)) => (a, b),
+        _ => return polylines,
+    };
+    let spacing = (last - first).abs() / scan.angles.len().max(2) as f64;
+    let in_view = |m: Point| {
+        full_turn || {
+            let a = (m[1] - origin[1]).atan2(m[0] - origin[0]);
+            (a - first).rem_euclid(std::f64::consts::TAU) <= (last - first) + spacing
+        }
+    };
+    let mut out = Vec::with_capacity(polylines.len());
+    for pl in polylines {
+        if !pl.closed || pl.points.len() < 3 || (full_turn && pl.encloses(origin)) {
+            out.push(pl);
+            continue;
+        }
+        let p = &pl.points;
+        let n = p.len();
+        let seen: Vec<bool> = (0..n)
+            .map(|i| {
+                let (a, b) = (p[i], p[(i + 1) % n]);
+                let m = [0.5 * (a[0] + b[0]), 0.5 * (a[1] + b[1])];
+                in_view(m)
+                    && !(0..n).any(|j| {
+                        j != i && {
+                            let (c, d) = (p[j], p[(j + 1) % n]);
+                            crosses(origin, m, c, d)
+                        }
+                    })
+            })
+            .collect();
+        if seen.iter().all(|&s| s) {
+            // Only possible for a degenerate loop: keep it as it is.
+            out.push(pl);
+            continue;
+        }
+        // Start just after a hidden segment, so that no stretch wraps round.
+        let start = (0..n).find(|&i| !seen[i]).map_or(0, |i| i + 1);
+        let mut piece: Vec<Point> = Vec::new();
+        for k in 0..n {
+            let i = (start + k) % n;
+            if seen[i] {
+                if piece.is_empty() {
+                    piece.push(p[i]);
+                }
+                piece.push(p[(i + 1) % n]);
+            } else if piece.len() >= 2 {
+                out.push(Polyline {
+                    closed: false,
+                    points: std::mem::take(&mut piece),
+                });
+            } else {
+                piece.clear();
+            }
+        }
+        if piece.len() >= 2 {
+            out.push(Polyline {
+                closed: false,
+                points: piece,
+            });
+        }
+    }
+    out
+}
+
+/// Whether the segments `a b` and `c d` cross (touching at an end does not count).
+fn crosses(a: Point, b: Point, c: Point, d: Point) -> bool {
+    let o = crate::geom::orient;
+    let (d1, d2) = (o(a, b, c), o(a, b, d));
+    let (d3, d4) = (o(c, d, a), o(c, d, b));
+    d1 * d2 < 0.0 && d3 * d4 < 0.0
+}
+
 /// The returns farther than `tol` from every curve, grouped into features by run:
 /// `runs` lists each run's returns in bearing order.
 pub fn unexplained(runs: &[Vec<Point>], curves: &[Polyline], tol: f64) -> Vec<Feature> {
@@ -328,6 +411,56 @@ pub fn unexplained(runs: &[Vec<Point>], curves: &[Polyline], tol: f64) -> Vec<Fe
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A scan over the half turn ahead of a sensor at the origin (facing +y).
+    fn half_turn() -> crate::scan::Scan {
+        let ranges = vec![Some(2.0); 181];
+        crate::scan::Scan::from_laser(&crate::scan::LaserScan {
+            origin: [0.0, 0.0],
+            angle_min: 0.0,
+            angle_increment: std::f64::consts::PI / 180.0,
+            ranges: &ranges,
+            range_min: 0.1,
+            range_max: 10.0,
+        })
+        .unwrap()
+    }
+
+    /// A sliver round a wall ahead of the sensor keeps only the side facing it; a loop
+    /// round the sensor of a scanner that does not see all round opens where the field
+    /// of view ends; open curves pass as they are.
+    #[test]
+    fn a_scan_keeps_only_what_the_sensor_sees_of_a_loop() {
+        let scan = half_turn();
+        let sliver = Polyline {
+            closed: true,
+            points: vec![[-1.0, 2.0], [1.0, 2.0], [1.0, 2.05], [-1.0, 2.05]],
+        };
+        let out = visible_from(vec![sliver], &scan);
+        assert_eq!(out.len(), 1);
+        assert!(!out[0].closed);
+        assert!(
+            out[0].points.iter().all(|p| p[1] == 2.0),
+            "{:?}",
+            out[0].points
+        );
+        let round = Polyline {
+            closed: true,
+            points: vec![[-2.0, -1.0], [2.0, -1.0], [2.0, 2.0], [-2.0, 2.0]],
+        };
+        let out = visible_from(vec![round], &scan);
+        assert!(out.iter().all(|p| !p.closed));
+        // The wall behind the sensor (y = -1) is out of view.
+        assert!(out
+            .iter()
+            .flat_map(|p| p.points.windows(2))
+            .all(|w| w[0][1] > -1.0 || w[1][1] > -1.0));
+        let open = Polyline {
+            closed: false,
+            points: vec![[-1.0, 2.0], [1.0, 2.0]],
+        };
+        assert_eq!(visible_from(vec![open.clone()], &scan), vec![open]);
+    }
 
     fn line(points: &[Point], closed: bool) -> Polyline {
         Polyline {

@@ -148,7 +148,10 @@ pub fn covers(mesh: &Mesh, points: &[Point]) -> bool {
 }
 
 /// Locates every point of `points`, in parallel chunks; each walk starts where the
-/// previous point of its chunk was found.
+/// previous point of its chunk was found. A walk that ends outside the mesh (the point
+/// is outside it, or the walk met a boundary between it and the point: a mesh with
+/// holes or several parts, as a scan's band) is tried again from the triangle of the
+/// point's nearest vertex, and the nearer of the two answers is kept.
 pub fn locate_all(mesh: &Mesh, points: &[Point]) -> Vec<Location> {
     const CHUNK: usize = 256;
     let start = first_live(mesh) as u32;
@@ -159,16 +162,85 @@ pub fn locate_all(mesh: &Mesh, points: &[Point]) -> Vec<Location> {
         };
         points.len()
     ];
+    // Built on the first walk that needs it: a convex mesh with its points inside never
+    // does.
+    let vertices = std::sync::OnceLock::new();
     out.par_chunks_mut(CHUNK)
         .zip(points.par_chunks(CHUNK))
         .for_each(|(locs, pts)| {
             let mut from = start;
             for (l, &p) in locs.iter_mut().zip(pts) {
                 *l = locate(mesh, p, from);
+                if outside(mesh, l, p) {
+                    if let Some(index) = vertices.get_or_init(|| VertexIndex::new(mesh)) {
+                        let again = index.locate(mesh, p);
+                        if gap(mesh, &again, p) < gap(mesh, l, p) {
+                            *l = again;
+                        }
+                    }
+                }
                 from = l.tri;
             }
         });
     out
+}
+
+/// A kd-tree over a mesh's vertices, to start each walk at the triangle of the vertex
+/// nearest the point: on a mesh with gaps (a scan's band) a walk from anywhere else can
+/// stop at a boundary between it and the point.
+pub(crate) struct VertexIndex {
+    tree: kiddo::ImmutableKdTree<f64, 2>,
+}
+
+impl VertexIndex {
+    /// The index of `mesh`'s vertices; `None` for a mesh without any.
+    pub(crate) fn new(mesh: &Mesh) -> Option<VertexIndex> {
+        if mesh.coords.is_empty()
+            || mesh
+                .coords
+                .iter()
+                .any(|c| !c[0].is_finite() || !c[1].is_finite())
+        {
+            return None;
+        }
+        kiddo::ImmutableKdTree::new_from_slice(&mesh.coords)
+            .ok()
+            .map(|tree| VertexIndex { tree })
+    }
+
+    /// Locates `p` by a walk from the triangle of its nearest vertex.
+    pub(crate) fn locate(&self, mesh: &Mesh, p: Point) -> Location {
+        let v = self
+            .tree
+            .query(&p)
+            .nearest_one::<kiddo::SquaredEuclidean<f64>>()
+            .execute()
+            .item as usize;
+        locate(mesh, p, mesh.vert_tri[v])
+    }
+
+    /// `p`'s location, or `None` when it lies farther than `slack` outside the mesh.
+    pub(crate) fn locate_within(&self, mesh: &Mesh, p: Point, slack: f64) -> Option<Location> {
+        let l = self.locate(mesh, p);
+        (gap(mesh, &l, p) <= slack).then_some(l)
+    }
+}
+
+/// Whether the walk that gave `l` stopped outside the mesh, short of `p`.
+fn outside(mesh: &Mesh, l: &Location, p: Point) -> bool {
+    barycentric(mesh, l.tri as usize, p)
+        .iter()
+        .any(|&b| b < -1e-9)
+}
+
+/// How far `p` is from where `l` puts it.
+pub(crate) fn gap(mesh: &Mesh, l: &Location, p: Point) -> f64 {
+    let t = mesh.tris[l.tri as usize];
+    let q = (0..3).fold([0.0, 0.0], |acc, i| {
+        let c = mesh.coords[t[i] as usize];
+        [acc[0] + l.bary[i] * c[0], acc[1] + l.bary[i] * c[1]]
+    });
+    crate::geom::dist(p, q)
 }
 
 #[cfg(test)]

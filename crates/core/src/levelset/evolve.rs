@@ -29,9 +29,8 @@ pub struct Solved {
     pub(crate) settings: SolverSettings,
     /// Whether the level set started from the previous frame's.
     pub(crate) warm_start: bool,
-    /// Whether a warm start was tried, found worse than the previous frame, and
-    /// replaced by a cold one.
-    pub(crate) cold_fallback: bool,
+    /// Where the level set came from.
+    pub(crate) start: crate::levelset::Start,
     /// Whether the data enclose anything: false when a tube start found no inside
     /// region (open strokes, or samples too sparse to close) and the level set started
     /// from the box around them, whose loop then explains nothing.
@@ -169,7 +168,12 @@ pub fn solve(
         settings: attempt.settings,
         warm_start: attempt.warm_start,
         enclosed: attempt.enclosed,
-        cold_fallback,
+        start: match (start, attempt.warm_start, cold_fallback) {
+            (Start::FreeSpace(_), ..) => crate::levelset::Start::Scan,
+            (_, true, _) => crate::levelset::Start::Warm,
+            (_, _, true) => crate::levelset::Start::Fallback,
+            _ => crate::levelset::Start::Cold,
+        },
         renormalized: attempt.renormalized,
         ms_distance,
         ms: t0.elapsed().as_secs_f64() * 1e3,
@@ -451,7 +455,11 @@ pub fn renormalize(mesh: &Mesh, solved: &mut Solved) {
     let t = Instant::now();
     Redistancer::new().run(mesh, &solved.space, &mut solved.u, f64::INFINITY);
     solved.renormalized = true;
-    solved.ms_renormalize += t.elapsed().as_secs_f64() * 1e3;
+    // `ms` is the whole of the frame's solve and renormalize stages, so that the solve's
+    // own share (`ms` less its parts) is never negative.
+    let ms = t.elapsed().as_secs_f64() * 1e3;
+    solved.ms_renormalize += ms;
+    solved.ms += ms;
 }
 
 /// Makes `u`, a level set at `mesh`'s vertices, the signed distance to its own zero

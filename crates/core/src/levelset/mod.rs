@@ -11,5 +11,5 @@ pub mod solver;
 pub mod warm;
 
 pub use init::Init;
-pub use params::{Settle, SolverParams, MAX_STEPS};
+pub use params::{Settle, SolverParams, Start, MAX_STEPS};
 pub use solver::{LinearSolver, Scheme, StopReason};

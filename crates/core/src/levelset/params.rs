@@ -238,3 +238,39 @@ impl SolverParams {
         }
     }
 }
+
+/// Where a frame's level set came from.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(rename_all = "lowercase"))]
+pub enum Start {
+    /// A point frame started from scratch.
+    #[default]
+    Cold,
+    /// A point frame started from the previous frame's level set.
+    Warm,
+    /// The previous frames were tried and made the frame worse than its own data
+    /// warrant: a point frame's warm start that explained less than the previous frame
+    /// (replaced by a cold start), or a scan's refinement that explained fewer of its
+    /// returns than its own level set (which it kept).
+    Fallback,
+    /// A scan frame built from its own scan: its band and the free space its rays swept.
+    /// A scan is never warm-started: its own free space is a better start than any
+    /// earlier frame's level set, and its band costs less than moving the last one.
+    Scan,
+    /// A scan frame built from its own scan and refined over its stream's window.
+    Fused,
+}
+
+impl Start {
+    /// The name records carry.
+    pub fn name(self) -> &'static str {
+        match self {
+            Start::Cold => "cold",
+            Start::Warm => "warm",
+            Start::Fallback => "fallback",
+            Start::Scan => "scan",
+            Start::Fused => "fused",
+        }
+    }
+}

@@ -75,8 +75,12 @@ pub fn center_on_data(
         }
     }
     // The metric's fits found each sample's nearest neighbours already; the first `k` of
-    // them will do when there are that many. Allocation is fine here: once per frame.
-    let found: Vec<Vec<u32>> = if dense {
+    // them will do when there are that many. A sample on a chain takes its chain window
+    // instead and needs none. Allocation is fine here: once per frame.
+    let on_chain = |j: u32| !metric.chain_window(j as usize).is_empty();
+    let found: Vec<Vec<u32>> = if needed.iter().all(|&j| on_chain(j)) || (!dense && k <= metric.k) {
+        Vec::new()
+    } else if dense {
         needed
             .par_iter()
             .map_init(Vec::new, |buf, &j| {
@@ -86,8 +90,6 @@ pub fn center_on_data(
                 buf.iter().step_by(stride).copied().collect()
             })
             .collect()
-    } else if k <= metric.k {
-        Vec::new()
     } else {
         needed
             .par_iter()

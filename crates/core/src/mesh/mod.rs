@@ -90,27 +90,39 @@ impl Mesh {
     /// vertex is a corner when its two boundary edges are not collinear).
     pub(crate) fn from_triangles(coords: Vec<Point>, tris: Vec<[u32; 3]>) -> Mesh {
         let n = coords.len();
-        let mut directed: HashMap<(u32, u32), (u32, u8)> = HashMap::with_capacity(tris.len() * 3);
+        // Each edge once per triangle, keyed by its sorted ends: the two triangles of an
+        // interior edge sort next to each other.
+        let mut edges: Vec<(u32, u32, u32, u8)> = Vec::with_capacity(tris.len() * 3);
         for (t, tri) in tris.iter().enumerate() {
             for i in 0..3 {
-                let e = (tri[(i + 1) % 3], tri[(i + 2) % 3]);
-                directed.insert(e, (t as u32, i as u8));
+                let (a, b) = (tri[(i + 1) % 3], tri[(i + 2) % 3]);
+                edges.push((a.min(b), a.max(b), t as u32, i as u8));
             }
         }
+        edges.sort_unstable();
         let mut adj = vec![[INVALID; 3]; tris.len()];
+        let mut k = 0;
+        while k < edges.len() {
+            let (a, b, t, i) = edges[k];
+            match edges.get(k + 1) {
+                Some(&(a2, b2, t2, i2)) if (a2, b2) == (a, b) => {
+                    adj[t as usize][i as usize] = t2;
+                    adj[t2 as usize][i2 as usize] = t;
+                    k += 2;
+                }
+                _ => k += 1,
+            }
+        }
         let mut vert_tri = vec![INVALID; n];
         let mut boundary_next: Vec<u32> = vec![INVALID; n];
         let mut boundary_prev: Vec<u32> = vec![INVALID; n];
         for (t, tri) in tris.iter().enumerate() {
             for i in 0..3 {
                 vert_tri[tri[i] as usize] = t as u32;
-                let (a, b) = (tri[(i + 1) % 3], tri[(i + 2) % 3]);
-                match directed.get(&(b, a)) {
-                    Some(&(o, _)) => adj[t][i] = o,
-                    None => {
-                        boundary_next[a as usize] = b;
-                        boundary_prev[b as usize] = a;
-                    }
+                if adj[t][i] == INVALID {
+                    let (a, b) = (tri[(i + 1) % 3], tri[(i + 2) % 3]);
+                    boundary_next[a as usize] = b;
+                    boundary_prev[b as usize] = a;
                 }
             }
         }

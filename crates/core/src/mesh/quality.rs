@@ -30,8 +30,9 @@ pub fn quality(p: [Point; 3], m: [&Sym2; 3]) -> f64 {
     }
 }
 
-/// Statistics of a mesh measured in a metric given at its vertices.
-#[derive(Clone, Debug, PartialEq)]
+/// Statistics of a mesh measured in a metric given at its vertices (zero where no
+/// metric was measured: a scan's band is built, not adapted to one).
+#[derive(Clone, Debug, Default, PartialEq)]
 pub struct MeshStats {
     /// Live vertices.
     pub vertices: usize,

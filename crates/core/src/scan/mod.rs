@@ -41,9 +41,8 @@ pub struct ScanParams {
     /// rather than gaps. Default 2.
     pub dropout_beams: usize,
     /// Set by the daemon's refinement over frames (`[pipeline] accumulate`), not a key
-    /// of `[scan]`: the window's average takes the noise down, so a frame's returns are
-    /// not smoothed along their runs (which rounds corners) and its mesh resolves half
-    /// the noise.
+    /// of `[scan]`: the window's average takes the noise down, so the refined curves'
+    /// corners are sharpened along their walls' lines.
     pub refine: bool,
 }
 
@@ -595,10 +594,9 @@ impl Analysis {
         } else {
             scan.runs(scales.noise, params)
         };
-        // Four returns a side smooth a frame's noise along its runs; with refinement the
-        // window's average does, without rounding the corners.
-        let window = if params.refine { 0 } else { 4 };
-        let smooth = scan.smoothed_ranges(&runs, window, scales.noise);
+        // Four returns a side smooth a frame's noise along its runs. A refined frame is
+        // analysed alike: its own level set is the one the window must beat.
+        let smooth = scan.smoothed_ranges(&runs, 4, scales.noise);
         let free = scan.free_space(&runs, params.dropout_beams, &smooth);
         let n = scan.angles.len();
         let support = runs
@@ -690,38 +688,29 @@ impl Analysis {
     pub fn mesh_params(&self, mesh: &MeshParams, diag: f64) -> MeshParams {
         let mut p = mesh.clone();
         let s = &self.scales;
-        // With refinement the window averages the noise down, and the mesh resolves
-        // half of it.
-        let share = if self.refine { 0.5 } else { 1.0 };
         let hmin = p
             .hmin
-            .unwrap_or_else(|| (share * s.noise).max(0.25 * s.spacing).max(1e-4 * diag));
+            .unwrap_or_else(|| s.noise.max(0.25 * s.spacing).max(1e-4 * diag));
         p.hmin = Some(hmin);
         p.band = Some(p.band.unwrap_or(4.0 * hmin));
         p.gradation = Some(p.gradation.unwrap_or(0.6));
         p
     }
 
-    /// The distance field and metric frames of this scan's mesh: only the runs long
-    /// enough to become curves are meshed (a lone return, a spurious echo or a far table
-    /// leg, would cost as much mesh as a metre of wall), each sample's frame fitted along
-    /// its run (8 neighbours a side span the local shape without reaching across a
-    /// corner), and the mesh fine where a run ends, so that its end is resolved. A scan
-    /// with no such run falls back to the field of all its returns (`points`).
+    /// The distance field of this scan's band: only the runs long enough to become
+    /// curves are meshed (a lone return, a spurious echo or a far table leg, is a
+    /// feature), each sample with its chain window along its run (8 returns a side span
+    /// the local shape without reaching across a corner), which the settle takes its
+    /// median over. A scan with no such run falls back to the field of all its returns
+    /// (`points`), adapted as a point cloud's.
     pub fn metric_field(&self, params: &MeshParams, points: &[Point]) -> Result<MetricField> {
         let chains: Vec<Vec<Point>> = self.support.iter().map(|pl| pl.points.clone()).collect();
         if chains.iter().map(Vec::len).sum::<usize>() < 2 {
             return MetricField::new(points, params);
         }
-        let hmin = params.hmin.unwrap_or(0.0);
-        let mut m = MetricField::along_chains(
-            &chains,
-            params,
-            8,
-            |h| 2.0 * h,
-            (4.0 * hmin).max(2.0 * self.scales.spacing),
-        )?;
+        let mut m = MetricField::of_chains(&chains, params, 8)?;
         m.noise_estimate = self.scales.noise;
+        m.one_wall_noise = self.scales.noise;
         Ok(m)
     }
 

@@ -1,0 +1,66 @@
+#!/usr/bin/env bash
+# The real-recording table of docs/benchmarks.md: each CARMEN log (*.log.gz) and NDJSON
+# beam stream (*.ndjson.gz) in $ISOLINE_REAL is unpacked into target/real-logs/ and
+# replayed through the daemon as fast as it goes, single-frame (cold, and warm: the same
+# frames with warm starts on) and refined over 10 frames (`accumulate = 10`), with
+# scripts/split_and_merge.py on the same frames; each run is scored by `isoline eval
+# --frames` (no truth: returns within 5 cm of a curve, curve within 10 cm of a return,
+# curve in the free space the beams swept, mean distance from explained returns to the
+# curve, closed curves, phantom pieces within 1 m of the sensor), and against the cold
+# run frame by frame (frames 5+ points worse). Medians over frames.
+# Usage: ISOLINE_REAL=DIR scripts/real-logs.sh
+set -euo pipefail
+. "$(dirname "$0")/lib.sh"
+real=${ISOLINE_REAL:-}
+if [ -z "$real" ] || ! ls "$real"/*.gz > /dev/null 2>&1; then
+  echo "no recordings in ISOLINE_REAL='$real' (*.log.gz CARMEN logs, *.ndjson.gz beam streams)" >&2
+  # The docs test runs every documented command without the recordings.
+  [ "$quick" = 1 ] && exit 0
+  exit 1
+fi
+dir=target/real-logs
+mkdir -p "$dir"
+for gz in "$real"/*.gz; do
+  name=$(basename "$gz" .gz)
+  case $name in
+    *.log) name=${name%.log}; zcat "$gz" > "$dir/$name.clf"; "$bin" convert "$dir/$name.clf" -o "$dir/$name.ndjson" 2>/dev/null ;;
+    *.ndjson) name=${name%.ndjson}; zcat "$gz" > "$dir/$name.ndjson" ;;
+    *) continue ;;
+  esac
+  frames=$dir/$name.ndjson
+  [ "$quick" = 1 ] && { head -n 20 "$frames" > "$frames.quick"; mv "$frames.quick" "$frames"; }
+  for run in cold warm refined; do
+    case $run in
+      cold) pipeline='warm_start = false' ;;
+      warm) pipeline='warm_start = true' ;;
+      refined) pipeline='accumulate = 10' ;;
+    esac
+    printf '[input]\npath = "%s"\nreplay = "fast"\n[output]\npath = "%s"\n[pipeline]\n%s\n' \
+      "$name.ndjson" "$name.$run.out.ndjson" "$pipeline" > "$dir/$name.$run.toml"
+    (cd "$dir" && "$OLDPWD/$bin" run -c "$name.$run.toml" 2> "$name.$run.log")
+    "$bin" eval "$dir/$name.$run.out.ndjson" --frames "$frames" > "$dir/$name.$run.eval.json"
+  done
+  python3 scripts/split_and_merge.py "$frames" "$dir/$name.sam.out.ndjson" --sigma 0.01 > /dev/null
+  "$bin" eval "$dir/$name.sam.out.ndjson" --frames "$frames" > "$dir/$name.sam.eval.json"
+  python3 - "$dir" "$name" <<'PY'
+import json, re, statistics, sys
+d, name = sys.argv[1:]
+ev = lambda r: json.load(open(f"{d}/{name}.{r}.eval.json"))
+cold = {f["frame"]: f for f in ev("cold")["frames"]}
+def fps(r):
+    try:
+        m = re.findall(r"([0-9.]+) frames/s", open(f"{d}/{name}.{r}.log").read())
+        return m[-1] if m else "-"
+    except FileNotFoundError:
+        return "-"
+print(f"{name}: {len(cold)} frames")
+print(f"  {'run':8s} {'5cm':>6s} {'10cm':>6s} {'free':>7s} {'mean cm':>8s} {'worse':>6s} {'closed':>6s} {'phantom':>7s} {'ms':>6s} {'fps':>7s}")
+for r in ["cold", "warm", "refined", "sam"]:
+    e = ev(r)
+    worse = sum(1 for f in e["frames"] if f["frame"] in cold and f["returns_explained"] < cold[f["frame"]]["returns_explained"] - 0.05)
+    ms = e.get("ms")
+    print(f"  {r:8s} {e['returns_explained']:6.3f} {e['curve_on_data']:6.3f} {e['free_space_share']:7.4f} "
+          f"{100 * e['mean_distance']:8.2f} {worse:6d} {e['frames_with_closed_curves']:6d} {e['frames_with_phantoms']:7d} "
+          f"{(ms if ms is not None else float('nan')):6.2f} {fps(r) if r != 'sam' else '-':>7s}")
+PY
+done
