@@ -170,7 +170,19 @@ fn columns(run: &Polyline, h: f64) -> Vec<(Point, Point)> {
         start.reverse();
         out.extend(start);
     }
-    out.extend((0..n as isize).map(|i| (at(i), normal(sub(smooth_at(i + 1), smooth_at(i - 1))))));
+    // Along the run the level set varies on the scale of the noise window, not from
+    // return to return: where returns lie closer than `h` (a dense scanner near a
+    // wall), a column every `h` of arc resolves the curve as well as one per return,
+    // at a fraction of the vertices. A run's first and last returns keep theirs.
+    let mut last: Option<Point> = None;
+    for i in 0..n as isize {
+        let q = at(i);
+        let end = i == 0 || i == n as isize - 1;
+        if end || last.is_none_or(|l| dist(l, q) >= h) {
+            out.push((q, normal(sub(smooth_at(i + 1), smooth_at(i - 1)))));
+            last = Some(q);
+        }
+    }
     if !run.closed {
         out.extend(beyond(p[n - 1], p[n - 2], sub(p[n - 1], p[n - 2])));
     }

@@ -57,6 +57,8 @@ pub(crate) struct View {
     /// Its mesh's vertices, to start a walk from the vertex nearest a point: a band
     /// mesh has gaps that a walk from anywhere else cannot cross.
     vertices: Option<VertexIndex>,
+    /// The motion that lays it onto the window's newest view.
+    to_newest: Rigid,
 }
 
 impl View {
@@ -89,6 +91,7 @@ impl View {
             index,
             ends,
             vertices,
+            to_newest: Rigid::IDENTITY,
         }
     }
 
@@ -157,6 +160,15 @@ impl Window {
         });
         if restarted {
             self.views.clear();
+        }
+        // Each older view is laid onto the newest through the chain of consecutive
+        // alignments: one ICP a frame (each older view aligned afresh cost 4 ms a frame
+        // of ten on a 180-beam scan), the chain's error growing only with the window.
+        if let Some(last) = self.views.back() {
+            let step = align(last, &view);
+            for v in &mut self.views {
+                v.to_newest = v.to_newest.followed_by(&step);
+            }
         }
         self.views.push_back(view);
         let newest_t = self.views.back().and_then(|v| v.t);
@@ -248,10 +260,10 @@ impl Window {
         // Far from zero `u` keeps its sign whatever the other frames say, and the
         // curves' course does not depend on it.
         let band = 2.0 * self.views.iter().map(|v| v.tol).fold(0.0, f64::max);
-        // Each older view as the newest one's support places it: poses are off by
-        // more than the noise, and a view averaged where its pose put it would drag
-        // the newest frame's walls by its pose error.
-        let moves: Vec<Rigid> = older.iter().map(|v| align(v, newest)).collect();
+        // Each older view as the newest one's support places it (`Window::push`):
+        // poses are off by more than the noise, and a view averaged where its pose put
+        // it would drag the newest frame's walls by its pose error.
+        let moves: Vec<Rigid> = older.iter().map(|v| v.to_newest).collect();
         points
             .par_chunks(CHUNK)
             .zip(u.par_chunks_mut(CHUNK))
@@ -313,6 +325,15 @@ impl Rigid {
             self.cos * p[0] - self.sin * p[1] + self.t[0],
             self.sin * p[0] + self.cos * p[1] + self.t[1],
         ]
+    }
+
+    /// `self`, then `next`.
+    fn followed_by(&self, next: &Rigid) -> Rigid {
+        Rigid {
+            cos: next.cos * self.cos - next.sin * self.sin,
+            sin: next.sin * self.cos + next.cos * self.sin,
+            t: next.apply(self.t),
+        }
     }
 
     fn inverse(&self, p: Point) -> Point {
