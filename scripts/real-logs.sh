@@ -40,13 +40,16 @@ for gz in "$real"/*.gz; do
     (cd "$dir" && "$OLDPWD/$bin" run -c "$name.$run.toml" 2> "$name.$run.log")
     "$bin" eval "$dir/$name.$run.out.ndjson" --frames "$frames" > "$dir/$name.$run.eval.json"
   done
-  python3 scripts/split_and_merge.py "$frames" "$dir/$name.sam.out.ndjson" --sigma 0.01 > /dev/null
+  python3 scripts/split_and_merge.py "$frames" "$dir/$name.sam.out.ndjson" --sigma 0.01 > "$dir/$name.sam.log" 2>&1
   "$bin" eval "$dir/$name.sam.out.ndjson" --frames "$frames" > "$dir/$name.sam.eval.json"
   python3 - "$dir" "$name" <<'PY'
 import json, re, statistics, sys
 d, name = sys.argv[1:]
 ev = lambda r: json.load(open(f"{d}/{name}.{r}.eval.json"))
 cold = {f["frame"]: f for f in ev("cold")["frames"]}
+def sam_ms():
+    m = re.findall(r"median ([0-9.]+) ms a frame", open(f"{d}/{name}.sam.log").read())
+    return float(m[-1]) if m else float("nan")
 def fps(r):
     try:
         m = re.findall(r"([0-9.]+) frames/s", open(f"{d}/{name}.{r}.log").read())
@@ -58,7 +61,7 @@ print(f"  {'run':8s} {'5cm':>6s} {'10cm':>6s} {'free':>7s} {'mean cm':>8s} {'wor
 for r in ["cold", "warm", "refined", "sam"]:
     e = ev(r)
     worse = sum(1 for f in e["frames"] if f["frame"] in cold and f["returns_explained"] < cold[f["frame"]]["returns_explained"] - 0.05)
-    ms = e.get("ms")
+    ms = sam_ms() if r == "sam" else e.get("ms")
     print(f"  {r:8s} {e['returns_explained']:6.3f} {e['curve_on_data']:6.3f} {e['free_space_share']:7.4f} "
           f"{100 * e['mean_distance']:8.2f} {worse:6d} {e['frames_with_closed_curves']:6d} {e['frames_with_phantoms']:7d} "
           f"{(ms if ms is not None else float('nan')):6.2f} {fps(r) if r != 'sam' else '-':>7s}")
