@@ -1,22 +1,20 @@
 //! Refinement over frames (`[pipeline] accumulate`): a stream whose scan frames carry a
-//! pose keeps its last frames' level sets in the world's coordinates, and each new
-//! frame's level set is averaged with theirs before its curves are drawn.
+//! pose keeps its last frames' band meshes and level sets in the world's coordinates,
+//! and each new frame's level set is averaged with theirs before its curves are drawn.
 //!
 //! Every frame's level set is a signed distance to its own curve (negative on the
 //! sensor's side), so near a wall the frames saw, the average's zero crossing is the
 //! average of their crossings: `k` frames of independent noise put the curve about
 //! `sqrt k` closer to the wall. Each frame counts only near its own data (within the
 //! support's tolerance of its runs of returns, fading to nothing at twice that): away
-//! from them its level set says where its free space ended, not where a wall is, and
-//! would drag the curves of walls it did not see.
+//! from them its level set says where its free space ended, not where a wall is.
 //!
-//! The average is taken on the new frame's mesh, and the curves are cut to the supports
-//! of the whole window. A wall seen by earlier frames of the window stays in the
-//! records while it lies within the new frame's meshed domain, even hidden from the new
-//! frame; when the last frame that saw it leaves the window, it leaves the records: the
-//! window is what the sensor sees now and saw a moment ago, not a map that grows
-//! without bound (that is a mapping system's job, and its memory would grow with the
-//! distance driven).
+//! Older frames are laid onto the newest by point-to-line ICP (`Window::push`), and
+//! count only where they agree with the newest frame within its range noise
+//! (`Window::fuse`). The average is taken on the newest frame's band, which holds only
+//! its own runs: a wall the newest frame does not see is not drawn, and nothing older
+//! frames saw can remove a wall it does see. The window is what the sensor sees now,
+//! sharpened by what it saw a moment ago, not a map.
 
 use std::collections::VecDeque;
 
@@ -243,10 +241,11 @@ impl Window {
     /// Replaces `u`, the newest view's level set at its own vertices `points` (in the
     /// world's coordinates), by the weighted average (`View::weight`) of the views'
     /// level sets that agree with it there: a view whose value lies farther from the
-    /// newest one's than the newest view's tolerance saw something else at this place
-    /// (a door since opened, a person since gone, a junction seen from elsewhere) and
-    /// is left out. So the fused zero crossing never leaves the newest frame's own
-    /// tolerance band, and no older evidence can remove a wall the newest frame sees.
+    /// newest one's than the newest frame's range noise saw something else at this
+    /// place (a door since opened, a person since gone, a pose error the alignment did
+    /// not catch) and is left out. So the fused zero crossing never leaves the newest
+    /// frame's noise band, and no older evidence can remove a wall the newest frame
+    /// sees.
     /// Where `u` is farther from zero than twice the largest tolerance, it stays.
     ///
     /// Returns the older views' returns as the alignment placed them (the evidence the

@@ -214,6 +214,19 @@ impl BBox {
     }
 }
 
+/// Where the segments `a0 a1` and `b0 b1` cross, if they do.
+pub fn crossing(a0: Point, a1: Point, b0: Point, b1: Point) -> Option<Point> {
+    let (da, db) = (sub(a1, a0), sub(b1, b0));
+    let den = cross(da, db);
+    if den.abs() < 1e-300 {
+        return None;
+    }
+    let d = sub(b0, a0);
+    let s = cross(d, db) / den;
+    let r = cross(d, da) / den;
+    ((0.0..=1.0).contains(&s) && (0.0..=1.0).contains(&r)).then(|| add(a0, scale(da, s)))
+}
+
 /// A polyline; `closed` means the last point connects back to the first (which is not
 /// repeated).
 #[derive(Clone, Debug, Default, PartialEq)]

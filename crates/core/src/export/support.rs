@@ -331,7 +331,7 @@ pub fn visible_from(polylines: Vec<Polyline>, scan: &crate::scan::Scan) -> Vec<P
                     && !(0..n).any(|j| {
                         j != i && {
                             let (c, d) = (p[j], p[(j + 1) % n]);
-                            crosses(origin, m, c, d)
+                            crate::geom::crossing(origin, m, c, d).is_some()
                         }
                     })
             })
@@ -368,14 +368,6 @@ pub fn visible_from(polylines: Vec<Polyline>, scan: &crate::scan::Scan) -> Vec<P
         }
     }
     out
-}
-
-/// Whether the segments `a b` and `c d` cross (touching at an end does not count).
-fn crosses(a: Point, b: Point, c: Point, d: Point) -> bool {
-    let o = crate::geom::orient;
-    let (d1, d2) = (o(a, b, c), o(a, b, d));
-    let (d3, d4) = (o(c, d, a), o(c, d, b));
-    d1 * d2 < 0.0 && d3 * d4 < 0.0
 }
 
 /// The returns farther than `tol` from every curve, grouped into features by run:

@@ -735,9 +735,7 @@ mod tests {
             .par_iter()
             .map(|&p| {
                 let d = index.distance(p);
-                let inside = closed
-                    .iter()
-                    .fold(false, |acc, c| acc ^ crossing_parity(c, p));
+                let inside = closed.iter().fold(false, |acc, c| acc ^ c.encloses(p));
                 if inside {
                     -d
                 } else {
@@ -745,20 +743,6 @@ mod tests {
                 }
             })
             .collect()
-    }
-
-    /// Whether a ray from `p` towards +x crosses the closed polyline an odd number of times.
-    fn crossing_parity(c: &Polyline, p: Point) -> bool {
-        let mut odd = false;
-        for (a, b) in c.segments() {
-            if (a[1] > p[1]) != (b[1] > p[1]) {
-                let x = a[0] + (p[1] - a[1]) / (b[1] - a[1]) * (b[0] - a[0]);
-                if x > p[0] {
-                    odd = !odd;
-                }
-            }
-        }
-        odd
     }
 
     #[test]

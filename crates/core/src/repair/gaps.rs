@@ -21,7 +21,7 @@ use nalgebra::{Matrix3, Vector3};
 
 use crate::distance::DistanceField;
 use crate::geom::{
-    add, cross, dist, dot, mid, norm, polyline_dist, scale, sub, Point, Polyline, Sym2,
+    add, cross, crossing, dist, dot, mid, norm, polyline_dist, scale, sub, Point, Polyline, Sym2,
 };
 use crate::index::SegmentIndex;
 
@@ -797,19 +797,6 @@ pub(super) fn continued(p: Point, t: Point, k: f64, length: f64, step: f64) -> V
             add(p, add(scale(t, along), scale(n, across)))
         })
         .collect()
-}
-
-/// Where the segments `a0 a1` and `b0 b1` cross, if they do.
-pub(super) fn crossing(a0: Point, a1: Point, b0: Point, b1: Point) -> Option<Point> {
-    let (da, db) = (sub(a1, a0), sub(b1, b0));
-    let den = cross(da, db);
-    if den.abs() < 1e-300 {
-        return None;
-    }
-    let d = sub(b0, a0);
-    let s = cross(d, db) / den;
-    let r = cross(d, da) / den;
-    ((0.0..=1.0).contains(&s) && (0.0..=1.0).contains(&r)).then(|| add(a0, scale(da, s)))
 }
 
 /// The inner points of the Hermite arc from `p` to `q` with unit tangents `tp` and `tq`,

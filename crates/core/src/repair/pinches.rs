@@ -15,7 +15,8 @@
 use crate::distance::DistanceField;
 use crate::geom::{dist, dot, norm, scale, sub, Point, Polyline};
 
-use super::gaps::{crossing, Fit, Gap, Loop};
+use super::gaps::{Fit, Gap, Loop};
+use crate::geom::crossing;
 
 /// How far a join may turn from an end's run and still run along its wall, radians (45
 /// degrees: more along it than across).
