@@ -1,11 +1,10 @@
 //! Benchmarks of reconstruction: the cold `reconstruct` of the noisy circle
 //! (2,000 points, sigma 0.002) with each scheme's stages, one renormalization of its
 //! level set by fast marching, and a cold reconstruct of 20,000 points (how time grows
-//! with the number of points; 200,000 points are timed in the README); and one frame of
+//! with the number of points; 200,000 points are timed in docs/benchmarks.md); and one frame of
 //! the README's daemon stream (moving ellipse, 1,000 points, sigma 0.003, hmin 0.002),
-//! warm-started from the frame before it and cold; and one 1,080-beam scan of the
-//! simulated room (Hokuyo UTM-30LX-like, range noise 1 cm, 2% dropout, a static sensor),
-//! warm (its mesh adapted from the frame before it) and cold.
+//! warm-started from the frame before it and cold. Scan frames are benched in
+//! isoline-io's `scans` bench, beside a line extractor.
 
 use criterion::{criterion_group, criterion_main, Criterion};
 use isoline_core::{
@@ -101,48 +100,5 @@ fn stream_frame(c: &mut Criterion) {
     g.finish();
 }
 
-fn scan_frame(c: &mut Criterion) {
-    use isoline_core::stages::reconstruct_with;
-    use isoline_core::{LaserScan, Scan};
-    use isoline_sim::lidar::{simulate, LidarParams, SceneKind};
-    let mut p = LidarParams::new(SceneKind::Room);
-    p.noise = Some(0.01);
-    p.dropout = 0.02;
-    p.frames = 2;
-    let scans: Vec<Scan> = simulate(&p)
-        .unwrap()
-        .iter()
-        .map(|f| {
-            Scan::from_laser(&LaserScan {
-                origin: [0.0, 0.0],
-                angle_min: f.angle_min,
-                angle_increment: f.angle_increment,
-                ranges: &f.ranges,
-                range_min: f.range_min,
-                range_max: f.range_max,
-            })
-            .unwrap()
-        })
-        .collect();
-    assert_eq!(scans[1].angles.len(), 1080);
-    let params = Params::default();
-    let run = |s: &Scan, prev| reconstruct_with(&s.returns(), Some(s), &params, prev).unwrap();
-    let first = run(&scans[0], None);
-    // A scan frame is built from its own scan, warm stream or not.
-    assert_eq!(
-        run(&scans[1], Some(&first)).stats.start,
-        isoline_core::Start::Scan
-    );
-    let mut g = c.benchmark_group("scan_frame");
-    g.sample_size(20);
-    g.bench_function("room_1080_beams_warm", |b| {
-        b.iter(|| run(&scans[1], Some(&first)).stats.vertices)
-    });
-    g.bench_function("room_1080_beams_cold", |b| {
-        b.iter(|| run(&scans[1], None).stats.vertices)
-    });
-    g.finish();
-}
-
-criterion_group!(benches, cold, renormalize, stream_frame, scan_frame);
+criterion_group!(benches, cold, renormalize, stream_frame);
 criterion_main!(benches);
