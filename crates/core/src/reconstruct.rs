@@ -442,8 +442,11 @@ pub fn export_refined(
     let own_returns: Vec<Point> = scan.run_points().into_iter().flatten().collect();
     let to_local = |p: Point| at.to_local(crate::geom::to_sensor(pose, p));
     let window_returns: Vec<Point> = evidence.into_iter().map(to_local).collect();
-    let located = |pts: &[Point]| crate::fem::locate::locate_all(&adapted.mesh, pts);
-    let (own_at, window_at) = (located(&own_returns), located(&window_returns));
+    // One location pass for both sets: a band's walks that stop at a gap retry from a
+    // vertex index, built once.
+    let all: Vec<Point> = own_returns.iter().chain(&window_returns).copied().collect();
+    let located = crate::fem::locate::locate_all(&adapted.mesh, &all);
+    let (own_at, window_at) = located.split_at(own_returns.len());
     let inside: Vec<&crate::fem::locate::Location> = window_at
         .iter()
         .zip(&window_returns)
