@@ -1,84 +1,162 @@
-//! The live view: a Foxglove WebSocket server showing each frame's curves as they are
-//! made, on its own thread.
+//! The live view: a Foxglove WebSocket server (the ws-protocol of the Foxglove app,
+//! Foxglove Studio and Lichtblick) showing each frame's curves as they are made.
+//!
+//! The server is ours, on `tungstenite`, so that every bound holds: at most
+//! [`MAX_VIEWERS`] viewers, each with at most [`VIEWER_BACKLOG_BYTES`] of messages
+//! waiting (its oldest dropped beyond that) plus [`VIEWER_WRITE_BUFFER`] in the socket's
+//! buffer, request heads and client messages of bounded size, and an accept loop that
+//! survives running out of descriptors (`listen`). It speaks only what a viewer needs:
+//! `serverInfo`, `advertise` of the four topics, `subscribe`, `unsubscribe` and binary
+//! message data; both subprotocols viewers offer, `foxglove.sdk.v1` (the Foxglove app)
+//! and `foxglove.websocket.v1` (Foxglove Studio, Lichtblick, ws-protocol clients).
 
-use std::collections::BTreeMap;
-use std::net::SocketAddr;
+use std::collections::{BTreeMap, VecDeque};
+use std::io::ErrorKind;
+use std::net::{SocketAddr, TcpStream};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::{Arc, Mutex};
 use std::thread::JoinHandle;
+use std::time::Duration;
 
+use base64::Engine;
 use crossbeam_channel::{Receiver, Sender};
 use isoline_io::foxglove::{frame_messages, FrameView, Topic};
+use serde_json::{json, Value};
+use tungstenite::protocol::{Role, WebSocketConfig};
+use tungstenite::{Message, WebSocket};
 
 use crate::error::{Error, Result};
+use crate::pipeline::listen::{read_head, respond, Bounds, HeadError, Server, Throttle};
 
 /// How many frames the live view holds for its thread at most; the pipeline never waits
 /// for it (a frame that finds the queue full is not shown).
 pub const LIVE_QUEUE: usize = 16;
 
-/// Messages each viewer may fall behind by before its oldest are dropped.
-pub const LIVE_BACKLOG: usize = 256;
+/// Viewers served at once; more are answered `503`.
+pub const MAX_VIEWERS: usize = 16;
+
+/// Bytes of messages a viewer may fall behind by before its oldest are dropped.
+pub const VIEWER_BACKLOG_BYTES: usize = 4 << 20;
+
+/// Bytes the WebSocket may hold for a viewer's socket beyond what the kernel takes.
+pub const VIEWER_WRITE_BUFFER: usize = 1 << 20;
+
+/// The largest message a viewer may send (subscriptions are a few hundred bytes).
+pub const MAX_CLIENT_MESSAGE: usize = 64 << 10;
+
+/// The most subscriptions a viewer may hold (there are four channels).
+pub const MAX_SUBSCRIPTIONS: usize = 64;
+
+/// The subprotocols a viewer may offer, the first offered of them chosen.
+pub const SUBPROTOCOLS: [&str; 2] = ["foxglove.sdk.v1", "foxglove.websocket.v1"];
+
+/// How often a viewer's thread looks for messages to send, the stop flag and the
+/// viewer's own messages.
+const TICK: Duration = Duration::from_millis(20);
+
+/// One message waiting for a viewer.
+struct Pending {
+    subscription: u32,
+    nanos: u64,
+    data: Arc<[u8]>,
+}
+
+/// A viewer's waiting messages, bounded in bytes.
+#[derive(Default)]
+struct Backlog {
+    queue: VecDeque<Pending>,
+    bytes: usize,
+    dropped: u64,
+}
+
+/// What the broadcaster and a viewer's thread share.
+#[derive(Default)]
+struct Viewer {
+    /// Subscription id → channel id.
+    subscriptions: Mutex<BTreeMap<u32, u32>>,
+    backlog: Mutex<Backlog>,
+}
+
+impl Viewer {
+    fn push(&self, channel: u32, nanos: u64, data: &Arc<[u8]>) {
+        let subs: Vec<u32> = {
+            let s = self.subscriptions.lock().unwrap_or_else(|p| p.into_inner());
+            s.iter()
+                .filter(|(_, c)| **c == channel)
+                .map(|(id, _)| *id)
+                .collect()
+        };
+        if subs.is_empty() {
+            return;
+        }
+        let mut b = self.backlog.lock().unwrap_or_else(|p| p.into_inner());
+        for subscription in subs {
+            let size = data.len() + 13;
+            while b.bytes + size > VIEWER_BACKLOG_BYTES {
+                let Some(old) = b.queue.pop_front() else {
+                    break;
+                };
+                b.bytes -= old.data.len() + 13;
+                b.dropped += 1;
+            }
+            if size > VIEWER_BACKLOG_BYTES {
+                b.dropped += 1;
+                continue;
+            }
+            b.bytes += size;
+            b.queue.push_back(Pending {
+                subscription,
+                nanos,
+                data: data.clone(),
+            });
+        }
+    }
+
+    fn take(&self) -> VecDeque<Pending> {
+        let mut b = self.backlog.lock().unwrap_or_else(|p| p.into_inner());
+        b.bytes = 0;
+        std::mem::take(&mut b.queue)
+    }
+}
+
+type Viewers = Arc<Mutex<Vec<Arc<Viewer>>>>;
 
 /// A Foxglove WebSocket server showing frames as they are made. Frames are handed to its
-/// own thread through a short queue that never blocks ([`LiveView::show`]); the server
-/// drops a slow viewer's oldest messages. Viewers lose messages, the pipeline nothing.
+/// own thread through a short queue that never blocks ([`LiveView::show`]); a slow
+/// viewer loses its oldest messages. Viewers lose messages, the pipeline nothing.
 pub struct LiveView {
     tx: Option<Sender<FrameView>>,
     thread: Option<JoinHandle<()>>,
+    server: Option<Server>,
     addr: SocketAddr,
 }
 
 impl LiveView {
     /// Starts serving on `bind` (port 0: any free port).
     pub fn start(bind: SocketAddr) -> Result<LiveView> {
-        let ctx = foxglove::Context::new();
-        let server = ctx
-            .websocket_server()
-            .name("isoline")
-            .bind(bind.ip().to_string(), bind.port())
-            .message_backlog_size(LIVE_BACKLOG)
-            .start_blocking()
-            .map_err(|e| Error::Io {
-                path: format!("live view {bind}").into(),
-                source: std::io::Error::other(e.to_string()),
-            })?;
-        let addr = SocketAddr::new(bind.ip(), server.port());
-        let mut channels = BTreeMap::new();
-        for topic in Topic::ALL {
-            let (schema, encoding) = topic.schema();
-            let ch = ctx
-                .channel_builder(topic.name())
-                .schema(schema)
-                .message_encoding(encoding)
-                .build_raw()
-                .map_err(|e| Error::Internal(format!("live view channel: {e}")))?;
-            channels.insert(topic, ch);
-        }
+        let advertise = Arc::new(advertise()?);
+        let viewers: Viewers = Arc::default();
+        let registry = viewers.clone();
+        let dropped = Arc::new(AtomicU64::new(0));
+        let refused = Arc::new(Throttle::new());
+        let bounds = Bounds {
+            max_connections: MAX_VIEWERS,
+        };
+        let server = Server::start("live-view", bind, bounds, move |conn, peer, stop| {
+            serve_viewer(conn, peer, stop, &advertise, &registry, &refused);
+        })?;
+        let addr = server.addr();
         let (tx, rx): (Sender<FrameView>, Receiver<FrameView>) =
             crossbeam_channel::bounded(LIVE_QUEUE);
         let thread = std::thread::Builder::new()
             .name("live-view".into())
-            .spawn(move || {
-                for view in rx {
-                    let _s = tracing::info_span!(
-                        "live-view",
-                        stream = view.frame_id(),
-                        frame = view.record.frame
-                    )
-                    .entered();
-                    let meta = foxglove::PartialMetadata {
-                        log_time: Some(view.nanos()),
-                    };
-                    for (topic, data) in frame_messages(&view) {
-                        channels[&topic].log_with_meta(&data, meta);
-                    }
-                }
-                let _ = server.stop();
-                drop(ctx);
-            })
+            .spawn(move || broadcast(&rx, &viewers, &dropped))
             .map_err(|e| Error::Internal(format!("live view thread: {e}")))?;
         tracing::info!(%addr, "live view (Foxglove WebSocket) listening");
         Ok(LiveView {
             tx: Some(tx),
             thread: Some(thread),
+            server: Some(server),
             addr,
         })
     }
@@ -101,5 +179,260 @@ impl Drop for LiveView {
         if let Some(t) = self.thread.take() {
             let _ = t.join();
         }
+        // Stops accepting, then waits for the viewers' threads, which watch the flag.
+        self.server.take();
+    }
+}
+
+/// The channel id of a topic: its place in [`Topic::ALL`], from 1.
+fn channel_id(topic: Topic) -> u32 {
+    Topic::ALL.iter().position(|t| *t == topic).unwrap_or(0) as u32 + 1
+}
+
+/// The `advertise` message of the four topics.
+fn advertise() -> Result<String> {
+    let mut channels = Vec::new();
+    for topic in Topic::ALL {
+        let (schema, encoding) = topic.schema();
+        let data = if schema.encoding == "protobuf" {
+            base64::engine::general_purpose::STANDARD.encode(&schema.data)
+        } else {
+            String::from_utf8(schema.data.to_vec())
+                .map_err(|e| Error::Internal(format!("live view schema: {e}")))?
+        };
+        channels.push(json!({
+            "id": channel_id(topic),
+            "topic": topic.name(),
+            "encoding": encoding,
+            "schemaName": schema.name,
+            "schemaEncoding": schema.encoding,
+            "schema": data,
+        }));
+    }
+    Ok(json!({"op": "advertise", "channels": channels}).to_string())
+}
+
+/// The live view's thread: encodes each frame once and queues it for every viewer
+/// subscribed to its channels.
+fn broadcast(rx: &Receiver<FrameView>, viewers: &Viewers, dropped: &AtomicU64) {
+    for view in rx {
+        let _s = tracing::info_span!(
+            "live-view",
+            stream = view.frame_id(),
+            frame = view.record.frame
+        )
+        .entered();
+        let all: Vec<Arc<Viewer>> = viewers.lock().unwrap_or_else(|p| p.into_inner()).clone();
+        if all.is_empty() {
+            continue;
+        }
+        let nanos = view.nanos();
+        for (topic, data) in frame_messages(&view) {
+            let data: Arc<[u8]> = data.into();
+            for v in &all {
+                v.push(channel_id(topic), nanos, &data);
+            }
+        }
+        let lost: u64 = all
+            .iter()
+            .map(|v| {
+                std::mem::take(&mut v.backlog.lock().unwrap_or_else(|p| p.into_inner()).dropped)
+            })
+            .sum();
+        if lost > 0 {
+            dropped.fetch_add(lost, Ordering::Relaxed);
+            tracing::debug!(lost, "slow viewers: oldest messages dropped");
+        }
+    }
+}
+
+/// Serves one connection: the WebSocket handshake, then the viewer until it leaves or
+/// the server stops.
+fn serve_viewer(
+    mut conn: TcpStream,
+    peer: SocketAddr,
+    stop: &AtomicBool,
+    advertise: &str,
+    viewers: &Viewers,
+    refused: &Throttle,
+) {
+    let head = match read_head(&mut conn) {
+        Ok(h) => h,
+        Err(HeadError::TooLarge) => {
+            return respond(conn, 431, "text/plain", b"request head too large\n")
+        }
+        Err(HeadError::Malformed) => {
+            return respond(conn, 400, "text/plain", b"not an HTTP request\n")
+        }
+        Err(HeadError::Gone) => return,
+    };
+    let offered: Vec<&str> = head.values("sec-websocket-protocol").collect();
+    let chosen: Option<&'static str> = offered
+        .iter()
+        .find_map(|p| SUBPROTOCOLS.iter().find(|s| *s == p))
+        .copied();
+    let key = head.values("sec-websocket-key").next().map(str::to_string);
+    let (Some(protocol), Some(key), true) = (chosen, key, head.has_token("upgrade", "websocket"))
+    else {
+        let why = if head.has_token("upgrade", "websocket") {
+            format!(
+                "no Foxglove subprotocol offered (offered: {}; expected one of: {})",
+                if offered.is_empty() {
+                    "none".to_string()
+                } else {
+                    offered.join(", ")
+                },
+                SUBPROTOCOLS.join(", ")
+            )
+        } else {
+            "not a WebSocket upgrade: connect a Foxglove viewer (docs/formats.md)".to_string()
+        };
+        refused
+            .warn(|skipped| tracing::warn!(%peer, skipped, "live view handshake refused: {why}"));
+        return respond(conn, 400, "text/plain", format!("{why}\n").as_bytes());
+    };
+    let accept = tungstenite::handshake::derive_accept_key(key.as_bytes());
+    let response = format!(
+        "HTTP/1.1 101 Switching Protocols\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n\
+         Sec-WebSocket-Accept: {accept}\r\nSec-WebSocket-Protocol: {protocol}\r\n\r\n"
+    );
+    let _ = conn.set_write_timeout(Some(Duration::from_secs(5)));
+    if std::io::Write::write_all(&mut conn, response.as_bytes()).is_err()
+        || conn.set_read_timeout(Some(TICK)).is_err()
+        || conn.set_write_timeout(Some(TICK)).is_err()
+    {
+        return;
+    }
+    let config = WebSocketConfig::default()
+        .max_message_size(Some(MAX_CLIENT_MESSAGE))
+        .max_frame_size(Some(MAX_CLIENT_MESSAGE))
+        .max_write_buffer_size(VIEWER_WRITE_BUFFER);
+    drop(offered);
+    let mut ws = WebSocket::from_partially_read(conn, head.rest, Role::Server, Some(config));
+    tracing::info!(%peer, protocol, "viewer connected");
+    let viewer = Arc::new(Viewer::default());
+    let info = json!({
+        "op": "serverInfo",
+        "name": "isoline",
+        "capabilities": [],
+        "metadata": {},
+        "sessionId": format!("{}", std::process::id()),
+    });
+    let hello = ws
+        .send(Message::text(info.to_string()))
+        .and_then(|()| ws.send(Message::text(advertise.to_string())));
+    if hello.is_err() {
+        return;
+    }
+    viewers
+        .lock()
+        .unwrap_or_else(|p| p.into_inner())
+        .push(viewer.clone());
+    let why = run_viewer(&mut ws, &viewer, stop);
+    viewers
+        .lock()
+        .unwrap_or_else(|p| p.into_inner())
+        .retain(|v| !Arc::ptr_eq(v, &viewer));
+    tracing::info!(%peer, why, "viewer left");
+}
+
+/// A connected viewer's loop; why it ended.
+fn run_viewer(ws: &mut WebSocket<TcpStream>, viewer: &Viewer, stop: &AtomicBool) -> &'static str {
+    let mut unknown_warned = false;
+    while !stop.load(Ordering::Relaxed) {
+        match ws.read() {
+            Ok(Message::Text(t)) => {
+                if let Some(status) = handle_request(&t, viewer, &mut unknown_warned) {
+                    let _ = ws.write(Message::text(status));
+                }
+            }
+            Ok(Message::Close(_)) => return "closed",
+            Ok(_) => {}
+            Err(tungstenite::Error::Io(e))
+                if matches!(e.kind(), ErrorKind::WouldBlock | ErrorKind::TimedOut) => {}
+            Err(tungstenite::Error::Capacity(_)) => return "sent a message too large",
+            Err(_) => return "gone",
+        }
+        for m in viewer.take() {
+            let mut frame = Vec::with_capacity(13 + m.data.len());
+            frame.push(1u8);
+            frame.extend_from_slice(&m.subscription.to_le_bytes());
+            frame.extend_from_slice(&m.nanos.to_le_bytes());
+            frame.extend_from_slice(&m.data);
+            match ws.write(Message::binary(frame)) {
+                Ok(()) => {}
+                // The socket's buffer is full: this viewer reads slower than frames
+                // come; what does not fit is dropped, as the backlog's oldest are.
+                Err(tungstenite::Error::WriteBufferFull(_)) => break,
+                Err(tungstenite::Error::Io(e))
+                    if matches!(e.kind(), ErrorKind::WouldBlock | ErrorKind::TimedOut) => {}
+                Err(_) => return "gone",
+            }
+        }
+        match ws.flush() {
+            Ok(()) => {}
+            Err(tungstenite::Error::Io(e))
+                if matches!(e.kind(), ErrorKind::WouldBlock | ErrorKind::TimedOut) => {}
+            Err(_) => return "gone",
+        }
+    }
+    let _ = ws.close(None);
+    let _ = ws.flush();
+    "the run ended"
+}
+
+/// Applies a viewer's `subscribe` or `unsubscribe`; a `status` message to send back when
+/// something in it was refused (one per request, however many entries it names).
+fn handle_request(text: &str, viewer: &Viewer, unknown_warned: &mut bool) -> Option<String> {
+    let status =
+        |message: String| Some(json!({"op": "status", "level": 1, "message": message}).to_string());
+    let Ok(v) = serde_json::from_str::<Value>(text) else {
+        return status("not JSON".into());
+    };
+    let mut subs = viewer
+        .subscriptions
+        .lock()
+        .unwrap_or_else(|p| p.into_inner());
+    match v["op"].as_str() {
+        Some("subscribe") => {
+            let (mut unknown, mut over) = (0usize, 0usize);
+            for s in v["subscriptions"].as_array().into_iter().flatten() {
+                let (Some(id), Some(ch)) = (s["id"].as_u64(), s["channelId"].as_u64()) else {
+                    unknown += 1;
+                    continue;
+                };
+                if !(1..=Topic::ALL.len() as u64).contains(&ch) || id > u64::from(u32::MAX) {
+                    unknown += 1;
+                } else if subs.len() >= MAX_SUBSCRIPTIONS && !subs.contains_key(&(id as u32)) {
+                    over += 1;
+                } else {
+                    subs.insert(id as u32, ch as u32);
+                }
+            }
+            if unknown + over == 0 {
+                return None;
+            }
+            if !*unknown_warned {
+                *unknown_warned = true;
+                tracing::debug!(unknown, over, "viewer subscriptions refused");
+            }
+            status(format!(
+                "{unknown} subscriptions name no advertised channel; {over} over the limit of \
+                 {MAX_SUBSCRIPTIONS}"
+            ))
+        }
+        Some("unsubscribe") => {
+            for id in v["subscriptionIds"].as_array().into_iter().flatten() {
+                if let Some(id) = id.as_u64() {
+                    subs.remove(&(id as u32));
+                }
+            }
+            None
+        }
+        Some(op) => status(format!(
+            "unsupported op {:?}",
+            op.chars().take(40).collect::<String>()
+        )),
+        None => status("no op".into()),
     }
 }

@@ -4,17 +4,15 @@
 //! on its own thread, loopback by default (`[metrics] bind`).
 
 use std::net::SocketAddr;
-use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
-use std::thread::JoinHandle;
-use std::time::Duration;
 
 use prometheus::{
     Encoder, Histogram, HistogramOpts, HistogramVec, IntCounter, IntCounterVec, IntGaugeVec, Opts,
     Registry, TextEncoder,
 };
 
-use crate::error::{Error, Result};
+use crate::error::Result;
+use crate::pipeline::listen::{read_head, respond, Bounds, HeadError, Server};
 
 /// The queues between stages, by the stage that reads them.
 pub const QUEUES: [&str; 6] = [
@@ -179,79 +177,54 @@ impl Metrics {
     }
 }
 
+/// Connections the metrics endpoint serves at once (scrapers and health checks answer
+/// in milliseconds; more are answered `503`).
+pub const MAX_METRICS_CONNECTIONS: usize = 16;
+
 /// The HTTP server of the metrics; stops when dropped.
 pub struct MetricsServer {
-    stop: Arc<AtomicBool>,
-    thread: Option<JoinHandle<()>>,
-    addr: SocketAddr,
+    server: Server,
 }
 
 impl MetricsServer {
     /// Serves `metrics` on `bind` (port 0: any free port): `GET /metrics`, `GET /health`
-    /// (200 `ok` when the daemon keeps up, 503 with the full queues when it does not).
+    /// (200 `ok` when the daemon keeps up, 503 with the reasons when it does not). Each
+    /// connection gets one answer and is closed; request bodies are never read.
     pub fn start(bind: SocketAddr, metrics: Arc<Metrics>) -> Result<MetricsServer> {
-        let server = tiny_http::Server::http(bind).map_err(|e| Error::Io {
-            path: format!("metrics {bind}").into(),
-            source: std::io::Error::other(e.to_string()),
-        })?;
-        let addr = server
-            .server_addr()
-            .to_ip()
-            .ok_or_else(|| Error::Internal("metrics server without an IP address".into()))?;
-        let stop = Arc::new(AtomicBool::new(false));
-        let flag = stop.clone();
-        let thread = std::thread::Builder::new()
-            .name("metrics".into())
-            .spawn(move || {
-                while !flag.load(Ordering::Relaxed) {
-                    let req = match server.recv_timeout(Duration::from_millis(100)) {
-                        Ok(Some(r)) => r,
-                        Ok(None) => continue,
-                        Err(_) => break,
-                    };
-                    let response = match req.url() {
-                        "/metrics" => tiny_http::Response::from_string(metrics.text()).with_header(
-                            tiny_http::Header::from_bytes(
-                                "Content-Type",
-                                "text/plain; version=0.0.4",
-                            )
-                            .expect("a valid header"),
-                        ),
-                        "/health" => match metrics.health() {
-                            Ok(()) => tiny_http::Response::from_string("ok\n"),
-                            Err(why) => {
-                                tiny_http::Response::from_string(format!("behind: {why}\n"))
-                                    .with_status_code(503)
-                            }
-                        },
-                        _ => tiny_http::Response::from_string("not found: /metrics, /health\n")
-                            .with_status_code(404),
-                    };
-                    // A client that left before its answer costs nothing more.
-                    let _ = req.respond(response);
+        let bounds = Bounds {
+            max_connections: MAX_METRICS_CONNECTIONS,
+        };
+        let server = Server::start("metrics", bind, bounds, move |mut conn, _, _| {
+            let head = match read_head(&mut conn) {
+                Ok(h) => h,
+                Err(HeadError::TooLarge) => {
+                    return respond(conn, 431, "text/plain", b"request head too large\n")
                 }
-            })
-            .map_err(|e| Error::Internal(format!("metrics thread: {e}")))?;
-        tracing::info!(%addr, "metrics listening");
-        Ok(MetricsServer {
-            stop,
-            thread: Some(thread),
-            addr,
-        })
+                Err(HeadError::Malformed) => {
+                    return respond(conn, 400, "text/plain", b"not an HTTP request\n")
+                }
+                Err(HeadError::Gone) => return,
+            };
+            if head.method != "GET" {
+                return respond(conn, 405, "text/plain", b"GET /metrics, GET /health\n");
+            }
+            let (status, kind, body) = match head.path.as_str() {
+                "/metrics" => (200, "text/plain; version=0.0.4", metrics.text()),
+                "/health" => match metrics.health() {
+                    Ok(()) => (200, "text/plain", "ok\n".to_string()),
+                    Err(why) => (503, "text/plain", format!("behind: {why}\n")),
+                },
+                _ => (404, "text/plain", "not found: /metrics, /health\n".into()),
+            };
+            respond(conn, status, kind, body.as_bytes());
+        })?;
+        tracing::info!(addr = %server.addr(), "metrics listening");
+        Ok(MetricsServer { server })
     }
 
     /// The address served.
     pub fn addr(&self) -> SocketAddr {
-        self.addr
-    }
-}
-
-impl Drop for MetricsServer {
-    fn drop(&mut self) {
-        self.stop.store(true, Ordering::Relaxed);
-        if let Some(t) = self.thread.take() {
-            let _ = t.join();
-        }
+        self.server.addr()
     }
 }
 

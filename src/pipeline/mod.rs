@@ -20,6 +20,7 @@ pub mod config;
 #[cfg(feature = "kafka")]
 pub mod kafka;
 mod ledger;
+mod listen;
 #[cfg(feature = "live")]
 mod live;
 /// A build without the live view: the configuration refuses `[live]`, so none starts.

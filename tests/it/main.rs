@@ -10,6 +10,8 @@ mod docs;
 mod fuzz_regressions;
 #[cfg(feature = "kafka")]
 mod kafka;
+#[cfg(feature = "live")]
+mod listeners;
 mod moving;
 mod reconstruct;
 mod robotics;
