@@ -52,10 +52,9 @@ pub fn run(a: Args) -> Result<()> {
         );
     }
     let opts = a.bag.options(input)?;
-    let mut part = output.as_os_str().to_owned();
-    part.push(".part");
-    let part = PathBuf::from(part);
-    let file = super::create(&part)?;
+    let (guard, file) = isoline_io::write::PartFile::create(output)
+        .with_context(|| format!("creating {}", output.display()))?;
+    let part = guard.part().to_path_buf();
     let mut out = if out_bag {
         Out::Bag(Box::new(
             BagWriter::new(
@@ -75,17 +74,12 @@ pub fn run(a: Args) -> Result<()> {
             Out::Ndjson(mut w) => w.flush().context("flushing the output")?,
             Out::Bag(b) => b.finish().context("finishing the bag")?,
         }
-        std::fs::rename(&part, output)
+        guard
+            .commit()
             .with_context(|| format!("renaming {} to {}", part.display(), output.display()))?;
         Ok(counts)
     });
-    let (written, failed) = match finished {
-        Ok(c) => c,
-        Err(e) => {
-            let _ = std::fs::remove_file(&part);
-            return Err(e);
-        }
-    };
+    let (written, failed) = finished?;
     eprintln!(
         "isoline convert: {written} frames written to {}{}",
         output.display(),

@@ -1,7 +1,6 @@
 //! `isoline eval`: accuracy of reconstructed curves against the simulator's truth, or,
 //! without truth, the scores a scan's own returns and free space give.
 
-use std::io::BufRead;
 use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context, Result};
@@ -186,14 +185,39 @@ fn run_without_truth(a: &Args) -> Result<()> {
 /// Every record of an NDJSON result file, error records included.
 fn read_records(path: &Path) -> Result<Vec<isoline_io::format::ResultRecord>> {
     let text = super::read(path)?;
-    text.lines()
-        .enumerate()
-        .filter(|(_, l)| !l.trim().is_empty())
-        .map(|(i, l)| {
+    let mut out = Vec::new();
+    for (i, l) in whole_lines(&text, path) {
+        out.push(
             serde_json::from_str(l)
-                .with_context(|| format!("{}, line {}: not a result record", path.display(), i + 1))
-        })
-        .collect()
+                .with_context(|| format!("{}, line {i}: not a result record", path.display()))?,
+        );
+    }
+    Ok(out)
+}
+
+/// The non-blank lines of an NDJSON file with their 1-based numbers, less a last line
+/// without its newline that is not JSON: a record cut short by a writer that was
+/// killed mid-write (records are written one whole line at a time), skipped with a
+/// warning.
+fn whole_lines<'a>(text: &'a str, path: &Path) -> Vec<(usize, &'a str)> {
+    let mut lines: Vec<(usize, &str)> = text
+        .lines()
+        .enumerate()
+        .map(|(i, l)| (i + 1, l))
+        .filter(|(_, l)| !l.trim().is_empty())
+        .collect();
+    if !text.ends_with('\n') {
+        if let Some((i, last)) = lines.last().copied() {
+            if serde_json::from_str::<serde::de::IgnoredAny>(last).is_err() {
+                eprintln!(
+                    "isoline: {}, line {i}: an unterminated last line, cut short; skipped",
+                    path.display()
+                );
+                lines.pop();
+            }
+        }
+    }
+    lines
 }
 
 fn finite(x: f64) -> serde_json::Value {
@@ -242,11 +266,8 @@ fn read_polyline_records(path: &Path) -> Result<Vec<(Option<u64>, Vec<Polyline>)
         return Ok(vec![whole]);
     }
     let mut out = Vec::new();
-    for (i, line) in text.as_bytes().lines().enumerate() {
-        let line = line?;
-        if !line.trim().is_empty() {
-            out.push(parse(&line, i + 1)?);
-        }
+    for (i, line) in whole_lines(&text, path) {
+        out.push(parse(line, i)?);
     }
     if out.is_empty() {
         bail!("{}: no polyline records", path.display());

@@ -70,12 +70,21 @@ pub fn print(text: &str) -> Result<()> {
     }
 }
 
-/// Refuses to run when one of `outputs` is the file `input`: it would be overwritten.
+/// Refuses to run when one of `outputs` is the file `input` (it would be overwritten)
+/// or two of them are one file (the second would replace the first).
 pub fn refuse_overwrite(input: &Path, outputs: &[Option<&Path>]) -> Result<()> {
-    for out in outputs.iter().flatten() {
+    let outputs: Vec<&Path> = outputs.iter().flatten().copied().collect();
+    for (k, out) in outputs.iter().enumerate() {
         if isoline::same_file(input, out) {
             anyhow::bail!(
                 "{} is the input file; writing there would destroy it",
+                out.display()
+            );
+        }
+        if let Some(other) = outputs[..k].iter().find(|o| isoline::same_file(o, out)) {
+            anyhow::bail!(
+                "{} and {} are one file: one output would replace the other",
+                other.display(),
                 out.display()
             );
         }
@@ -83,9 +92,17 @@ pub fn refuse_overwrite(input: &Path, outputs: &[Option<&Path>]) -> Result<()> {
     Ok(())
 }
 
-/// Writes `text` to `path`, naming it in the error.
+/// Writes `text` to `path` through a temporary file renamed into place (a failed or
+/// killed write leaves no partial file under the name), naming it in the error.
 pub fn write(path: &Path, text: impl AsRef<[u8]>) -> Result<()> {
-    std::fs::write(path, text).with_context(|| format!("writing {}", path.display()))
+    isoline_io::write::write_atomic(path, text.as_ref())
+        .with_context(|| format!("writing {}", path.display()))
+}
+
+/// A [`PartFile`](isoline_io::write::PartFile) for `path` and the file to write.
+pub fn create_part(path: &Path) -> Result<(isoline_io::write::PartFile, std::fs::File)> {
+    isoline_io::write::PartFile::create(path)
+        .with_context(|| format!("creating {}", path.display()))
 }
 
 /// What to read from a ROS 2 bag, on the command lines that read one.

@@ -104,18 +104,22 @@ fn pj(pls: &[Polyline]) -> Vec<PolylineJson> {
 }
 
 fn write_frames(path: &Path, frames: impl Iterator<Item = FrameRecord>) -> Result<()> {
-    let mut out = std::io::BufWriter::new(super::create(path)?);
+    let (part, file) = super::create_part(path)?;
+    let mut out = std::io::BufWriter::new(file);
     for rec in frames {
         serde_json::to_writer(&mut out, &rec)?;
         out.write_all(b"\n")?;
     }
     out.flush()
+        .with_context(|| format!("writing {}", path.display()))?;
+    drop(out);
+    part.commit()
         .with_context(|| format!("writing {}", path.display()))
 }
 
 fn write_truth(path: &Path, file: &TruthFile) -> Result<()> {
-    let w = std::io::BufWriter::new(super::create(path)?);
-    serde_json::to_writer(w, file).with_context(|| format!("writing {}", path.display()))
+    let text = serde_json::to_vec(file)?;
+    super::write(path, text)
 }
 
 fn shape_frames(a: Args, shape: Shape) -> Result<()> {

@@ -880,7 +880,7 @@ fn draw(path: &std::path::Path, points: &[Point], r: &Reconstruction) {
         &isoline_io::write::svg::of_reconstruction(points, r, &features, &[], false),
         800.0,
     );
-    if let Err(e) = std::fs::write(path, doc) {
+    if let Err(e) = isoline_io::write::write_atomic(path, doc.as_bytes()) {
         tracing::warn!(path = %path.display(), error = %e, "SVG not written");
     }
 }

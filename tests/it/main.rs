@@ -7,6 +7,7 @@ mod cli;
 mod common;
 mod daemon;
 mod docs;
+mod files;
 mod fuzz_regressions;
 #[cfg(feature = "kafka")]
 mod kafka;

@@ -69,19 +69,27 @@ fn compose(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
 /// odometry on `/odom` (written after each scan, so a scan's pose comes later in the
 /// file), the laser's mount on `/tf_static`. `spoil` may replace a scan's bytes.
 fn write_bag(path: &Path, sim: &Sim, spoil: impl Fn(usize, Vec<u8>) -> Vec<u8>) {
-    write_bag_with(path, sim, false, spoil);
+    write_bag_with(path, sim, false, false, spoil);
 }
 
 /// [`write_bag`], with the base's pose on `/tf` (`odom` to `base_link`) instead of
-/// `/odom` when `tf` is set.
-fn write_bag_with(path: &Path, sim: &Sim, tf: bool, spoil: impl Fn(usize, Vec<u8>) -> Vec<u8>) {
+/// `/odom` when `tf` is set, and chunks not compressed when `plain` is.
+fn write_bag_with(
+    path: &Path,
+    sim: &Sim,
+    tf: bool,
+    plain: bool,
+    spoil: impl Fn(usize, Vec<u8>) -> Vec<u8>,
+) {
     let file = std::io::BufWriter::new(std::fs::File::create(path).unwrap());
     // Small chunks, so that a file cut short keeps the chunks before the cut.
-    let mut w = mcap::WriteOptions::new()
+    let mut options = mcap::WriteOptions::new()
         .profile("ros2")
-        .chunk_size(Some(8 << 10))
-        .create(file)
-        .unwrap();
+        .chunk_size(Some(8 << 10));
+    if plain {
+        options = options.compression(None);
+    }
+    let mut w = options.create(file).unwrap();
     let mut schema = |name: &str| {
         w.add_schema(name, "ros2msg", ros::schema_text(name).unwrap().as_bytes())
             .unwrap()
@@ -269,7 +277,7 @@ fn a_bag_is_reconstructed_with_its_stamps_and_poses_and_fits_the_truth() {
     check_records(&records(&from_bag), &sim, "laser");
     // The poses through /tf alone, to a frame named on the command line.
     let tf_bag = d.join("robot-tf.mcap");
-    write_bag_with(&tf_bag, &sim, true, |_, b| b);
+    write_bag_with(&tf_bag, &sim, true, false, |_, b| b);
     let from_tf = d.join("tf.ndjson");
     ok(&[
         "reconstruct",
@@ -738,4 +746,130 @@ fn a_batch_job_reads_bags_with_their_poses() {
     .unwrap();
     ok(&["batch", "-c", p(&job)]);
     check_records(&records(&d.join("out/robot.ndjson")), &sim, "laser");
+}
+
+/// A LaserScan message of `beams` beams over a little less than a turn.
+fn huge_scan(beams: usize) -> Vec<u8> {
+    let da = 6.0 / beams as f32;
+    ros::encode(&ros::LaserScan {
+        header: ros::Header {
+            stamp: ros::Time::from_seconds(1_700_000_000.05),
+            frame_id: "laser".into(),
+        },
+        angle_min: -3.0,
+        angle_max: -3.0 + da * (beams - 1) as f32,
+        angle_increment: da,
+        time_increment: 0.0,
+        scan_time: 0.025,
+        range_min: 0.05,
+        range_max: 30.0,
+        ranges: vec![2.0; beams],
+        intensities: Vec::new(),
+    })
+}
+
+/// A bag whose second scan has 100,000 beams, more than any scanner: that message gets
+/// an error record naming the file, the topic and the message, in `reconstruct`,
+/// `run` and `batch` alike, and the other scans are reconstructed.
+#[test]
+fn a_scan_with_more_beams_than_any_scanner_is_one_error_record() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let sim = simulate(d, 4, 0.1);
+    let bag = d.join("big.mcap");
+    write_bag(
+        &bag,
+        &sim,
+        |k, b| if k == 1 { huge_scan(100_000) } else { b },
+    );
+    let check = |recs: &[Value]| {
+        assert_eq!(recs.len(), 4);
+        let e = recs[1]["error"]
+            .as_str()
+            .unwrap_or_else(|| panic!("{}", recs[1]));
+        for part in ["big.mcap", "topic /scan", "message 1", "100000 beams"] {
+            assert!(e.contains(part), "{part} not in {e}");
+        }
+        for k in [0, 2, 3] {
+            assert!(
+                recs[k]["error"].is_null() && !recs[k]["polylines"].as_array().unwrap().is_empty()
+            );
+        }
+    };
+    let out = d.join("r.ndjson");
+    let run = Command::new(env!("CARGO_BIN_EXE_isoline"))
+        .args(["reconstruct", p(&bag), "-o", p(&out)])
+        .output()
+        .unwrap();
+    assert!(!run.status.success());
+    check(&records(&out));
+
+    let cfg = d.join("d.toml");
+    let daemon_out = d.join("d.ndjson");
+    std::fs::write(
+        &cfg,
+        format!("[input]\npath = {bag:?}\n[output]\npath = {daemon_out:?}\n"),
+    )
+    .unwrap();
+    let run = Command::new(env!("CARGO_BIN_EXE_isoline"))
+        .args(["run", "-c", p(&cfg)])
+        .output()
+        .unwrap();
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    check(&records(&daemon_out));
+
+    let job = d.join("job.toml");
+    std::fs::write(
+        &job,
+        format!(
+            "[batch]\ninputs = [{bag:?}]\noutput = {:?}\nformats = [\"ndjson\"]\n",
+            d.join("batch")
+        ),
+    )
+    .unwrap();
+    let run = Command::new(env!("CARGO_BIN_EXE_isoline"))
+        .args(["batch", "-c", p(&job)])
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    let written: Vec<PathBuf> = std::fs::read_dir(d.join("batch"))
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.to_string_lossy().ends_with(".ndjson"))
+        .collect();
+    assert_eq!(written.len(), 1, "{written:?} {stderr}");
+    check(&records(&written[0]));
+}
+
+/// Damage inside a chunk (one byte of a scan's ranges) is found by the chunk's CRC: an
+/// error record and a failed exit, never a scan read with altered returns.
+#[test]
+fn damage_inside_a_bag_chunk_is_an_error_record() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let sim = simulate(d, 4, 0.1);
+    let bag = d.join("plain.mcap");
+    write_bag_with(&bag, &sim, false, true, |_, b| b);
+    let mut bytes = std::fs::read(&bag).unwrap();
+    // The first scan's ranges: its 2nd beam's f32, found by value.
+    let r = sim.frames[0].ranges.as_ref().unwrap()[1].unwrap() as f32;
+    let at = bytes
+        .windows(4)
+        .position(|w| w == r.to_le_bytes())
+        .expect("the range is in the plain chunk");
+    bytes[at + 2] ^= 0x10;
+    std::fs::write(&bag, &bytes).unwrap();
+    let out = d.join("r.ndjson");
+    let run = Command::new(env!("CARGO_BIN_EXE_isoline"))
+        .args(["reconstruct", p(&bag), "-o", p(&out)])
+        .output()
+        .unwrap();
+    assert!(!run.status.success());
+    let recs = records(&out);
+    let errors: Vec<&str> = recs.iter().filter_map(|r| r["error"].as_str()).collect();
+    assert!(errors.iter().any(|e| e.contains("CRC")), "{errors:?}");
 }

@@ -89,7 +89,7 @@ pub use levelset::{Init, LinearSolver, Scheme, Settle, SolverParams, Start, Stop
 pub use mesh::Mesh;
 pub use reconstruct::{reconstruct, reconstruct_scan, reconstruct_warm, Params, Reconstruction};
 pub use repair::strokes::Junction;
-pub use scan::{FreeSpace, LaserScan, Scan, ScanParams};
+pub use scan::{FreeSpace, LaserScan, Scan, ScanParams, MAX_BEAMS};
 pub use stats::{StageMs, Stats, WindowStats};
 pub use warning::Warning;
 

@@ -17,6 +17,7 @@ use foxglove::Encode;
 
 use crate::error::{Error, Result};
 use crate::format::ResultRecord;
+use crate::write::PartFile;
 use isoline_core::geom::{Point, Pose};
 
 /// The frame the poses are in.
@@ -270,7 +271,7 @@ fn encoded<T: Encode>(msg: &T) -> Vec<u8> {
     buf
 }
 
-/// An MCAP file of results, zstd-compressed. It is written beside its path (`PATH.part`)
+/// An MCAP file of results, zstd-compressed. It is written beside its path (a [`PartFile`])
 /// and takes its name once [`McapOut::finish`]ed: a run that fails or is killed leaves
 /// no half file under the name, and an earlier file there stays whole until then.
 pub struct McapOut {
@@ -278,17 +279,14 @@ pub struct McapOut {
     channels: BTreeMap<Topic, u16>,
     sequence: u32,
     path: PathBuf,
-    part: PathBuf,
-    finished: bool,
+    /// Removes the unfinished file if the run fails or is killed first.
+    part: PartFile,
 }
 
 impl McapOut {
     /// Starts the file `path`.
     pub fn create(path: &Path) -> Result<McapOut> {
-        let mut part = path.as_os_str().to_owned();
-        part.push(".part");
-        let part = PathBuf::from(part);
-        let file = std::fs::File::create(&part).map_err(|e| Error::io(&part, e))?;
+        let (part, file) = PartFile::create(path).map_err(|e| Error::io(path, e))?;
         let mcap_err = |e: mcap::McapError| Error::Recording {
             path: path.to_path_buf(),
             message: e.to_string(),
@@ -315,7 +313,6 @@ impl McapOut {
             sequence: 0,
             path: path.to_path_buf(),
             part,
-            finished: false,
         })
     }
 
@@ -347,17 +344,13 @@ impl McapOut {
     /// Writes the summary, flushes the file and gives it its name.
     pub fn finish(mut self) -> Result<()> {
         self.writer.finish().map_err(|e| self.error(e))?;
-        std::fs::rename(&self.part, &self.path).map_err(|e| Error::io(&self.path, e))?;
-        self.finished = true;
-        Ok(())
-    }
-}
-
-impl Drop for McapOut {
-    fn drop(&mut self) {
-        if !self.finished {
-            let _ = std::fs::remove_file(&self.part);
-        }
+        let McapOut {
+            writer, part, path, ..
+        } = self;
+        let mut file = writer.into_inner();
+        std::io::Write::flush(&mut file).map_err(|e| Error::io(&path, e))?;
+        drop(file);
+        part.commit().map_err(|e| Error::io(&path, e))
     }
 }
 

@@ -25,6 +25,11 @@ use crate::error::{Error, Result};
 use crate::field::{MeshParams, MetricField};
 use crate::geom::{add, dist, point_segment_dist2, sub, Placement, Point, Polyline};
 
+/// The most beams a scan may have. 2D scanners have up to a few thousand (36,000 at a
+/// hundredth of a degree over a full turn); the bound keeps a forged message's beam
+/// count from deciding how much memory a frame takes.
+pub const MAX_BEAMS: usize = 1 << 16;
+
 /// How scan frames are read: the breakpoint test, dropouts and small clusters.
 #[derive(Clone, Debug, PartialEq)]
 #[non_exhaustive]
@@ -163,6 +168,11 @@ impl Scan {
         let n = l.ranges.len();
         if n == 0 {
             return Err(bad("\"ranges\" is empty".into()));
+        }
+        if n > MAX_BEAMS {
+            return Err(bad(format!(
+                "{n} beams: more than the {MAX_BEAMS} a scan may have"
+            )));
         }
         if !(l.angle_increment.is_finite() && l.angle_increment != 0.0) {
             return Err(bad(format!(

@@ -19,10 +19,15 @@ use super::{BadFrame, Frame, Item};
 use crate::error::{Error, Result};
 use crate::format::FrameRecord;
 use isoline_core::geom::Pose;
+use isoline_core::MAX_BEAMS;
 
 /// The largest record read (a chunk, compressed or not, or a message); a larger one
 /// is an error rather than memory. Recorders write chunks of a few MiB.
 pub const MAX_RECORD_BYTES: usize = 256 << 20;
+
+/// The largest LaserScan message decoded: 16 MiB, as an NDJSON line
+/// (`input.max_line_bytes`' default); a larger one gets an error record.
+pub const MAX_MESSAGE_BYTES: usize = 16 << 20;
 
 /// The longest a scan's time may be from the nearest pose sample of a moving transform
 /// for the pose to be used without bracketing samples.
@@ -67,7 +72,11 @@ fn stream(
 ) -> Result<std::result::Result<(), String>> {
     let mut file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
     let mut reader = LinearReader::new_with_options(
-        LinearReaderOptions::default().with_record_length_limit(MAX_RECORD_BYTES),
+        // Chunks are checked against their CRC before any of their messages is used:
+        // damage inside a chunk is an error, never a scan read with altered ranges.
+        LinearReaderOptions::default()
+            .with_record_length_limit(MAX_RECORD_BYTES)
+            .with_prevalidate_chunk_crcs(true),
     );
     let mut schemas: HashMap<u16, String> = HashMap::new();
     let mut channels: HashMap<u16, Channel> = HashMap::new();
@@ -366,12 +375,26 @@ pub fn read_bag_with<T>(
         let index = summary.scans.entry(ch.topic.clone()).or_insert(0);
         let k = *index;
         *index += 1;
-        let decoded = if ch.schema != ros::LASER_SCAN {
+        let decoded = if data.len() > MAX_MESSAGE_BYTES {
+            Err(format!(
+                "{} bytes, more than the {MAX_MESSAGE_BYTES} a scan message may take",
+                data.len()
+            ))
+        } else if ch.schema != ros::LASER_SCAN {
             Err(format!("schema {:?}, not {}", ch.schema, ros::LASER_SCAN))
         } else if ch.encoding != "cdr" {
             Err(format!("message encoding {:?}, not cdr", ch.encoding))
         } else {
-            ros::decode::<LaserScan>(data)
+            ros::decode::<LaserScan>(data).and_then(|s: LaserScan| {
+                if s.ranges.len() > MAX_BEAMS {
+                    Err(format!(
+                        "{} beams, more than the {MAX_BEAMS} a scan may have",
+                        s.ranges.len()
+                    ))
+                } else {
+                    Ok(s)
+                }
+            })
         };
         let item = match decoded {
             Ok(scan) => {

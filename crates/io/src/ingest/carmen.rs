@@ -8,7 +8,6 @@
 //! quarter, and any other count spans 180 degrees; the sweep starts at -90 degrees and
 //! returns reach at most [`FLASER_RANGE_MAX`] (SICK scanners report 81.9 m for none).
 
-use std::io::{BufRead, Read};
 use std::path::Path;
 
 use super::{BadFrame, Frame, Item};
@@ -160,57 +159,26 @@ pub fn read_carmen_with<T>(
     mut each: impl FnMut(std::result::Result<T, BadFrame>) -> bool,
 ) -> Result<u64> {
     let file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
-    let mut reader = std::io::BufReader::new(file);
+    let reader = std::io::BufReader::new(file);
     let name = path.display().to_string();
     let mut next = std::collections::HashMap::<&'static str, u64>::new();
     let mut frames = 0u64;
-    let mut buf = Vec::new();
-    let mut line_no = 0u64;
-    loop {
-        buf.clear();
-        let n = Read::take(&mut reader, MAX_LINE_BYTES as u64 + 1)
-            .read_until(b'\n', &mut buf)
-            .map_err(|e| Error::io(path, e))?;
-        if n == 0 {
-            break;
-        }
-        line_no += 1;
+    super::bounded_lines(reader, path, MAX_LINE_BYTES, |line_no, line| {
         let bad = |message: String| BadFrame {
             stream: None,
             frame: None,
             message: format!("{name}, line {line_no}: {message}"),
         };
-        if buf.len() > MAX_LINE_BYTES && !buf.ends_with(b"\n") {
-            // Skip the rest of the over-long line.
-            let mut sink = Vec::new();
-            loop {
-                sink.clear();
-                let k = Read::take(&mut reader, MAX_LINE_BYTES as u64)
-                    .read_until(b'\n', &mut sink)
-                    .map_err(|e| Error::io(path, e))?;
-                if k == 0 || sink.ends_with(b"\n") {
-                    break;
-                }
-            }
-            if !each(Err(bad(format!(
-                "the line is longer than {MAX_LINE_BYTES} bytes; skipped"
-            )))) {
-                return Ok(frames);
-            }
-            continue;
-        }
-        let Ok(text) = std::str::from_utf8(&buf) else {
-            if !each(Err(bad("the line is not valid UTF-8".into()))) {
-                return Ok(frames);
-            }
-            continue;
+        let text = match line {
+            Ok(t) => t,
+            Err(why) => return each(Err(bad(why))),
         };
         let text = text.trim();
         if text.starts_with('#') {
-            continue;
+            return true;
         }
         let Some(parsed) = parse_line(text) else {
-            continue;
+            return true;
         };
         let stream: &'static str = match text.split_whitespace().next() {
             Some("FLASER") => "flaser",
@@ -231,10 +199,8 @@ pub fn read_carmen_with<T>(
                 frame: Some(frame),
                 ..bad(e)
             });
-        if !each(item) {
-            return Ok(frames);
-        }
-    }
+        each(item)
+    })?;
     if frames == 0 {
         return Err(Error::Recording {
             path: path.to_path_buf(),

@@ -153,7 +153,11 @@ pub fn read_items(path: &Path, bag: &bag::BagOptions) -> Result<Vec<Item>> {
             true
         })?;
     } else {
-        items = read_input(path)?.into_iter().map(Ok).collect();
+        if is_frame_stream(path) {
+            items = read_frame_items(path)?;
+        } else {
+            items = read_input(path)?.into_iter().map(Ok).collect();
+        }
     }
     Ok(items)
 }
@@ -219,6 +223,92 @@ pub fn parse_frame(text: &str, name: &str, line: usize) -> Result<Frame> {
         .map_err(|e| err(format!("invalid frame: {e}")))?;
     let frame = rec.frame;
     Frame::from_record(rec).map_err(|e| err(format!("frame {frame}: {e}")))
+}
+
+/// The longest NDJSON line read from a file, as the daemon's `input.max_line_bytes`
+/// default: a longer line is a bad frame, skipped without being held.
+pub const MAX_FRAME_LINE_BYTES: usize = 16 << 20;
+
+/// Calls `each` with every line of `reader` (1-based number, text without its end), or
+/// with why a line was not read: longer than `max` bytes (skipped without being held) or
+/// not UTF-8. Stops when `each` returns false; only a read error is an `Err`.
+pub(crate) fn bounded_lines(
+    mut reader: impl BufRead,
+    path: &Path,
+    max: usize,
+    mut each: impl FnMut(u64, std::result::Result<&str, String>) -> bool,
+) -> Result<()> {
+    use std::io::Read;
+    let mut buf = Vec::new();
+    let mut line_no = 0u64;
+    loop {
+        buf.clear();
+        let n = Read::take(&mut reader, max as u64 + 1)
+            .read_until(b'\n', &mut buf)
+            .map_err(|e| Error::io(path, e))?;
+        if n == 0 {
+            return Ok(());
+        }
+        line_no += 1;
+        let line = if buf.len() > max && !buf.ends_with(b"\n") {
+            // Skip the rest of the over-long line.
+            let mut sink = Vec::new();
+            loop {
+                sink.clear();
+                let k = Read::take(&mut reader, max as u64)
+                    .read_until(b'\n', &mut sink)
+                    .map_err(|e| Error::io(path, e))?;
+                if k == 0 || sink.ends_with(b"\n") {
+                    break;
+                }
+            }
+            Err(format!("the line is longer than {max} bytes; skipped"))
+        } else {
+            std::str::from_utf8(&buf)
+                .map(|t| t.trim_end_matches(['\n', '\r']))
+                .map_err(|_| "the line is not valid UTF-8".to_string())
+        };
+        if !each(line_no, line) {
+            return Ok(());
+        }
+    }
+}
+
+/// Every line of an NDJSON file as a frame, or as the [`BadFrame`] it could not become
+/// (its stream and frame number when the line names them); blank lines are skipped.
+fn read_frame_items(path: &Path) -> Result<Vec<Item>> {
+    let f = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
+    let name = path.display().to_string();
+    let mut out = Vec::new();
+    bounded_lines(
+        std::io::BufReader::new(f),
+        path,
+        MAX_FRAME_LINE_BYTES,
+        |i, line| {
+            let item = match line {
+                Ok(t) if t.trim().is_empty() => return true,
+                Ok(t) => parse_frame(t, &name, i as usize).map_err(|e| {
+                    // What the line says of itself, if it is JSON at all.
+                    let v: Option<serde_json::Value> = serde_json::from_str(t).ok();
+                    BadFrame {
+                        stream: v
+                            .as_ref()
+                            .and_then(|v| v["stream"].as_str().map(Into::into)),
+                        frame: v.as_ref().and_then(|v| v["frame"].as_u64()),
+                        message: e.to_string(),
+                    }
+                }),
+                Err(why) => Err(BadFrame {
+                    stream: None,
+                    frame: None,
+                    message: format!("{name}, line {i}: {why}"),
+                }),
+            };
+            out.push(item);
+            true
+        },
+    )?;
+    Ok(out)
 }
 
 /// Reads every frame of an NDJSON file; the first bad line is an error naming it.

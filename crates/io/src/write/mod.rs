@@ -7,7 +7,7 @@ pub mod svg;
 
 use std::fmt::Write as _;
 use std::io::Write;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use serde_json::json;
 
@@ -73,18 +73,88 @@ pub fn render(format: Format, recs: &[ResultRecord]) -> String {
     }
 }
 
-/// Writes `text` to `path` through a temporary file renamed into place, so that an
-/// interrupted run never leaves a truncated file that looks finished, and a failed write
-/// (a full disk) leaves no temporary file behind.
-pub fn write_atomic(path: &Path, text: &[u8]) -> std::io::Result<()> {
-    let mut tmp = path.as_os_str().to_owned();
-    tmp.push(".part");
-    let tmp = std::path::PathBuf::from(tmp);
-    let written = std::fs::write(&tmp, text).and_then(|()| std::fs::rename(&tmp, path));
-    if written.is_err() {
-        let _ = std::fs::remove_file(&tmp);
+/// A file written beside its final name and renamed into place once complete: a run
+/// that fails or is killed never leaves a truncated file under the name, an earlier
+/// file there stays whole until then, and a failed write (a full disk) removes its
+/// temporary file. The temporary name (`.NAME.PID-K.part` in the same folder) is
+/// created exclusively, so it can never be an existing file, an input included.
+#[derive(Debug)]
+pub struct PartFile {
+    /// A handle on the temporary file, to sync it before the rename.
+    file: std::fs::File,
+    part: PathBuf,
+    path: PathBuf,
+    committed: bool,
+}
+
+impl PartFile {
+    /// Creates the temporary file for `path`; returns the guard and the file to write.
+    pub fn create(path: &Path) -> std::io::Result<(PartFile, std::fs::File)> {
+        use std::sync::atomic::{AtomicU64, Ordering};
+        static NEXT: AtomicU64 = AtomicU64::new(0);
+        let name = path
+            .file_name()
+            .ok_or_else(|| std::io::Error::other("the output path names no file"))?;
+        let dir = match path.parent() {
+            Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
+            _ => PathBuf::from("."),
+        };
+        loop {
+            let k = NEXT.fetch_add(1, Ordering::Relaxed);
+            let mut part_name = std::ffi::OsString::from(".");
+            part_name.push(name);
+            part_name.push(format!(".{}-{k}.part", std::process::id()));
+            let part = dir.join(part_name);
+            match std::fs::OpenOptions::new()
+                .write(true)
+                .create_new(true)
+                .open(&part)
+            {
+                Ok(file) => {
+                    let handle = file.try_clone()?;
+                    let guard = PartFile {
+                        file: handle,
+                        part,
+                        path: path.to_path_buf(),
+                        committed: false,
+                    };
+                    return Ok((guard, file));
+                }
+                Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => continue,
+                Err(e) => return Err(e),
+            }
+        }
     }
-    written
+
+    /// The temporary file's path.
+    pub fn part(&self) -> &Path {
+        &self.part
+    }
+
+    /// Syncs the written file and renames it to its final name. Whatever wrote to it
+    /// must have flushed first.
+    pub fn commit(mut self) -> std::io::Result<()> {
+        self.file.sync_all()?;
+        std::fs::rename(&self.part, &self.path)?;
+        self.committed = true;
+        Ok(())
+    }
+}
+
+impl Drop for PartFile {
+    fn drop(&mut self) {
+        if !self.committed {
+            let _ = std::fs::remove_file(&self.part);
+        }
+    }
+}
+
+/// Writes `text` to `path` through a [`PartFile`].
+pub fn write_atomic(path: &Path, text: &[u8]) -> std::io::Result<()> {
+    let (guard, mut file) = PartFile::create(path)?;
+    file.write_all(text)?;
+    drop(file);
+    guard.commit()
 }
 
 /// Writes one record as an NDJSON line.
@@ -287,12 +357,22 @@ mod tests {
         std::fs::create_dir(&target).unwrap();
         std::fs::write(target.join("keep"), "x").unwrap();
         assert!(write_atomic(&target, b"data").is_err());
-        assert!(!dir.path().join("out.ndjson.part").exists());
+        // A file named as the old temporary name was (an input, say) is never touched.
+        std::fs::write(dir.path().join("ok.ndjson.part"), "input").unwrap();
         write_atomic(&dir.path().join("ok.ndjson"), b"data").unwrap();
         assert_eq!(
             std::fs::read(dir.path().join("ok.ndjson")).unwrap(),
             b"data"
         );
-        assert!(!dir.path().join("ok.ndjson.part").exists());
+        let mut names: Vec<String> = std::fs::read_dir(dir.path())
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .collect();
+        names.sort();
+        assert_eq!(names, ["ok.ndjson", "ok.ndjson.part", "out.ndjson"]);
+        assert_eq!(
+            std::fs::read(dir.path().join("ok.ndjson.part")).unwrap(),
+            b"input"
+        );
     }
 }
