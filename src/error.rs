@@ -31,6 +31,15 @@ pub enum Error {
     /// delivered.
     #[error("Kafka: {0}")]
     Kafka(String),
+    /// The run ended, but not as it should have: a source or stage failed after the
+    /// records in the summary were written.
+    #[error("{cause}; the run wrote: {summary}")]
+    RunFailed {
+        /// The run's summary line.
+        summary: String,
+        /// What failed.
+        cause: Box<Error>,
+    },
     /// An internal invariant failed: a bug in isoline, not in the input.
     #[error("internal error: {0}")]
     Internal(String),

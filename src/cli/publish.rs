@@ -63,6 +63,7 @@ pub fn run(a: Args) -> Result<()> {
         brokers: a.brokers,
         topic: a.topic,
         settings: a.settings.into_iter().collect::<BTreeMap<_, _>>(),
+        stall: std::time::Duration::from_secs_f64(isoline::pipeline::kafka::DEFAULT_STALL_SECONDS),
     };
     let writer = KafkaWriter::open(&topic)?;
     let mut pacer = Pacer::new(a.replay);
@@ -85,7 +86,7 @@ pub fn run(a: Args) -> Result<()> {
             .map_err(anyhow::Error::from)
             .and_then(|payload| {
                 let key = rec.stream.as_deref().unwrap_or("");
-                Ok(writer.send(key, &payload, None)?)
+                Ok(writer.send(key, &payload)?)
             });
         match sent_one {
             Ok(()) => {

@@ -30,7 +30,8 @@ use rdkafka::{ClientContext, Message, Offset, TopicPartitionList};
 use serde::Deserialize;
 
 use super::ledger::{lock, Leases, Ledger, Receipt};
-use super::metrics::Metrics;
+use super::listen::Throttle;
+use super::metrics::{Counted, Metrics};
 use super::source::{Limits, Line};
 use crate::error::{Error, Result};
 
@@ -45,6 +46,9 @@ pub struct KafkaTopic {
     /// librdkafka properties (`"session.timeout.ms" = "2000"`); they override isoline's
     /// defaults.
     pub settings: BTreeMap<String, String>,
+    /// How long a broker outage or a member without partitions may last before the
+    /// daemon reports it unhealthy.
+    pub stall: Duration,
 }
 
 /// Frames from a topic, read as a member of a consumer group.
@@ -72,6 +76,10 @@ pub struct KafkaInputConfig {
     pub kafka: BTreeMap<String, toml::Value>,
     /// The longest message, bytes, in `1024..=2^30`. Default 16 MiB.
     pub max_line_bytes: Option<i64>,
+    /// Seconds without a reachable broker, or without partitions while the group has
+    /// fewer members than the topic has partitions, before `/health` fails (and the
+    /// member rejoins its group). Default 10, in `1..=3600`.
+    pub stall_timeout: Option<f64>,
 }
 
 /// `[output] kind = "kafka"`: each record a message keyed by its stream.
@@ -87,6 +95,10 @@ pub struct KafkaOutputConfig {
     pub kafka: BTreeMap<String, toml::Value>,
     /// A folder for one SVG drawing per frame.
     pub svg_dir: Option<PathBuf>,
+    /// Seconds without a reachable broker before `/health` fails; also how long a
+    /// record may wait for its acknowledgement (`message.timeout.ms`) before the run
+    /// fails. Default 10, in `1..=3600`.
+    pub stall_timeout: Option<f64>,
 }
 
 /// The topic of table `table`: `brokers` and `topic` must not be blank, and the
@@ -97,8 +109,20 @@ fn topic_of(
     brokers: String,
     topic: String,
     settings: BTreeMap<String, toml::Value>,
+    stall_timeout: Option<f64>,
     problems: &mut Vec<String>,
 ) -> Option<KafkaTopic> {
+    let stall = stall_timeout.unwrap_or(DEFAULT_STALL_SECONDS);
+    if !(1.0..=3600.0).contains(&stall) {
+        problems.push(format!(
+            "{table}.stall_timeout = {stall}: must be from 1 to 3600 seconds"
+        ));
+    }
+    let stall = Duration::from_secs_f64(if stall.is_finite() {
+        stall.clamp(1.0, 3600.0)
+    } else {
+        DEFAULT_STALL_SECONDS
+    });
     let mut blank = false;
     for (key, v) in [("brokers", &brokers), ("topic", &topic)] {
         if v.trim().is_empty() {
@@ -126,6 +150,7 @@ fn topic_of(
         brokers,
         topic,
         settings: kafka,
+        stall,
     })
 }
 
@@ -133,7 +158,14 @@ impl KafkaInputConfig {
     /// The validated input and its limits.
     pub(crate) fn validate(self, problems: &mut Vec<String>) -> (Option<KafkaInput>, Limits) {
         let limits = super::source::line_limit(self.max_line_bytes, problems);
-        let topic = topic_of("input", self.brokers, self.topic, self.kafka, problems);
+        let topic = topic_of(
+            "input",
+            self.brokers,
+            self.topic,
+            self.kafka,
+            self.stall_timeout,
+            problems,
+        );
         let group = self.group.unwrap_or_else(|| "isoline".into());
         (topic.map(|topic| KafkaInput { topic, group }), limits)
     }
@@ -142,12 +174,70 @@ impl KafkaInputConfig {
 impl KafkaOutputConfig {
     /// The validated topic.
     pub(crate) fn validate(self, problems: &mut Vec<String>) -> Option<KafkaTopic> {
-        topic_of("output", self.brokers, self.topic, self.kafka, problems)
+        topic_of(
+            "output",
+            self.brokers,
+            self.topic,
+            self.kafka,
+            self.stall_timeout,
+            problems,
+        )
+    }
+}
+
+/// Default of `stall_timeout`, seconds.
+pub const DEFAULT_STALL_SECONDS: f64 = 10.0;
+
+/// librdkafka's warnings and errors (a broker that is down is reported several times a
+/// second): at most one line every ten seconds, with the count left out.
+static CLIENT_WARNINGS: Throttle = Throttle::every(Duration::from_secs(10));
+
+/// Whether a client reaches a broker, as its statistics say each second; a `/health`
+/// condition once none has been reachable for the stall time.
+struct BrokerWatch {
+    source: &'static str,
+    stall: Duration,
+    down_since: Mutex<Option<Instant>>,
+    metrics: Arc<Metrics>,
+}
+
+impl BrokerWatch {
+    fn new(source: &'static str, stall: Duration, metrics: Arc<Metrics>) -> BrokerWatch {
+        BrokerWatch {
+            source,
+            stall,
+            down_since: Mutex::new(None),
+            metrics,
+        }
+    }
+
+    fn seen(&self, statistics: &Statistics) {
+        let up = statistics.brokers.values().any(|b| b.state == "UP");
+        let mut since = lock(&self.down_since);
+        if up {
+            *since = None;
+            self.metrics.condition(self.source, None);
+            return;
+        }
+        let t = *since.get_or_insert_with(Instant::now);
+        if t.elapsed() >= self.stall {
+            self.metrics.condition(
+                self.source,
+                Some(format!(
+                    "{}: no Kafka broker reachable for more than {} s",
+                    self.source,
+                    self.stall.as_secs()
+                )),
+            );
+        }
     }
 }
 
 /// How often the offsets of written records are committed.
 const COMMIT_EVERY: Duration = Duration::from_millis(200);
+
+/// How long a metadata request (partitions, group members, offsets) may take.
+const METADATA_TIMEOUT: Duration = Duration::from_secs(2);
 
 /// How long the last records may take to be acknowledged when a run ends.
 const FLUSH_TIMEOUT: Duration = Duration::from_secs(30);
@@ -156,14 +246,16 @@ fn kafka_error(what: &str, e: impl std::fmt::Display) -> Error {
     Error::Kafka(format!("{what}: {e}"))
 }
 
-/// librdkafka's log, as tracing events.
+/// librdkafka's log, as tracing events; warnings and errors throttled.
 fn log(level: RDKafkaLogLevel, fac: &str, message: &str) {
     match level {
         RDKafkaLogLevel::Emerg
         | RDKafkaLogLevel::Alert
         | RDKafkaLogLevel::Critical
-        | RDKafkaLogLevel::Error => tracing::error!(target: "librdkafka", fac, "{message}"),
-        RDKafkaLogLevel::Warning => tracing::warn!(target: "librdkafka", fac, "{message}"),
+        | RDKafkaLogLevel::Error => CLIENT_WARNINGS
+            .warn(|skipped| tracing::error!(target: "librdkafka", fac, skipped, "{message}")),
+        RDKafkaLogLevel::Warning => CLIENT_WARNINGS
+            .warn(|skipped| tracing::warn!(target: "librdkafka", fac, skipped, "{message}")),
         RDKafkaLogLevel::Notice | RDKafkaLogLevel::Info => {
             tracing::info!(target: "librdkafka", fac, "{message}")
         }
@@ -177,6 +269,7 @@ struct GroupContext {
     leases: Arc<Leases>,
     ledger: Arc<Ledger>,
     metrics: Arc<Metrics>,
+    brokers: BrokerWatch,
 }
 
 impl ClientContext for GroupContext {
@@ -185,10 +278,11 @@ impl ClientContext for GroupContext {
     }
 
     fn error(&self, error: KafkaError, reason: &str) {
-        tracing::warn!(%error, "kafka consumer: {reason}");
+        CLIENT_WARNINGS.warn(|skipped| tracing::warn!(%error, skipped, "kafka consumer: {reason}"));
     }
 
     fn stats(&self, statistics: Statistics) {
+        self.brokers.seen(&statistics);
         let Some(topic) = statistics.topics.get(&self.topic) else {
             return;
         };
@@ -250,13 +344,32 @@ impl ConsumerContext for GroupContext {
         );
     }
 
-    fn post_rebalance(&self, _: &BaseConsumer<Self>, rebalance: &Rebalance<'_>) {
+    fn post_rebalance(&self, consumer: &BaseConsumer<Self>, rebalance: &Rebalance<'_>) {
         match rebalance {
             Rebalance::Assign(tpl) => {
                 let parts = self.partitions(tpl);
                 for &p in &parts {
                     let lease = self.leases.grant(p);
                     self.ledger.open(p, lease);
+                }
+                // Every held partition has its lag series from now on, not from its
+                // first statistics: fleet lag does not undercount after a rebalance.
+                let committed = consumer
+                    .committed_offsets((*tpl).clone(), METADATA_TIMEOUT)
+                    .ok();
+                for &p in &parts {
+                    let from = committed
+                        .as_ref()
+                        .and_then(|c| c.find_partition(&self.topic, p))
+                        .and_then(|e| e.offset().to_raw());
+                    let lag = consumer
+                        .fetch_watermarks(&self.topic, p, METADATA_TIMEOUT)
+                        .map(|(lo, hi)| hi - from.filter(|o| *o >= 0).unwrap_or(lo))
+                        .unwrap_or(0);
+                    self.metrics
+                        .consumer_lag
+                        .with_label_values(&[&p.to_string()])
+                        .set(lag.max(0));
                 }
                 tracing::info!(partitions = ?parts, "partitions assigned: their streams start cold");
             }
@@ -266,19 +379,114 @@ impl ConsumerContext for GroupContext {
     }
 }
 
-/// Commits the positions that moved.
-fn commit(consumer: &BaseConsumer<GroupContext>, ledger: &Ledger, topic: &str, mode: CommitMode) {
+/// Commits the positions that moved; the error, if the commit failed.
+fn commit(
+    consumer: &BaseConsumer<GroupContext>,
+    ledger: &Ledger,
+    topic: &str,
+    mode: CommitMode,
+) -> std::result::Result<(), KafkaError> {
     let due = ledger.due();
     if due.is_empty() {
-        return;
+        return Ok(());
     }
     let mut tpl = TopicPartitionList::new();
     for &(p, o) in &due {
         let _ = tpl.add_partition_offset(topic, p, Offset::Offset(o));
     }
     match consumer.commit(&tpl, mode) {
-        Ok(()) => ledger.committed(&due),
-        Err(e) => tracing::warn!(error = %e, "offset commit failed; retried with the next"),
+        Ok(()) => {
+            ledger.committed(&due);
+            Ok(())
+        }
+        Err(e) => {
+            CLIENT_WARNINGS.warn(|skipped| {
+                tracing::warn!(error = %e, skipped, "offset commit failed; retried with the next")
+            });
+            Err(e)
+        }
+    }
+}
+
+/// Watches that the member holds partitions: one that holds none for the stall time
+/// while its topic has more partitions than its group has members (a topic recreated
+/// under it, a lost assignment) is unhealthy and rejoins the group.
+struct PartitionWatch {
+    since: Option<Instant>,
+    checked: Instant,
+}
+
+impl PartitionWatch {
+    fn new() -> PartitionWatch {
+        PartitionWatch {
+            since: None,
+            checked: Instant::now(),
+        }
+    }
+
+    fn check(
+        &mut self,
+        consumer: &BaseConsumer<GroupContext>,
+        input: &KafkaInput,
+        leases: &Leases,
+        metrics: &Metrics,
+    ) {
+        const SOURCE: &str = "kafka input partitions";
+        if self.checked.elapsed() < Duration::from_secs(1) {
+            return;
+        }
+        self.checked = Instant::now();
+        if leases.count() > 0 {
+            self.since = None;
+            metrics.condition(SOURCE, None);
+            return;
+        }
+        let since = *self.since.get_or_insert_with(Instant::now);
+        let stall = input.topic.stall;
+        if since.elapsed() < stall {
+            return;
+        }
+        let topic = &input.topic.topic;
+        let partitions = consumer
+            .fetch_metadata(Some(topic), METADATA_TIMEOUT)
+            .ok()
+            .and_then(|m| {
+                m.topics()
+                    .iter()
+                    .find(|t| t.name() == topic)
+                    .map(|t| t.partitions().len())
+            })
+            .unwrap_or(0);
+        let members = consumer
+            .fetch_group_list(Some(&input.group), METADATA_TIMEOUT)
+            .ok()
+            .and_then(|g| g.groups().first().map(|g| g.members().len()))
+            .unwrap_or(0);
+        if partitions > 0 && members >= partitions {
+            // A group with more members than partitions: idle members are expected.
+            metrics.condition(SOURCE, None);
+            return;
+        }
+        let why = if partitions == 0 {
+            format!("the topic {topic} has no partitions (or cannot be read)")
+        } else {
+            format!("{partitions} partitions in {topic}, none held by this member")
+        };
+        metrics.condition(
+            SOURCE,
+            Some(format!(
+                "kafka input: no partitions for more than {} s: {why}",
+                stall.as_secs()
+            )),
+        );
+        if partitions > 0 {
+            tracing::warn!(topic, partitions, "no partitions held: rejoining the group");
+            consumer.unsubscribe();
+            if let Err(e) = consumer.subscribe(&[topic]) {
+                tracing::warn!(error = %e, "subscribing again failed");
+            }
+        }
+        self.since = Some(Instant::now());
     }
 }
 
@@ -319,7 +527,8 @@ pub(crate) fn spawn_kafka(
         topic: topic.clone(),
         leases: leases.clone(),
         ledger: ledger.clone(),
-        metrics,
+        metrics: metrics.clone(),
+        brokers: BrokerWatch::new("kafka input", input.topic.stall, metrics.clone()),
     };
     let consumer: BaseConsumer<GroupContext> = client_config(
         &input.topic,
@@ -340,18 +549,21 @@ pub(crate) fn spawn_kafka(
         .subscribe(&[&topic])
         .map_err(|e| kafka_error(&format!("subscribing to {topic}"), e))?;
     let owned_leases = leases.clone();
+    let input = input.clone();
     let handle = std::thread::Builder::new()
         .name("source-kafka".into())
         .spawn(move || {
+            let mut watch = PartitionWatch::new();
             consume(
                 &consumer,
                 &ledger,
                 &owned_leases,
-                &topic,
+                &input,
                 limits,
                 &tx,
                 &stop,
                 poll,
+                &mut |c| watch.check(c, &input, &owned_leases, &metrics),
             );
             drop(tx);
             // The frames read get their records; their offsets are committed as they
@@ -364,11 +576,11 @@ pub(crate) fn spawn_kafka(
                 // Polled for the group's callbacks; what it returns was not read.
                 let _ = consumer.poll(poll);
                 if last.elapsed() >= COMMIT_EVERY {
-                    commit(&consumer, &ledger, &topic, CommitMode::Async);
+                    let _ = commit(&consumer, &ledger, &topic, CommitMode::Async);
                     last = Instant::now();
                 }
             }
-            commit(&consumer, &ledger, &topic, CommitMode::Sync);
+            let last = commit(&consumer, &ledger, &topic, CommitMode::Sync);
             let left = ledger.in_flight();
             if left > 0 {
                 tracing::warn!(
@@ -376,35 +588,48 @@ pub(crate) fn spawn_kafka(
                     "frames without a written record: they will be read again"
                 );
             }
-            Ok(())
+            // The next member starts from the last committed offsets: without this
+            // commit it repeats frames whose records are written, and must be told.
+            last.map_err(|e| {
+                kafka_error(
+                    "the final offset commit failed (the frames since the last commit \
+                     will be read again by the group)",
+                    e,
+                )
+            })
         })
         .map_err(|e| Error::Internal(format!("cannot start thread source-kafka: {e}")))?;
     Ok((handle, leases))
 }
 
-/// Reads messages into `tx` until `stop` or a closed pipeline, committing as it goes.
+/// Reads messages into `tx` until `stop` or a closed pipeline, committing as it goes
+/// and calling `watch` between polls.
 #[allow(clippy::too_many_arguments)]
 fn consume(
     consumer: &BaseConsumer<GroupContext>,
     ledger: &Arc<Ledger>,
     leases: &Leases,
-    topic: &str,
+    input: &KafkaInput,
     limits: Limits,
     tx: &Sender<Line>,
     stop: &AtomicBool,
     poll: Duration,
+    watch: &mut dyn FnMut(&BaseConsumer<GroupContext>),
 ) {
+    let topic = input.topic.topic.as_str();
     let mut origins: HashMap<i32, Arc<str>> = HashMap::new();
     let mut last = Instant::now();
     while !stop.load(Ordering::Relaxed) {
         if last.elapsed() >= COMMIT_EVERY {
-            commit(consumer, ledger, topic, CommitMode::Async);
+            let _ = commit(consumer, ledger, topic, CommitMode::Async);
             last = Instant::now();
         }
+        watch(consumer);
         let msg = match consumer.poll(poll) {
             None => continue,
             Some(Err(e)) => {
-                tracing::warn!(error = %e, "kafka consumer");
+                CLIENT_WARNINGS
+                    .warn(|skipped| tracing::warn!(error = %e, skipped, "kafka consumer"));
                 continue;
             }
             Some(Ok(m)) => m,
@@ -456,10 +681,13 @@ fn consume(
     }
 }
 
-/// Delivery reports: a delivered record hands in its frame's receipt; a record that
-/// could not be delivered fails the run.
+/// Delivery reports: a delivered record hands in its frame's receipt and is counted; a
+/// record that could not be delivered fails the run and `/health` at once.
 struct Delivery {
     failed: Arc<Mutex<Option<String>>>,
+    /// The daemon's metrics (none for `isoline publish`).
+    metrics: Option<Arc<Metrics>>,
+    brokers: Option<BrokerWatch>,
 }
 
 impl ClientContext for Delivery {
@@ -468,22 +696,39 @@ impl ClientContext for Delivery {
     }
 
     fn error(&self, error: KafkaError, reason: &str) {
-        tracing::warn!(%error, "kafka producer: {reason}");
+        CLIENT_WARNINGS.warn(|skipped| tracing::warn!(%error, skipped, "kafka producer: {reason}"));
+    }
+
+    fn stats(&self, statistics: Statistics) {
+        if let Some(b) = &self.brokers {
+            b.seen(&statistics);
+        }
     }
 }
 
 impl ProducerContext for Delivery {
-    type DeliveryOpaque = Box<Option<Receipt>>;
+    type DeliveryOpaque = Box<(Option<Receipt>, Option<Counted>)>;
 
-    fn delivery(&self, result: &DeliveryResult<'_>, receipt: Self::DeliveryOpaque) {
+    fn delivery(&self, result: &DeliveryResult<'_>, opaque: Self::DeliveryOpaque) {
+        let (receipt, tally) = *opaque;
         match result {
             Ok(_) => {
-                if let Some(r) = *receipt {
+                if let Some(r) = receipt {
                     r.done();
+                }
+                if let (Some(t), Some(m)) = (tally, &self.metrics) {
+                    t.count(m);
                 }
             }
             Err((e, _)) => {
-                lock(&self.failed).get_or_insert_with(|| e.to_string());
+                let why = e.to_string();
+                if let Some(m) = &self.metrics {
+                    m.condition(
+                        "kafka output",
+                        Some(format!("kafka output: a record was not delivered: {why}")),
+                    );
+                }
+                lock(&self.failed).get_or_insert(why);
             }
         }
     }
@@ -501,6 +746,20 @@ pub struct KafkaWriter {
 impl KafkaWriter {
     /// Connects a producer to `topic`'s cluster.
     pub fn open(topic: &KafkaTopic) -> Result<KafkaWriter> {
+        KafkaWriter::open_with(topic, None)
+    }
+
+    /// Queues one message.
+    pub fn send(&self, key: &str, payload: &[u8]) -> Result<()> {
+        self.send_with(key, payload, None, None)
+    }
+
+    /// [`KafkaWriter::open`]; with `metrics`, records are counted there when
+    /// acknowledged and the brokers' reachability is a `/health` condition.
+    pub(crate) fn open_with(
+        topic: &KafkaTopic,
+        metrics: Option<Arc<Metrics>>,
+    ) -> Result<KafkaWriter> {
         let failed = Arc::new(Mutex::new(None));
         let producer = client_config(
             topic,
@@ -513,10 +772,21 @@ impl KafkaWriter {
                 ("linger.ms", "5".into()),
                 // Java clients' partitioner: a key lands where theirs would put it.
                 ("partitioner", "murmur2_random".into()),
+                // A record not acknowledged within the stall time fails the run, rather
+                // than after librdkafka's five minutes.
+                (
+                    "message.timeout.ms",
+                    topic.stall.as_millis().max(1000).to_string(),
+                ),
+                ("statistics.interval.ms", "1000".into()),
             ],
         )
         .create_with_context(Delivery {
             failed: failed.clone(),
+            brokers: metrics
+                .as_ref()
+                .map(|m| BrokerWatch::new("kafka output brokers", topic.stall, m.clone())),
+            metrics,
         })
         .map_err(|e| kafka_error("creating the producer", e))?;
         Ok(KafkaWriter {
@@ -536,10 +806,17 @@ impl KafkaWriter {
         }
     }
 
-    /// Queues one message; `receipt` is handed in once the broker has it.
-    pub fn send(&self, key: &str, payload: &[u8], receipt: Option<Receipt>) -> Result<()> {
+    /// Queues one message; `receipt` is handed in and `tally` counted once the broker
+    /// has it.
+    pub(crate) fn send_with(
+        &self,
+        key: &str,
+        payload: &[u8],
+        receipt: Option<Receipt>,
+        tally: Option<Counted>,
+    ) -> Result<()> {
         self.check()?;
-        let mut record = BaseRecord::with_opaque_to(&self.topic, Box::new(receipt))
+        let mut record = BaseRecord::with_opaque_to(&self.topic, Box::new((receipt, tally)))
             .key(key)
             .payload(payload);
         loop {

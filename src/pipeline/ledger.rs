@@ -39,6 +39,14 @@ impl Leases {
             .remove(&partition);
     }
 
+    /// How many partitions are held.
+    pub(crate) fn count(&self) -> usize {
+        self.held
+            .read()
+            .unwrap_or_else(PoisonError::into_inner)
+            .len()
+    }
+
     pub(crate) fn of(&self, partition: i32) -> Option<u64> {
         self.held
             .read()

@@ -36,27 +36,33 @@ pub struct Bounds {
     pub max_connections: usize,
 }
 
-/// Warnings of one kind, logged at most once a second with the number left out.
+/// Warnings of one kind, logged at most once a period (a second by default) with the
+/// number left out.
 pub struct Throttle {
     state: Mutex<(Option<Instant>, u64)>,
+    period: Duration,
 }
 
 impl Throttle {
-    /// A throttle that has logged nothing yet.
+    /// A throttle that has logged nothing yet, one warning a second.
     pub const fn new() -> Throttle {
+        Throttle::every(Duration::from_secs(1))
+    }
+
+    /// A throttle that logs at most one warning each `period`.
+    pub const fn every(period: Duration) -> Throttle {
         Throttle {
             state: Mutex::new((None, 0)),
+            period,
         }
     }
 
     /// Calls `log` with the count of warnings left out since the last one, unless one
-    /// was logged less than a second ago.
+    /// was logged less than a period ago.
     pub fn warn(&self, log: impl FnOnce(u64)) {
         let mut s = self.state.lock().unwrap_or_else(|p| p.into_inner());
         let now = Instant::now();
-        if s.0
-            .is_some_and(|t| now.duration_since(t) < Duration::from_secs(1))
-        {
+        if s.0.is_some_and(|t| now.duration_since(t) < self.period) {
             s.1 += 1;
             return;
         }

@@ -57,6 +57,9 @@ pub struct Metrics {
     pub(crate) consumer_lag: IntGaugeVec,
     /// Each queue's capacity.
     capacity: usize,
+    /// What makes the daemon unhealthy besides full queues, by what reports it (the
+    /// Kafka input's broker and partitions, the Kafka sink's deliveries).
+    conditions: std::sync::Mutex<std::collections::BTreeMap<&'static str, String>>,
 }
 
 impl Metrics {
@@ -150,6 +153,7 @@ impl Metrics {
             queue_depth,
             consumer_lag,
             capacity: capacity.max(1),
+            conditions: Default::default(),
         }
     }
 
@@ -162,17 +166,107 @@ impl Metrics {
         String::from_utf8(out).expect("Prometheus text is UTF-8")
     }
 
-    /// Whether the daemon keeps up: no queue full. `Err` names the queues that are.
+    /// Sets (`Some`) or clears (`None`) what `source` finds wrong; `/health` fails while
+    /// any is set.
+    #[cfg_attr(not(feature = "kafka"), allow(dead_code))]
+    pub(crate) fn condition(&self, source: &'static str, problem: Option<String>) {
+        let mut c = self.conditions.lock().unwrap_or_else(|p| p.into_inner());
+        match problem {
+            Some(p) => {
+                if c.get(source) != Some(&p) {
+                    tracing::warn!(source, "unhealthy: {p}");
+                }
+                c.insert(source, p);
+            }
+            None => {
+                if c.remove(source).is_some() {
+                    tracing::info!(source, "healthy again");
+                }
+            }
+        }
+    }
+
+    /// Whether the daemon keeps up and its sources and sinks work: no queue full, no
+    /// condition set. `Err` names each problem.
     pub fn health(&self) -> std::result::Result<(), String> {
-        let full: Vec<String> = QUEUES
+        let mut full: Vec<String> = QUEUES
             .iter()
             .filter(|q| self.queue_depth.with_label_values(&[**q]).get() >= self.capacity as i64)
             .map(|q| format!("the {q} queue is full"))
             .collect();
+        full.extend(
+            self.conditions
+                .lock()
+                .unwrap_or_else(|p| p.into_inner())
+                .values()
+                .cloned(),
+        );
         if full.is_empty() {
             Ok(())
         } else {
             Err(full.join("; "))
+        }
+    }
+}
+
+/// What one written record adds to the metrics, taken when it is made and counted when
+/// it is written (a file, standard output, MCAP) or acknowledged (Kafka).
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Counted {
+    outcome: &'static str,
+    /// A reconstruction's record: its latency is observed.
+    reconstructed: bool,
+    warm: bool,
+    cold_fallback: bool,
+    empty: bool,
+    warnings: bool,
+    arrived: std::time::Instant,
+}
+
+impl Counted {
+    /// The tally of `rec`, whose frame was read at `arrived`.
+    pub(crate) fn of(
+        rec: &isoline_io::format::ResultRecord,
+        arrived: std::time::Instant,
+    ) -> Counted {
+        let outcome = if rec.skipped == Some(true) {
+            "skipped"
+        } else if rec.error.is_some() {
+            "error"
+        } else {
+            "reconstructed"
+        };
+        let st = rec.stats.as_ref();
+        Counted {
+            outcome,
+            reconstructed: st.is_some(),
+            warm: st.is_some_and(|s| s.warm_start),
+            cold_fallback: st.is_some_and(|s| s.cold_fallback),
+            empty: st.is_some() && rec.polylines.as_ref().is_some_and(Vec::is_empty),
+            warnings: rec.warnings.is_some(),
+            arrived,
+        }
+    }
+
+    /// Counts the record.
+    pub(crate) fn count(&self, metrics: &Metrics) {
+        metrics.records.with_label_values(&[self.outcome]).inc();
+        if self.reconstructed {
+            metrics
+                .latency_seconds
+                .observe(self.arrived.elapsed().as_secs_f64());
+        }
+        if self.warm {
+            metrics.warm.inc();
+        }
+        if self.cold_fallback {
+            metrics.cold_fallbacks.inc();
+        }
+        if self.empty {
+            metrics.empty.inc();
+        }
+        if self.warnings {
+            metrics.warnings.inc();
         }
     }
 }
@@ -212,7 +306,7 @@ impl MetricsServer {
                 "/metrics" => (200, "text/plain; version=0.0.4", metrics.text()),
                 "/health" => match metrics.health() {
                     Ok(()) => (200, "text/plain", "ok\n".to_string()),
-                    Err(why) => (503, "text/plain", format!("behind: {why}\n")),
+                    Err(why) => (503, "text/plain", format!("unhealthy: {why}\n")),
                 },
                 _ => (404, "text/plain", "not found: /metrics, /health\n".into()),
             };
@@ -251,5 +345,10 @@ mod tests {
         assert!(m.health().is_ok());
         m.queue_depth.with_label_values(&["solve"]).set(4);
         assert!(m.health().unwrap_err().contains("solve queue is full"));
+        m.queue_depth.with_label_values(&["solve"]).set(0);
+        m.condition("kafka input", Some("no broker reachable for 12 s".into()));
+        assert_eq!(m.health().unwrap_err(), "no broker reachable for 12 s");
+        m.condition("kafka input", None);
+        assert!(m.health().is_ok());
     }
 }

@@ -312,9 +312,11 @@ impl Daemon {
     /// ingest stops, frames in flight finish and the sinks flush.
     pub fn start(cfg: &DaemonConfig, stop: Arc<AtomicBool>) -> Result<Daemon> {
         cfg.check_paths()?;
+        let q = cfg.queue;
+        let metrics = Arc::new(metrics::Metrics::new(q));
         #[cfg(feature = "kafka")]
         let sink = match &cfg.output_kafka {
-            Some(topic) => sink::Sink::kafka(topic)?,
+            Some(topic) => sink::Sink::kafka(topic, metrics.clone())?,
             None => sink::Sink::open(cfg.output.as_deref())?,
         };
         #[cfg(not(feature = "kafka"))]
@@ -322,8 +324,6 @@ impl Daemon {
         if let Some(dir) = &cfg.svg_dir {
             std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
         }
-        let q = cfg.queue;
-        let metrics = Arc::new(metrics::Metrics::new(q));
         // Read lines wait here for ingest; on shutdown each still gets its record, so
         // this queue is no longer than the others.
         let (line_tx, line_rx) = bounded(q);
@@ -410,7 +410,10 @@ impl Daemon {
         match failure {
             Some(e) => {
                 tracing::error!(records = summary.records, "run ended by: {e}");
-                Err(e)
+                Err(Error::RunFailed {
+                    summary: summary.to_string(),
+                    cause: Box::new(e),
+                })
             }
             None => Ok(summary),
         }

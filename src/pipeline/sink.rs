@@ -16,7 +16,11 @@ use serde::Deserialize;
 
 #[cfg(feature = "kafka")]
 use super::kafka::{KafkaTopic, KafkaWriter};
+#[cfg(feature = "kafka")]
+use std::sync::Arc;
+
 use super::ledger::Receipt;
+use super::metrics::{Counted, Metrics};
 use crate::error::{Error, Result};
 use isoline_io::format::ResultRecord;
 use isoline_io::foxglove::{FrameView, McapOut};
@@ -66,8 +70,11 @@ pub(crate) enum Sink {
 impl Sink {
     /// Opens a Kafka topic's writer.
     #[cfg(feature = "kafka")]
-    pub(crate) fn kafka(topic: &KafkaTopic) -> Result<Sink> {
-        Ok(Sink::Kafka(Box::new(KafkaWriter::open(topic)?)))
+    pub(crate) fn kafka(topic: &KafkaTopic, metrics: Arc<Metrics>) -> Result<Sink> {
+        Ok(Sink::Kafka(Box::new(KafkaWriter::open_with(
+            topic,
+            Some(metrics),
+        )?)))
     }
 
     /// Opens the output: `path`, its folder created, or standard output.
@@ -95,15 +102,22 @@ impl Sink {
     }
 
     /// Writes one frame: its record (NDJSON, Kafka), or its record, curves and points
-    /// (MCAP); `receipt` is handed in once the record is written.
-    pub(crate) fn write_frame(&mut self, view: &FrameView, receipt: Option<Receipt>) -> Result<()> {
+    /// (MCAP); `receipt` is handed in and `tally` counted in `metrics` once the record
+    /// is written (for Kafka: acknowledged).
+    pub(crate) fn write_frame(
+        &mut self,
+        view: &FrameView,
+        receipt: Option<Receipt>,
+        tally: Counted,
+        metrics: &Metrics,
+    ) -> Result<()> {
         match self {
             #[cfg(feature = "kafka")]
             Sink::Kafka(k) => {
                 let payload =
                     serde_json::to_vec(&view.record).map_err(|e| Error::Internal(e.to_string()))?;
                 let key = view.record.stream.as_deref().unwrap_or("");
-                return k.send(key, &payload, receipt);
+                return k.send_with(key, &payload, receipt, Some(tally));
             }
             Sink::Mcap(m) => m.write(view)?,
             _ => self.write_record(&view.record)?,
@@ -111,6 +125,7 @@ impl Sink {
         if let Some(r) = receipt {
             r.done();
         }
+        tally.count(metrics);
         Ok(())
     }
 
@@ -130,20 +145,11 @@ impl Sink {
         line.push(b'\n');
         match self {
             #[cfg(feature = "kafka")]
-            Sink::Kafka(_) => self.write_frame(
-                &FrameView {
-                    record: rec.clone(),
-                    ..Default::default()
-                },
-                None,
-            ),
-            Sink::Mcap(_) => self.write_frame(
-                &FrameView {
-                    record: rec.clone(),
-                    ..Default::default()
-                },
-                None,
-            ),
+            Sink::Kafka(k) => k.send_with(rec.stream.as_deref().unwrap_or(""), &line, None, None),
+            Sink::Mcap(m) => Ok(m.write(&FrameView {
+                record: rec.clone(),
+                ..Default::default()
+            })?),
             Sink::Stdout(out) => {
                 let mut out = out.lock();
                 out.write_all(&line)

@@ -16,7 +16,7 @@ use hdrhistogram::Histogram;
 
 use super::config::Policy;
 use super::ledger::{Leases, Receipt};
-use super::metrics::Metrics;
+use super::metrics::{Counted, Metrics};
 use super::sink::Sink;
 use super::source::Line;
 use super::RunSummary;
@@ -780,9 +780,11 @@ impl Exporter {
             t: m.t,
             pose: m.pose,
         };
-        self.outputs.sink.write_frame(&view, m.receipt)?;
+        let counted = Counted::of(&view.record, m.arrived);
+        self.outputs
+            .sink
+            .write_frame(&view, m.receipt, counted, &self.outputs.metrics)?;
         self.summary.records += 1;
-        count(&self.outputs.metrics, &view.record, m.arrived);
         if let Some(l) = &self.outputs.live {
             if !l.show(view) {
                 self.summary.live_dropped += 1;
@@ -882,35 +884,6 @@ fn draw(path: &std::path::Path, points: &[Point], r: &Reconstruction) {
     );
     if let Err(e) = isoline_io::write::write_atomic(path, doc.as_bytes()) {
         tracing::warn!(path = %path.display(), error = %e, "SVG not written");
-    }
-}
-
-/// Counts a written record in the metrics.
-fn count(metrics: &Metrics, rec: &ResultRecord, arrived: Instant) {
-    let outcome = if rec.skipped == Some(true) {
-        "skipped"
-    } else if rec.error.is_some() {
-        "error"
-    } else {
-        "reconstructed"
-    };
-    metrics.records.with_label_values(&[outcome]).inc();
-    if let Some(st) = &rec.stats {
-        metrics
-            .latency_seconds
-            .observe(arrived.elapsed().as_secs_f64());
-        if st.warm_start {
-            metrics.warm.inc();
-        }
-        if st.cold_fallback {
-            metrics.cold_fallbacks.inc();
-        }
-        if rec.polylines.as_ref().is_some_and(Vec::is_empty) {
-            metrics.empty.inc();
-        }
-    }
-    if rec.warnings.is_some() {
-        metrics.warnings.inc();
     }
 }
 

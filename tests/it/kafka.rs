@@ -1,7 +1,9 @@
 //! Scale-out through Kafka, against a real broker on loopback (Tansu, installed by
 //! `scripts/kafka-broker.sh install`, which the README's test command runs): two
 //! daemons in one consumer group share 8 streams on a 4-partition topic, one is killed
-//! with SIGKILL mid-stream, and the other takes its partitions over.
+//! with SIGKILL mid-stream, and the other takes its partitions over. Then the faults:
+//! no broker at start, a broker killed and restarted empty, a broker down at SIGTERM,
+//! a sink's broker killed.
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::io::{BufRead, BufReader};
@@ -35,19 +37,35 @@ impl Drop for Broker {
     }
 }
 
+/// A free loopback port.
+fn free_port() -> u16 {
+    TcpListener::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap()
+        .port()
+}
+
+fn tansu() -> PathBuf {
+    let bin = Path::new(env!("CARGO_MANIFEST_DIR")).join(".tools/kafka/bin/tansu");
+    assert!(
+        bin.exists(),
+        "no broker at {}: run scripts/kafka-broker.sh install (the README's test command does)",
+        bin.display()
+    );
+    bin
+}
+
 impl Broker {
     fn start() -> Broker {
-        let bin = Path::new(env!("CARGO_MANIFEST_DIR")).join(".tools/kafka/bin/tansu");
-        assert!(
-            bin.exists(),
-            "no broker at {}: run scripts/kafka-broker.sh install (the README's test command does)",
-            bin.display()
-        );
-        let port = TcpListener::bind("127.0.0.1:0")
-            .unwrap()
-            .local_addr()
-            .unwrap()
-            .port();
+        let b = Broker::start_on(free_port());
+        b.create_topics();
+        b
+    }
+
+    /// A broker on `port`, in memory: a restarted broker has lost every topic.
+    fn start_on(port: u16) -> Broker {
+        let bin = tansu();
         let url = format!("tcp://127.0.0.1:{port}");
         let child = Command::new(&bin)
             .args([
@@ -68,8 +86,13 @@ impl Broker {
             assert!(t0.elapsed() < Duration::from_secs(10), "broker not up");
             std::thread::sleep(Duration::from_millis(50));
         }
+        broker
+    }
+
+    fn create_topics(&self) {
+        let url = format!("tcp://127.0.0.1:{}", self.port);
         for topic in ["frames", "records"] {
-            let out = Command::new(&bin)
+            let out = Command::new(tansu())
                 .args(["topic", "create", topic, "--partitions"])
                 .arg(PARTITIONS.to_string())
                 .args(["--broker", &url])
@@ -77,7 +100,11 @@ impl Broker {
                 .unwrap();
             assert!(out.status.success(), "{out:?}");
         }
-        broker
+    }
+
+    fn kill(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
     }
 
     fn addr(&self) -> String {
@@ -94,10 +121,10 @@ struct Daemon {
 
 impl Daemon {
     fn start(dir: &Path, name: &str, broker: &str) -> Daemon {
-        let cfg = dir.join(format!("{name}.toml"));
-        std::fs::write(
-            &cfg,
-            format!(
+        Daemon::with(
+            dir,
+            name,
+            &format!(
                 "[input]\nkind = \"kafka\"\nbrokers = \"{broker}\"\ntopic = \"frames\"\n\
                  [input.kafka]\n\"session.timeout.ms\" = 2000\n\"heartbeat.interval.ms\" = 300\n\
                  [output]\nkind = \"kafka\"\nbrokers = \"{broker}\"\ntopic = \"records\"\n\
@@ -105,7 +132,12 @@ impl Daemon {
                  [tracing]\nlevel = \"warn,isoline::pipeline::kafka=info\"\n"
             ),
         )
-        .unwrap();
+    }
+
+    /// A daemon with configuration `toml`.
+    fn with(dir: &Path, name: &str, toml: &str) -> Daemon {
+        let cfg = dir.join(format!("{name}.toml"));
+        std::fs::write(&cfg, toml).unwrap();
         let mut child = Command::new(env!("CARGO_BIN_EXE_isoline"))
             .args(["run", "-c", p(&cfg)])
             .env("NO_COLOR", "1")
@@ -430,4 +462,251 @@ fn http_get(addr: &str, path: &str) -> String {
     let mut text = String::new();
     s.read_to_string(&mut text).unwrap();
     text
+}
+
+/// `/health`'s status line and body.
+fn health(d: &mut Daemon) -> String {
+    let addr = d.metrics_addr().expect("the daemon serves metrics");
+    let text = http_get(&addr, "/health");
+    let (head, body) = text.split_once("\r\n\r\n").unwrap_or((&text, ""));
+    format!("{} {}", head.lines().next().unwrap_or(""), body.trim())
+}
+
+/// A daemon reading `frames` with a stall time of 2 s, writing records to `out`.
+fn reader(dir: &Path, name: &str, broker: &str, out: &Path) -> Daemon {
+    Daemon::with(
+        dir,
+        name,
+        &format!(
+            "[input]\nkind = \"kafka\"\nbrokers = \"{broker}\"\ntopic = \"frames\"\n\
+             stall_timeout = 2\n\
+             [input.kafka]\n\"session.timeout.ms\" = 2000\n\"heartbeat.interval.ms\" = 300\n\
+             \"reconnect.backoff.max.ms\" = 500\n\
+             [output]\npath = {out:?}\n[metrics]\nbind = \"127.0.0.1:0\"\n\
+             [tracing]\nlevel = \"warn,isoline::pipeline::kafka=info\"\n"
+        ),
+    )
+}
+
+/// Publishes the first `n` frames of the ellipse stream to `frames`.
+fn publish(dir: &Path, broker: &str, n: usize, stream: &str) {
+    let text = std::fs::read_to_string(format!(
+        "{}/fixtures/ellipse-stream-20.ndjson",
+        env!("CARGO_MANIFEST_DIR")
+    ))
+    .unwrap();
+    let frames: String = text
+        .lines()
+        .take(n)
+        .map(|l| {
+            let mut v: Value = serde_json::from_str(l).unwrap();
+            v["stream"] = Value::from(stream);
+            format!("{v}\n")
+        })
+        .collect();
+    let path = dir.join(format!("{stream}.ndjson"));
+    std::fs::write(&path, frames).unwrap();
+    ok(&["publish", p(&path), "--brokers", broker, "--to", "frames"]);
+}
+
+fn lines(path: &Path) -> usize {
+    std::fs::read_to_string(path).map_or(0, |t| t.lines().count())
+}
+
+/// No broker at start: `/health` says so after the stall time, the warnings come at
+/// most once every ten seconds, and SIGTERM ends the run cleanly (nothing was read).
+#[test]
+fn no_broker_at_start_is_unhealthy_and_quiet() {
+    let dir = tempfile::tempdir().unwrap();
+    let port = free_port();
+    let out = dir.path().join("out.ndjson");
+    let mut d = reader(dir.path(), "lonely", &format!("127.0.0.1:{port}"), &out);
+    until(Duration::from_secs(20), "health fails", || {
+        d.metrics_addr().is_some() && health(&mut d).contains("503")
+    });
+    let h = health(&mut d);
+    assert!(h.contains("kafka input: no Kafka broker reachable"), "{h}");
+    std::thread::sleep(Duration::from_secs(4));
+    d.pump();
+    let warnings = d
+        .seen
+        .iter()
+        .filter(|l| l.contains("WARN") || l.contains("ERROR"))
+        .count();
+    assert!(
+        warnings <= 8,
+        "{warnings} warning lines:\n{}",
+        d.seen.join("\n")
+    );
+    d.signal("-TERM");
+    let status = d.child.wait().unwrap();
+    assert!(status.success(), "{:?}", d.seen);
+}
+
+/// The broker dies and comes back empty (in memory), its topic recreated before and
+/// after the daemon reconnects: `/health` fails while it is gone, the member takes the
+/// new partitions (rejoining if it was left without), the lag series exist from the
+/// assignment, every frame published after the restart gets its record, and health
+/// comes back.
+#[test]
+fn a_broker_killed_and_restarted_is_seen_and_survived() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let mut broker = Broker::start();
+    let addr = broker.addr();
+    let out = d.join("out.ndjson");
+    let mut daemon = reader(d, "r", &addr, &out);
+    until(Duration::from_secs(30), "partitions assigned", || {
+        daemon.partitions().len() == PARTITIONS as usize
+    });
+    let metrics = daemon.metrics_addr().unwrap();
+    let text = http_get(&metrics, "/metrics");
+    for p in 0..PARTITIONS {
+        assert!(
+            text.contains(&format!("isoline_kafka_consumer_lag{{partition=\"{p}\"}}")),
+            "no lag series for partition {p} from its assignment:\n{text}"
+        );
+    }
+    publish(d, &addr, 4, "one");
+    until(Duration::from_secs(30), "4 records", || lines(&out) == 4);
+    assert!(health(&mut daemon).starts_with("HTTP/1.1 200"));
+
+    for recreate_after_reconnect in [false, true] {
+        broker.kill();
+        until(
+            Duration::from_secs(20),
+            "health fails without the broker",
+            || health(&mut daemon).contains("no Kafka broker reachable"),
+        );
+        broker = Broker::start_on(broker.port);
+        if recreate_after_reconnect {
+            // The daemon finds a broker without its topic: it holds no partitions,
+            // which `/health` reports once the stall time has passed.
+            until(Duration::from_secs(30), "no partitions reported", || {
+                health(&mut daemon).contains("no partitions")
+            });
+        }
+        broker.create_topics();
+        let before = lines(&out);
+        let stream = format!("after-{recreate_after_reconnect}");
+        // Published once the group has the new partitions: what the broker keeps from
+        // then on is read.
+        until(Duration::from_secs(60), "partitions held again", || {
+            !daemon.partitions().is_empty() && health(&mut daemon).starts_with("HTTP/1.1 200")
+        });
+        publish(d, &addr, 4, &stream);
+        until(Duration::from_secs(60), "the new frames' records", || {
+            lines(&out) == before + 4
+        });
+    }
+    let recs: Vec<Value> = std::fs::read_to_string(&out)
+        .unwrap()
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    assert_eq!(recs.len(), 12);
+    assert!(recs.iter().all(|r| r["error"].is_null()));
+    assert!(health(&mut daemon).starts_with("HTTP/1.1 200"));
+}
+
+/// SIGTERM while the broker is down, with records written since the last commit: the
+/// final commit fails, the exit is non-zero and says so with the run's summary.
+#[test]
+fn a_final_commit_that_fails_fails_the_run() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let mut broker = Broker::start();
+    let addr = broker.addr();
+    let out = d.join("out.ndjson");
+    let mut daemon = reader(d, "r", &addr, &out);
+    until(Duration::from_secs(30), "partitions assigned", || {
+        daemon.partitions().len() == PARTITIONS as usize
+    });
+    publish(d, &addr, 20, "one");
+    // Killed as the first record is written: the frames read after it are written
+    // while no commit can reach the broker.
+    until(Duration::from_secs(30), "a record", || lines(&out) >= 1);
+    broker.kill();
+    until(Duration::from_secs(60), "every record", || {
+        lines(&out) == 20
+    });
+    daemon.signal("-TERM");
+    let status = daemon.child.wait().unwrap();
+    std::thread::sleep(Duration::from_millis(200));
+    daemon.pump();
+    let log = daemon.seen.join("\n");
+    assert!(!status.success(), "{log}");
+    assert!(
+        log.contains("final offset commit failed") && log.contains("20 records"),
+        "{log}"
+    );
+}
+
+/// The sink's broker dies mid-run: `/health` fails within the stall time and the run
+/// ends with an error naming the undelivered record; no record is counted before the
+/// broker acknowledged it.
+#[test]
+fn a_sink_whose_broker_dies_is_seen_within_the_stall_time() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let mut broker = Broker::start();
+    let addr = broker.addr();
+    let input = d.join("in.ndjson");
+    std::fs::copy(
+        format!(
+            "{}/fixtures/ellipse-stream-20.ndjson",
+            env!("CARGO_MANIFEST_DIR")
+        ),
+        &input,
+    )
+    .unwrap();
+    let mut daemon = Daemon::with(
+        d,
+        "w",
+        &format!(
+            "[input]\npath = {input:?}\nreplay = 4\n\
+             [output]\nkind = \"kafka\"\nbrokers = \"{addr}\"\ntopic = \"records\"\n\
+             stall_timeout = 2\n[output.kafka]\n\"reconnect.backoff.max.ms\" = 500\n\
+             [metrics]\nbind = \"127.0.0.1:0\"\n"
+        ),
+    );
+    let mut records = Records::new(&addr);
+    until(Duration::from_secs(30), "two records delivered", || {
+        records.read() >= 2
+    });
+    broker.kill();
+    let killed = Instant::now();
+    until(Duration::from_secs(15), "health fails", || {
+        let h = health(&mut daemon);
+        h.contains("kafka output") || daemon.child.try_wait().unwrap().is_some()
+    });
+    assert!(killed.elapsed() < Duration::from_secs(12));
+    let metrics = daemon.metrics_addr().unwrap();
+    if let Ok(mut s) = std::net::TcpStream::connect(&metrics) {
+        use std::io::{Read, Write};
+        let _ = write!(s, "GET /metrics HTTP/1.0\r\n\r\n");
+        let mut text = String::new();
+        let _ = s.read_to_string(&mut text);
+        let counted: f64 = text
+            .lines()
+            .find_map(|l| l.strip_prefix("isoline_records_total{outcome=\"reconstructed\"} "))
+            .map_or(0.0, |v| v.trim().parse().unwrap());
+        assert!(
+            counted <= records.got.len() as f64 + 1.0,
+            "{counted} counted"
+        );
+    }
+    let t0 = Instant::now();
+    let status = loop {
+        if let Some(s) = daemon.child.try_wait().unwrap() {
+            break s;
+        }
+        assert!(
+            t0.elapsed() < Duration::from_secs(30),
+            "the run did not end"
+        );
+        std::thread::sleep(Duration::from_millis(100));
+    };
+    daemon.pump();
+    assert!(!status.success(), "{}", daemon.seen.join("\n"));
 }
