@@ -226,6 +226,10 @@ pub struct PipelineConfig {
     pub accumulate: Option<i64>,
     /// Seconds a frame stays in the window at most, in `[0.001, 1e6]`.
     pub accumulate_seconds: Option<f64>,
+    /// Bytes all streams' refinement windows may hold together, in `2^20..=2^40`;
+    /// each stream's window holds at most this divided by `max_streams`, its oldest
+    /// frames leaving first. Default 4 GiB (16 MiB a stream with 256 streams).
+    pub max_state_bytes: Option<i64>,
 }
 
 /// `[tracing]`.
@@ -257,8 +261,12 @@ pub const DEFAULT_METRICS_BIND: &str = "127.0.0.1:9898";
 
 /// Default of `pipeline.max_streams`.
 pub const DEFAULT_MAX_STREAMS: usize = 256;
-/// The most frames `pipeline.accumulate` may keep: each holds a mesh and a level set
-/// (about 0.35 MB for a 1,080-beam scan), so a window of 100 is 35 MB a stream.
+/// Default of `pipeline.max_state_bytes`: 4 GiB for every stream's window together.
+pub const DEFAULT_MAX_STATE_BYTES: usize = 4 << 30;
+
+/// The most frames `pipeline.accumulate` may keep: each holds a mesh, a level set, its
+/// scan's analysis and indices (about 0.9 MB for a 1,080-beam scan); the windows' bytes
+/// are bounded by `pipeline.max_state_bytes` whatever the frames.
 pub const MAX_ACCUMULATE: usize = 100;
 /// Default of `pipeline.stream_idle`.
 pub const DEFAULT_STREAM_IDLE: Duration = Duration::from_secs(60);
@@ -300,23 +308,33 @@ impl PipelineConfig {
             self.accumulate_seconds,
             problems,
         );
+        let max_streams = bounded(
+            "pipeline.max_streams",
+            self.max_streams,
+            DEFAULT_MAX_STREAMS,
+            1,
+            1 << 20,
+            problems,
+        );
+        let state_bytes = bounded(
+            "pipeline.max_state_bytes",
+            self.max_state_bytes,
+            DEFAULT_MAX_STATE_BYTES,
+            1 << 20,
+            1 << 40,
+            problems,
+        );
         Pipeline {
             queue: bounded("pipeline.queue", self.queue, 4, 1, 4096, problems),
             policy: self.policy.unwrap_or_default(),
             warm_start: self.warm_start.unwrap_or(true),
-            max_streams: bounded(
-                "pipeline.max_streams",
-                self.max_streams,
-                DEFAULT_MAX_STREAMS,
-                1,
-                1 << 20,
-                problems,
-            ),
+            max_streams,
             stream_idle: seconds("pipeline.stream_idle", self.stream_idle, problems)
                 .unwrap_or(DEFAULT_STREAM_IDLE),
             accumulate: (frames > 1).then_some(WindowLimits {
                 frames,
                 seconds: self.accumulate_seconds.filter(|_| window_seconds.is_some()),
+                max_bytes: Some(state_bytes / max_streams.max(1)),
             }),
         }
     }
@@ -678,7 +696,8 @@ mod tests {
                 .accumulate,
             Some(WindowLimits {
                 frames: 10,
-                seconds: Some(0.5)
+                seconds: Some(0.5),
+                max_bytes: Some(DEFAULT_MAX_STATE_BYTES / DEFAULT_MAX_STREAMS),
             })
         );
         let e = parse("[pipeline]\naccumulate = 101\naccumulate_seconds = 0\n")

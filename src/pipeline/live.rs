@@ -436,3 +436,46 @@ fn handle_request(text: &str, viewer: &Viewer, unknown_warned: &mut bool) -> Opt
         None => status("no op".into()),
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A viewer that never reads holds at most its byte budget, whatever the number of
+    /// messages: the oldest leave, counted.
+    #[test]
+    fn a_stalled_viewers_backlog_is_bounded_in_bytes() {
+        let v = Viewer::default();
+        v.subscriptions.lock().unwrap().insert(7, 1);
+        let data: Arc<[u8]> = vec![0u8; 100_000].into();
+        for k in 0..200 {
+            v.push(1, k, &data);
+            // A channel the viewer did not subscribe to costs it nothing.
+            v.push(2, k, &data);
+        }
+        let b = v.backlog.lock().unwrap();
+        assert!(b.bytes <= VIEWER_BACKLOG_BYTES);
+        assert_eq!(b.queue.len(), VIEWER_BACKLOG_BYTES / 100_013);
+        assert_eq!(b.dropped as usize, 200 - b.queue.len());
+        assert!(b.queue.iter().all(|m| m.subscription == 7));
+        assert_eq!(b.queue.back().unwrap().nanos, 199);
+    }
+
+    #[test]
+    fn subscriptions_are_bounded_and_one_status_answers_a_request() {
+        let v = Viewer::default();
+        let mut warned = false;
+        let subs: Vec<Value> = (0..100)
+            .map(|i| json!({"id": i, "channelId": 1 + i % 4}))
+            .chain((0..50).map(|i| json!({"id": 1000 + i, "channelId": 99})))
+            .collect();
+        let req = json!({"op": "subscribe", "subscriptions": subs}).to_string();
+        let status = handle_request(&req, &v, &mut warned).unwrap();
+        assert!(status.contains("50 subscriptions name no advertised channel"));
+        assert!(status.contains("36 over the limit"), "{status}");
+        assert_eq!(v.subscriptions.lock().unwrap().len(), MAX_SUBSCRIPTIONS);
+        let req = json!({"op": "unsubscribe", "subscriptionIds": [0, 1, 2]}).to_string();
+        assert!(handle_request(&req, &v, &mut warned).is_none());
+        assert_eq!(v.subscriptions.lock().unwrap().len(), MAX_SUBSCRIPTIONS - 3);
+    }
+}

@@ -622,3 +622,61 @@ fn the_metrics_add_up_to_the_records_written() {
     signal(&child, "-TERM");
     assert!(wait(&mut child, Duration::from_secs(30)).success());
 }
+
+/// Refinement state has a byte budget: with `max_state_bytes` shared by `max_streams`,
+/// every stream's window stays within its share (the oldest frames leave first), what
+/// the frame count would allow notwithstanding, and the record says how much it held.
+#[test]
+fn refinement_windows_hold_their_byte_budget() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let mut text = String::new();
+    for (k, s) in ["a", "b"].iter().enumerate() {
+        let path = d.join(format!("{s}.ndjson"));
+        let seed = (k + 1).to_string();
+        crate::common::ok(&[
+            "synth",
+            "room",
+            "--frames",
+            "5",
+            "--motion",
+            "0.05",
+            "--seed",
+            &seed,
+            "--stream",
+            s,
+            "-o",
+            path.to_str().unwrap(),
+        ]);
+        text.push_str(&std::fs::read_to_string(&path).unwrap());
+    }
+    let input = d.join("in.ndjson");
+    std::fs::write(&input, text).unwrap();
+    // 16 MiB for 4 streams: 4 MiB a window, a few frames of a 1,080-beam scan.
+    let (recs, _) = replay(
+        d,
+        &input,
+        "",
+        "[pipeline]\naccumulate = 10\nmax_streams = 4\nmax_state_bytes = 16777216\n",
+    );
+    assert_eq!(recs.len(), 10);
+    let windows: Vec<&Value> = recs
+        .iter()
+        .filter_map(|r| {
+            r["stats"]["window"]
+                .as_object()
+                .map(|_| &r["stats"]["window"])
+        })
+        .collect();
+    assert_eq!(windows.len(), 10);
+    for w in &windows {
+        assert!(w["bytes"].as_u64().unwrap() <= 4 << 20, "{w}");
+    }
+    let most = windows
+        .iter()
+        .map(|w| w["frames"].as_u64().unwrap())
+        .max()
+        .unwrap();
+    // Without the budget each stream's window would hold all its 5 frames.
+    assert!((2..5).contains(&most), "{most} frames at most");
+}

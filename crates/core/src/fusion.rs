@@ -33,6 +33,9 @@ pub struct WindowLimits {
     pub frames: usize,
     /// Frames whose time stamp `t` is older than the newest's by more than this leave.
     pub seconds: Option<f64>,
+    /// Bytes the window may hold ([`Window::bytes`]): the oldest frames leave while it
+    /// holds more (the newest always stays).
+    pub max_bytes: Option<usize>,
 }
 
 /// One frame of a window, in the world's coordinates and the data's units.
@@ -125,7 +128,9 @@ impl View {
         near * (end / (4.0 * self.tol)).clamp(0.0, 1.0)
     }
 
-    /// Bytes this view holds, roughly.
+    /// Bytes this view holds: its arrays' lengths and its indices' entries, which
+    /// the daemon's resident memory per stream matches within a few per cent
+    /// (docs/daemon.md).
     pub fn bytes(&self) -> usize {
         let a = &self.analysis;
         let point = std::mem::size_of::<Point>();
@@ -139,6 +144,9 @@ impl View {
                 .iter()
                 .map(|s| s.points.len() * point)
                 .sum::<usize>()
+            + self.index.bytes()
+            + self.vertices.as_ref().map_or(0, VertexIndex::bytes)
+            + self.ends.len() * point
     }
 }
 
@@ -175,7 +183,8 @@ impl Window {
                 (Some(s), Some(now), Some(then)) => now - then > s,
                 _ => false,
             };
-            if self.views.len() > limits.frames.max(1) || too_old {
+            let too_big = limits.max_bytes.is_some_and(|m| self.bytes() > m);
+            if self.views.len() > limits.frames.max(1) || too_old || too_big {
                 self.views.pop_front();
             } else {
                 break;
@@ -478,6 +487,7 @@ mod tests {
     #[test]
     fn agreeing_views_average_and_others_are_left_out() {
         let limits = WindowLimits {
+            max_bytes: None,
             frames: 10,
             seconds: None,
         };
@@ -543,6 +553,7 @@ mod tests {
     #[test]
     fn frames_leave_the_window_by_count_and_age() {
         let limits = WindowLimits {
+            max_bytes: None,
             frames: 3,
             seconds: Some(2.5),
         };
@@ -557,5 +568,26 @@ mod tests {
         w.push(wall(1, 4.0, 1.0), &limits);
         assert_eq!(w.len(), 1);
         assert!(w.bytes() > 0);
+    }
+
+    /// A byte budget holds whatever the frame count allows: the oldest frames leave
+    /// until the window fits, and the newest stays even when it alone is over.
+    #[test]
+    fn frames_leave_the_window_by_bytes() {
+        let one = wall(0, 0.0, 1.0).bytes();
+        let mut limits = WindowLimits {
+            max_bytes: Some(3 * one + one / 2),
+            frames: 10,
+            seconds: None,
+        };
+        let mut w = Window::default();
+        for i in 0..8u64 {
+            w.push(wall(i, 0.1 * i as f64, 1.0), &limits);
+            assert!(w.bytes() <= limits.max_bytes.unwrap());
+        }
+        assert_eq!(w.views().map(|v| v.frame).collect::<Vec<_>>(), [5, 6, 7]);
+        limits.max_bytes = Some(one / 2);
+        w.push(wall(8, 0.8, 1.0), &limits);
+        assert_eq!(w.views().map(|v| v.frame).collect::<Vec<_>>(), [8]);
     }
 }

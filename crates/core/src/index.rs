@@ -18,6 +18,12 @@ pub struct SegmentIndex {
 }
 
 impl SegmentIndex {
+    /// Bytes the index holds: segments, offsets and the kd-tree's entries (a point and
+    /// an item each, plus about as much again for its stems and buckets).
+    pub fn bytes(&self) -> usize {
+        self.segs.len() * 32 + self.starts.len() * 8 + self.piece_seg.len() * (4 + 2 * 24)
+    }
+
     /// Indexes every segment of `polylines` (an isolated point counts as a segment of
     /// length zero).
     pub fn new(polylines: &[Polyline]) -> SegmentIndex {

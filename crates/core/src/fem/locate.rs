@@ -193,6 +193,12 @@ pub(crate) struct VertexIndex {
 }
 
 impl VertexIndex {
+    /// Bytes the index holds: a point and an item per vertex, about as much again for
+    /// the tree's stems and buckets.
+    pub(crate) fn bytes(&self) -> usize {
+        self.tree.size() * 2 * 24
+    }
+
     /// The index of `mesh`'s vertices; `None` for a mesh without any.
     pub(crate) fn new(mesh: &Mesh) -> Option<VertexIndex> {
         if mesh.coords.is_empty()
