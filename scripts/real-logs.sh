@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
-# The real-recording table of docs/benchmarks.md: each CARMEN log (*.log.gz) and NDJSON
-# beam stream (*.ndjson.gz) in $ISOLINE_REAL is unpacked into target/real-logs/ and
+# The real-recording table of docs/benchmarks.md: each CARMEN log (*.log.gz, converted
+# as published) and NDJSON beam stream (*.ndjson.gz) in $ISOLINE_REAL is unpacked into
+# target/real-logs/ and
 # replayed through the daemon as fast as it goes, single-frame (cold, and warm: the same
 # frames with warm starts on) and refined over 10 frames (`accumulate = 10`), with
 # scripts/split_and_merge.py on the same frames; each run is scored by `isoline eval
@@ -23,7 +24,8 @@ mkdir -p "$dir"
 for gz in "$real"/*.gz; do
   name=$(basename "$gz" .gz)
   case $name in
-    *.log) name=${name%.log}; zcat "$gz" > "$dir/$name.clf"; "$bin" convert "$dir/$name.clf" -o "$dir/$name.ndjson" 2>/dev/null ;;
+    # CARMEN logs are read as published (gzip, `.log`).
+    *.log) name=${name%.log}; "$bin" convert "$gz" -o "$dir/$name.ndjson" 2>/dev/null ;;
     *.ndjson) name=${name%.ndjson}; zcat "$gz" > "$dir/$name.ndjson" ;;
     *) continue ;;
   esac

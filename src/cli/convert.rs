@@ -14,7 +14,7 @@ use isoline_io::{carmen, BadFrame};
 /// `isoline convert` options.
 #[derive(clap::Args)]
 pub struct Args {
-    /// ROS 2 bag (.mcap), CARMEN log (.clf/.carmen) or NDJSON frames (.ndjson/.jsonl).
+    /// ROS 2 bag (.mcap), CARMEN log (.log, .clf, .carmen, maybe .gz, or by its lines) or NDJSON frames (.ndjson/.jsonl).
     input: PathBuf,
     /// NDJSON frames (.ndjson/.jsonl) or a ROS 2 bag (.mcap: LaserScan and Odometry).
     #[arg(short, long)]
@@ -180,7 +180,7 @@ pub fn read_frames(
         }
     } else {
         bail!(
-            "{}: unknown input extension (use .mcap, .clf, .carmen, .ndjson or .jsonl)",
+            "{}: unknown input: not a bag (.mcap), NDJSON frames (.ndjson, .jsonl) or a CARMEN log (.log, .clf, .carmen, or lines that start with PARAM, FLASER, ...)",
             input.display()
         );
     }

@@ -17,7 +17,7 @@ use isoline::pipeline::Replay;
 /// `isoline publish` options.
 #[derive(clap::Args)]
 pub struct Args {
-    /// NDJSON frames (.ndjson/.jsonl), a ROS 2 bag (.mcap) or a CARMEN log (.clf/.carmen).
+    /// NDJSON frames (.ndjson/.jsonl), a ROS 2 bag (.mcap) or a CARMEN log (.log, .clf, .carmen, maybe .gz, or by its lines).
     input: PathBuf,
     /// Kafka bootstrap servers, host:port[,host:port].
     #[arg(long)]

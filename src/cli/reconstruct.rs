@@ -13,7 +13,7 @@ use isoline_io::Item;
 #[derive(clap::Args)]
 pub struct Args {
     /// Point file (`x y` per line), NDJSON frame stream (.ndjson/.jsonl), ROS 2 bag
-    /// (.mcap) or CARMEN log (.clf/.carmen).
+    /// (.mcap) or CARMEN log (.log, .clf, .carmen, maybe .gz, or by its lines).
     input: PathBuf,
     /// TOML configuration ([mesh], [solver], [export] tables).
     #[arg(short, long)]

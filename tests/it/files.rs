@@ -11,12 +11,12 @@ fn fixture(name: &str) -> String {
     format!("{}/fixtures/{name}", env!("CARGO_MANIFEST_DIR"))
 }
 
-/// `isoline ARGS` in `dir` with files limited to 2 KiB (`ulimit -f`, the `SIGXFSZ` it
-/// would send ignored), so that writes fail as on a full disk.
+/// `isoline ARGS` in `dir` with files limited to 1 KiB (`ulimit -f` counts 512-byte
+/// blocks; the `SIGXFSZ` it would send ignored), so that writes fail as on a full disk.
 fn on_a_full_disk(dir: &Path, args: &[&str]) -> Output {
     Command::new("sh")
         .arg("-c")
-        .arg("trap '' XFSZ; ulimit -f 4; exec \"$0\" \"$@\"")
+        .arg("trap '' XFSZ; ulimit -f 2; exec \"$0\" \"$@\"")
         .arg(env!("CARGO_BIN_EXE_isoline"))
         .args(args)
         .current_dir(dir)
@@ -37,7 +37,13 @@ fn names(dir: &Path) -> Vec<String> {
 fn a_full_disk_leaves_no_partial_output_and_the_previous_one_whole() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    let input = fixture("ellipse-stream-20.ndjson");
+    // Three frames: a few kilobytes of records in every format.
+    let text = std::fs::read_to_string(fixture("ellipse-stream-20.ndjson")).unwrap();
+    let first3: String = text.lines().take(3).map(|l| format!("{l}\n")).collect();
+    let frames = tempfile::tempdir().unwrap();
+    let input_path = frames.path().join("in.ndjson");
+    std::fs::write(&input_path, first3).unwrap();
+    let input = input_path.to_str().unwrap().to_string();
     for out in ["o.ndjson", "o.geojson", "o.csv", "o.mcap"] {
         let fail = on_a_full_disk(d, &["reconstruct", &input, "-o", out]);
         assert!(!fail.status.success(), "{out}");

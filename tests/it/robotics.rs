@@ -519,6 +519,22 @@ fn a_carmen_log_is_read_line_by_line() {
     check_records(&good, &sim, "robotlaser1");
     let h = median_hausdorff(&sim_recs, &sim);
     assert!(h <= 0.05, "median Hausdorff {h}");
+
+    // As the public datasets publish their logs: gzip-compressed, named `.log.gz`.
+    let gz = d.join("robot.log.gz");
+    let zipped = Command::new("sh")
+        .arg("-c")
+        .arg("gzip -c \"$0\" > \"$1\"")
+        .args([p(&log), p(&gz)])
+        .status()
+        .unwrap();
+    assert!(zipped.success());
+    let out_gz = d.join("gz.ndjson");
+    let err = fails(&["reconstruct", p(&gz), "-o", p(&out_gz)]);
+    assert!(err.contains("robot.log.gz, line 9"), "{err}");
+    let polylines =
+        |rs: &[Value]| -> Vec<Value> { rs.iter().map(|r| r["polylines"].clone()).collect() };
+    assert_eq!(polylines(&records(&out_gz)), polylines(&recs));
 }
 
 #[test]

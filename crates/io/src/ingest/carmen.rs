@@ -8,6 +8,7 @@
 //! quarter, and any other count spans 180 degrees; the sweep starts at -90 degrees and
 //! returns reach at most [`FLASER_RANGE_MAX`] (SICK scanners report 81.9 m for none).
 
+use std::io::{BufRead, Seek};
 use std::path::Path;
 
 use super::{BadFrame, Frame, Item};
@@ -20,12 +21,74 @@ pub const FLASER_RANGE_MAX: f64 = 80.0;
 /// The longest line read; a longer one is an error record, not memory.
 pub const MAX_LINE_BYTES: usize = 1 << 20;
 
-/// Whether `path` names a CARMEN log (`.clf`, `.carmen`).
+/// Whether `path` is to be read as a CARMEN log: it is named like one (`.log`, `.clf`,
+/// `.carmen`, each maybe with `.gz`; the reader then says which line is not CARMEN if
+/// it is not), or, whatever its name, its first line that is not blank or a `#`
+/// comment starts with a CARMEN message name (`PARAM`, `FLASER`, `ROBOTLASER1`, ...).
+/// Bags and NDJSON streams (by extension) never are.
 pub fn is_carmen(path: &Path) -> bool {
-    matches!(
-        path.extension().and_then(|e| e.to_str()),
-        Some("clf" | "carmen")
-    )
+    let ext = |p: &Path| {
+        p.extension()
+            .and_then(|e| e.to_str())
+            .map(str::to_ascii_lowercase)
+    };
+    let inner = match ext(path).as_deref() {
+        Some("gz") => path.file_stem().map(Path::new).and_then(ext),
+        e => e.map(str::to_string),
+    };
+    match inner.as_deref() {
+        Some("log" | "clf" | "carmen") => true,
+        Some("mcap" | "ndjson" | "jsonl") => false,
+        _ => first_line(path).is_some_and(|l| is_message_line(&l)),
+    }
+}
+
+/// A log's lines start with an upper-case message name (`FLASER 180 ...`).
+fn is_message_line(text: &str) -> bool {
+    let name = text.split_whitespace().next().unwrap_or("");
+    name.len() >= 3
+        && name.starts_with(|c: char| c.is_ascii_uppercase())
+        && name
+            .chars()
+            .all(|c| c.is_ascii_uppercase() || c.is_ascii_digit() || c == '_')
+}
+
+/// The file's first line that is not blank or a `#` comment, among its first 100 lines
+/// (each read up to 64 KiB).
+fn first_line(path: &Path) -> Option<String> {
+    use std::io::Read;
+    let mut reader = open(path).ok()?;
+    for _ in 0..100 {
+        let mut buf = Vec::new();
+        let n = Read::take(&mut reader, 64 << 10)
+            .read_until(b'\n', &mut buf)
+            .ok()?;
+        if n == 0 {
+            return None;
+        }
+        let text = String::from_utf8_lossy(&buf);
+        let t = text.trim();
+        if !t.is_empty() && !t.starts_with('#') {
+            return Some(t.to_string());
+        }
+    }
+    None
+}
+
+/// The file's text: gzip-compressed (by its first bytes, whatever its name) or not.
+fn open(path: &Path) -> Result<Box<dyn BufRead>> {
+    use std::io::Read;
+    let mut file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
+    let mut magic = [0u8; 2];
+    let gz = file.read_exact(&mut magic).is_ok() && magic == [0x1f, 0x8b];
+    file.rewind().map_err(|e| Error::io(path, e))?;
+    Ok(if gz {
+        Box::new(std::io::BufReader::new(flate2::read::MultiGzDecoder::new(
+            std::io::BufReader::new(file),
+        )))
+    } else {
+        Box::new(std::io::BufReader::new(file))
+    })
 }
 
 /// The angle between beams of an old-style line of `n` beams.
@@ -158,11 +221,12 @@ pub fn read_carmen_with<T>(
     make: impl Fn(FrameRecord) -> std::result::Result<T, String>,
     mut each: impl FnMut(std::result::Result<T, BadFrame>) -> bool,
 ) -> Result<u64> {
-    let file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
-    let reader = std::io::BufReader::new(file);
+    let reader = open(path)?;
     let name = path.display().to_string();
     let mut next = std::collections::HashMap::<&'static str, u64>::new();
     let mut frames = 0u64;
+    let mut first = true;
+    let mut not_carmen = None;
     super::bounded_lines(reader, path, MAX_LINE_BYTES, |line_no, line| {
         let bad = |message: String| BadFrame {
             stream: None,
@@ -174,8 +238,16 @@ pub fn read_carmen_with<T>(
             Err(why) => return each(Err(bad(why))),
         };
         let text = text.trim();
-        if text.starts_with('#') {
+        if text.is_empty() || text.starts_with('#') {
             return true;
+        }
+        if std::mem::take(&mut first) && !is_message_line(text) {
+            let shown: String = text.chars().take(40).collect();
+            not_carmen = Some(format!(
+                "line {line_no}: not a CARMEN log: its lines start with a message name \
+                 (PARAM, FLASER, ROBOTLASER1, ODOM, ...), this one with {shown:?}"
+            ));
+            return false;
         }
         let Some(parsed) = parse_line(text) else {
             return true;
@@ -201,6 +273,12 @@ pub fn read_carmen_with<T>(
             });
         each(item)
     })?;
+    if let Some(message) = not_carmen {
+        return Err(Error::Recording {
+            path: path.to_path_buf(),
+            message,
+        });
+    }
     if frames == 0 {
         return Err(Error::Recording {
             path: path.to_path_buf(),
@@ -245,5 +323,46 @@ mod tests {
             let e = parse_line(bad).unwrap().unwrap_err();
             assert!(e.contains(what), "{bad}: {e}");
         }
+    }
+
+    /// Logs are recognised by their lines, gzip-compressed or not, whatever their
+    /// name; a file named like a log that is not one is an error naming its line.
+    #[test]
+    fn logs_are_read_as_published_and_recognised_by_their_lines() {
+        use std::io::Write;
+        let log = "# CARMEN log\nPARAM robot_front_laser_max 81.9 host 0\n\
+                   ODOM 1 2 3 0 0 0 5 host 5\n\
+                   FLASER 3 1.0 81.9 2.5 1 2 0.5 1 2 0.5 12.5 host 0.1\n\
+                   FLASER 3 1.1 81.9 2.4 1 2 0.5 1 2 0.5 12.6 host 0.2\n";
+        let dir = tempfile::tempdir().unwrap();
+        let gz = dir.path().join("run.log.gz");
+        let mut enc =
+            flate2::write::GzEncoder::new(std::fs::File::create(&gz).unwrap(), Default::default());
+        enc.write_all(log.as_bytes()).unwrap();
+        enc.finish().unwrap();
+        let plain = dir.path().join("run.txt");
+        std::fs::write(&plain, log).unwrap();
+        for path in [&gz, &plain] {
+            assert!(is_carmen(path), "{}", path.display());
+            let mut frames = Vec::new();
+            let n = read_carmen(path, |i| {
+                frames.push(i.unwrap());
+                true
+            })
+            .unwrap();
+            assert_eq!((n, frames.len()), (2, 2));
+            assert_eq!(frames[1].frame, 1);
+        }
+        let points = dir.path().join("points.txt");
+        std::fs::write(&points, "# x y\n0 1\n2 3\n").unwrap();
+        assert!(!is_carmen(&points));
+        let not = dir.path().join("server.log");
+        std::fs::write(&not, "\n2026-11-28 started\nFLASER 3 1 2 3\n").unwrap();
+        assert!(is_carmen(&not));
+        let e = read_carmen(&not, |_| true).unwrap_err().to_string();
+        assert!(
+            e.contains("server.log") && e.contains("line 2: not a CARMEN log"),
+            "{e}"
+        );
     }
 }
