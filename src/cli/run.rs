@@ -27,7 +27,8 @@ pub fn run(a: Args) -> Result<()> {
             .context("installing signal handlers")?;
         signal_hook::flag::register(sig, stop.clone()).context("installing signal handlers")?;
     }
-    let daemon = isoline::pipeline::Daemon::start(&cfg, stop)?;
+    let mut daemon = isoline::pipeline::Daemon::start(&cfg, stop.clone())?;
+    let lingering = daemon.lingering();
     if let Some(addr) = daemon.tcp_addr {
         eprintln!("isoline run: listening on {addr}");
     }
@@ -40,5 +41,13 @@ pub fn run(a: Args) -> Result<()> {
     let summary = daemon.wait()?;
     drop(guard);
     eprintln!("isoline run: {summary}");
+    if let Some(live) = lingering {
+        eprintln!(
+            "isoline run: the input has ended; the live view keeps serving on ws://{} \
+             until Ctrl-C",
+            live.addr()
+        );
+        live.serve_until(&stop);
+    }
     Ok(())
 }

@@ -88,6 +88,8 @@ pub struct DaemonConfig {
     pub accumulate: Option<WindowLimits>,
     /// Serve a live view (Foxglove WebSocket) on this address.
     pub live: Option<SocketAddr>,
+    /// Keep serving the live view after the input has ended, until SIGINT or SIGTERM.
+    pub live_linger: bool,
     /// Serve Prometheus metrics and a health check on this address.
     pub metrics: Option<SocketAddr>,
     /// Reconstruction parameters.
@@ -251,6 +253,10 @@ pub struct ListenerConfig {
     pub bind: Option<String>,
     /// A bind address other than loopback must be asked for. Default false.
     pub allow_remote: Option<bool>,
+    /// `[live]` only: keep serving after the input has ended (a recording replayed for
+    /// a demo), each stream's last frame shown to viewers that connect later, until
+    /// SIGINT or SIGTERM. Default false.
+    pub linger: Option<bool>,
 }
 
 /// The live view's default address (Foxglove's usual port, on loopback).
@@ -467,6 +473,10 @@ impl DaemonConfig {
         };
         #[cfg(not(feature = "kafka"))]
         let _: Option<()> = output_kafka;
+        let live_linger = live.as_ref().and_then(|l| l.linger).unwrap_or(false);
+        if metrics.as_ref().is_some_and(|m| m.linger.is_some()) {
+            problems.push("metrics.linger: only the live view lingers ([live] linger)".into());
+        }
         let live = live.and_then(|l| {
             listen_address(
                 "live",
@@ -513,6 +523,7 @@ impl DaemonConfig {
                 stream_idle: pipeline.stream_idle,
                 accumulate: pipeline.accumulate,
                 live,
+                live_linger,
                 metrics,
                 params,
             }),

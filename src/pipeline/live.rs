@@ -47,6 +47,9 @@ pub const MAX_CLIENT_MESSAGE: usize = 64 << 10;
 /// The most subscriptions a viewer may hold (there are four channels).
 pub const MAX_SUBSCRIPTIONS: usize = 64;
 
+/// Streams whose newest frame is kept for viewers that connect later.
+pub const LATCHED_STREAMS: usize = 64;
+
 /// The subprotocols a viewer may offer, the first offered of them chosen.
 pub const SUBPROTOCOLS: [&str; 2] = ["foxglove.sdk.v1", "foxglove.websocket.v1"];
 
@@ -67,6 +70,26 @@ struct Backlog {
     queue: VecDeque<Pending>,
     bytes: usize,
     dropped: u64,
+}
+
+impl Backlog {
+    /// Queues a message, dropping the oldest while the backlog would exceed its bytes.
+    fn add(&mut self, m: Pending) {
+        let size = m.data.len() + 13;
+        while self.bytes + size > VIEWER_BACKLOG_BYTES {
+            let Some(old) = self.queue.pop_front() else {
+                break;
+            };
+            self.bytes -= old.data.len() + 13;
+            self.dropped += 1;
+        }
+        if size > VIEWER_BACKLOG_BYTES {
+            self.dropped += 1;
+            return;
+        }
+        self.bytes += size;
+        self.queue.push_back(m);
+    }
 }
 
 /// What the broadcaster and a viewer's thread share.
@@ -91,20 +114,7 @@ impl Viewer {
         }
         let mut b = self.backlog.lock().unwrap_or_else(|p| p.into_inner());
         for subscription in subs {
-            let size = data.len() + 13;
-            while b.bytes + size > VIEWER_BACKLOG_BYTES {
-                let Some(old) = b.queue.pop_front() else {
-                    break;
-                };
-                b.bytes -= old.data.len() + 13;
-                b.dropped += 1;
-            }
-            if size > VIEWER_BACKLOG_BYTES {
-                b.dropped += 1;
-                continue;
-            }
-            b.bytes += size;
-            b.queue.push_back(Pending {
+            b.add(Pending {
                 subscription,
                 nanos,
                 data: data.clone(),
@@ -120,6 +130,43 @@ impl Viewer {
 }
 
 type Viewers = Arc<Mutex<Vec<Arc<Viewer>>>>;
+
+/// A message and its time, nanoseconds.
+type Stamped = (u64, Arc<[u8]>);
+
+/// Each stream's newest frame, as messages by channel: what a viewer that subscribes
+/// later is sent first, so that it sees the scene at once (and after a recording has
+/// ended). At most [`LATCHED_STREAMS`] streams, the least recently shown leaving.
+#[derive(Default)]
+struct Latched {
+    /// (stream, channel) → (nanos, message), and each stream's last update, by order.
+    frames: BTreeMap<(String, u32), Stamped>,
+    order: VecDeque<String>,
+}
+
+impl Latched {
+    fn keep(&mut self, stream: &str, channel: u32, nanos: u64, data: &Arc<[u8]>) {
+        if let Some(at) = self.order.iter().position(|s| s == stream) {
+            self.order.remove(at);
+        }
+        self.order.push_back(stream.to_string());
+        while self.order.len() > LATCHED_STREAMS {
+            if let Some(old) = self.order.pop_front() {
+                self.frames.retain(|(s, _), _| *s != old);
+            }
+        }
+        self.frames
+            .insert((stream.to_string(), channel), (nanos, data.clone()));
+    }
+
+    fn of_channel(&self, channel: u32) -> Vec<Stamped> {
+        self.frames
+            .iter()
+            .filter(|((_, c), _)| *c == channel)
+            .map(|(_, m)| m.clone())
+            .collect()
+    }
+}
 
 /// A Foxglove WebSocket server showing frames as they are made. Frames are handed to its
 /// own thread through a short queue that never blocks ([`LiveView::show`]); a slow
@@ -137,20 +184,22 @@ impl LiveView {
         let advertise = Arc::new(advertise()?);
         let viewers: Viewers = Arc::default();
         let registry = viewers.clone();
+        let latched: Arc<Mutex<Latched>> = Arc::default();
+        let latest = latched.clone();
         let dropped = Arc::new(AtomicU64::new(0));
         let refused = Arc::new(Throttle::new());
         let bounds = Bounds {
             max_connections: MAX_VIEWERS,
         };
         let server = Server::start("live-view", bind, bounds, move |conn, peer, stop| {
-            serve_viewer(conn, peer, stop, &advertise, &registry, &refused);
+            serve_viewer(conn, peer, stop, &advertise, &registry, &refused, &latest);
         })?;
         let addr = server.addr();
         let (tx, rx): (Sender<FrameView>, Receiver<FrameView>) =
             crossbeam_channel::bounded(LIVE_QUEUE);
         let thread = std::thread::Builder::new()
             .name("live-view".into())
-            .spawn(move || broadcast(&rx, &viewers, &dropped))
+            .spawn(move || broadcast(&rx, &viewers, &dropped, &latched))
             .map_err(|e| Error::Internal(format!("live view thread: {e}")))?;
         tracing::info!(%addr, "live view (Foxglove WebSocket) listening");
         Ok(LiveView {
@@ -214,7 +263,12 @@ fn advertise() -> Result<String> {
 
 /// The live view's thread: encodes each frame once and queues it for every viewer
 /// subscribed to its channels.
-fn broadcast(rx: &Receiver<FrameView>, viewers: &Viewers, dropped: &AtomicU64) {
+fn broadcast(
+    rx: &Receiver<FrameView>,
+    viewers: &Viewers,
+    dropped: &AtomicU64,
+    latched: &Mutex<Latched>,
+) {
     for view in rx {
         let _s = tracing::info_span!(
             "live-view",
@@ -223,12 +277,15 @@ fn broadcast(rx: &Receiver<FrameView>, viewers: &Viewers, dropped: &AtomicU64) {
         )
         .entered();
         let all: Vec<Arc<Viewer>> = viewers.lock().unwrap_or_else(|p| p.into_inner()).clone();
-        if all.is_empty() {
-            continue;
-        }
         let nanos = view.nanos();
         for (topic, data) in frame_messages(&view) {
             let data: Arc<[u8]> = data.into();
+            latched.lock().unwrap_or_else(|p| p.into_inner()).keep(
+                view.frame_id(),
+                channel_id(topic),
+                nanos,
+                &data,
+            );
             for v in &all {
                 v.push(channel_id(topic), nanos, &data);
             }
@@ -255,6 +312,7 @@ fn serve_viewer(
     advertise: &str,
     viewers: &Viewers,
     refused: &Throttle,
+    latched: &Mutex<Latched>,
 ) {
     let head = match read_head(&mut conn) {
         Ok(h) => h,
@@ -328,7 +386,7 @@ fn serve_viewer(
         .lock()
         .unwrap_or_else(|p| p.into_inner())
         .push(viewer.clone());
-    let why = run_viewer(&mut ws, &viewer, stop);
+    let why = run_viewer(&mut ws, &viewer, stop, latched);
     viewers
         .lock()
         .unwrap_or_else(|p| p.into_inner())
@@ -337,13 +395,36 @@ fn serve_viewer(
 }
 
 /// A connected viewer's loop; why it ended.
-fn run_viewer(ws: &mut WebSocket<TcpStream>, viewer: &Viewer, stop: &AtomicBool) -> &'static str {
+fn run_viewer(
+    ws: &mut WebSocket<TcpStream>,
+    viewer: &Viewer,
+    stop: &AtomicBool,
+    latched: &Mutex<Latched>,
+) -> &'static str {
     let mut unknown_warned = false;
     while !stop.load(Ordering::Relaxed) {
         match ws.read() {
             Ok(Message::Text(t)) => {
+                let before: Vec<u32> = subscribed(viewer);
                 if let Some(status) = handle_request(&t, viewer, &mut unknown_warned) {
                     let _ = ws.write(Message::text(status));
+                }
+                // A new subscription starts with the latest frame of each stream.
+                let subs = viewer
+                    .subscriptions
+                    .lock()
+                    .unwrap_or_else(|p| p.into_inner())
+                    .clone();
+                let mut b = viewer.backlog.lock().unwrap_or_else(|p| p.into_inner());
+                let latched = latched.lock().unwrap_or_else(|p| p.into_inner());
+                for (id, channel) in subs.iter().filter(|(id, _)| !before.contains(id)) {
+                    for (nanos, data) in latched.of_channel(*channel) {
+                        b.add(Pending {
+                            subscription: *id,
+                            nanos,
+                            data,
+                        });
+                    }
                 }
             }
             Ok(Message::Close(_)) => return "closed",
@@ -379,6 +460,17 @@ fn run_viewer(ws: &mut WebSocket<TcpStream>, viewer: &Viewer, stop: &AtomicBool)
     let _ = ws.close(None);
     let _ = ws.flush();
     "the run ended"
+}
+
+/// The viewer's subscription ids.
+fn subscribed(viewer: &Viewer) -> Vec<u32> {
+    viewer
+        .subscriptions
+        .lock()
+        .unwrap_or_else(|p| p.into_inner())
+        .keys()
+        .copied()
+        .collect()
 }
 
 /// Applies a viewer's `subscribe` or `unsubscribe`; a `status` message to send back when

@@ -305,6 +305,26 @@ pub struct Daemon {
     metrics_server: Option<metrics::MetricsServer>,
     /// The run's metrics.
     pub metrics: Arc<metrics::Metrics>,
+    /// The live view, kept past the run with `[live] linger`.
+    lingering: Option<Arc<live::LiveView>>,
+}
+
+/// A live view that serves on after its run has ended: viewers keep connecting and see
+/// each stream's last frame.
+pub struct Lingering(Arc<live::LiveView>);
+
+impl Lingering {
+    /// The address served.
+    pub fn addr(&self) -> std::net::SocketAddr {
+        self.0.addr()
+    }
+
+    /// Serves until `stop` is set (the daemon's SIGINT or SIGTERM flag).
+    pub fn serve_until(self, stop: &AtomicBool) {
+        while !stop.load(Ordering::Relaxed) {
+            std::thread::sleep(std::time::Duration::from_millis(50));
+        }
+    }
 }
 
 impl Daemon {
@@ -340,9 +360,10 @@ impl Daemon {
         };
         let (threads, export_rx) = spawn_compute(cfg, line_rx, &stop, &metrics, streams.clone())?;
         let live = match cfg.live {
-            Some(bind) => Some(crate::pipeline::live::LiveView::start(bind)?),
+            Some(bind) => Some(Arc::new(crate::pipeline::live::LiveView::start(bind)?)),
             None => None,
         };
+        let lingering = live.clone().filter(|_| cfg.live_linger);
         let live_addr = live.as_ref().map(|l| l.addr());
         let metrics_server = match cfg.metrics {
             Some(bind) => Some(metrics::MetricsServer::start(bind, metrics.clone())?),
@@ -372,7 +393,14 @@ impl Daemon {
             metrics_addr: metrics_server.as_ref().map(|m| m.addr()),
             metrics_server,
             metrics,
+            lingering,
         })
+    }
+
+    /// The live view, when it is to keep serving after the run (`[live] linger`): take
+    /// it before [`Daemon::wait`], and serve it after with [`Lingering::serve_until`].
+    pub fn lingering(&mut self) -> Option<Lingering> {
+        self.lingering.take().map(Lingering)
     }
 
     /// Waits for the end of the run (end of input, or the stop flag and the drain).

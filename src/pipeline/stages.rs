@@ -658,7 +658,7 @@ pub(crate) struct Outputs {
     /// The records (NDJSON or MCAP).
     pub(crate) sink: Sink,
     /// The live view, if on.
-    pub(crate) live: Option<crate::pipeline::live::LiveView>,
+    pub(crate) live: Option<Arc<crate::pipeline::live::LiveView>>,
     /// A folder for one drawing per frame.
     pub(crate) svg_dir: Option<PathBuf>,
     /// The counters of what is written.

@@ -147,13 +147,32 @@ fn run(dir: &Path, page: &Path, command: &str) {
     cmd.current_dir(dir)
         .env("QUICK", "1")
         .env("ISOLINE_BIN", bin)
-        .envs(env);
-    let out = cmd.output().unwrap_or_else(|e| panic!("{what}: {e}"));
+        .envs(env)
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped());
+    let mut child = cmd.spawn().unwrap_or_else(|e| panic!("{what}: {e}"));
+    // A demo that serves until Ctrl-C (a lingering live view) is stopped as a user
+    // would, once it says so; it must then end cleanly.
+    let pid = child.id().to_string();
+    let stderr = child.stderr.take().unwrap();
+    let reader = std::thread::spawn(move || {
+        use std::io::BufRead;
+        let mut all = String::new();
+        for line in std::io::BufReader::new(stderr).lines().map_while(Result::ok) {
+            if line.contains("until Ctrl-C") {
+                let _ = Command::new("kill").args(["-INT", &pid]).status();
+            }
+            all.push_str(&line);
+            all.push('\n');
+        }
+        all
+    });
+    let out = child.wait_with_output().unwrap_or_else(|e| panic!("{what}: {e}"));
+    let stderr = reader.join().unwrap();
     assert!(
         out.status.success(),
-        "{what} failed:\n{}\n{}",
+        "{what} failed:\n{}\n{stderr}",
         String::from_utf8_lossy(&out.stdout),
-        String::from_utf8_lossy(&out.stderr)
     );
 }
 

@@ -889,3 +889,65 @@ fn damage_inside_a_bag_chunk_is_an_error_record() {
     let errors: Vec<&str> = recs.iter().filter_map(|r| r["error"].as_str()).collect();
     assert!(errors.iter().any(|e| e.contains("CRC")), "{errors:?}");
 }
+
+/// A demo that stays up: with `[live] linger`, the live view keeps serving after the
+/// recording has ended, and a viewer that connects then is sent each stream's last
+/// frame; SIGTERM ends it cleanly.
+#[test]
+fn a_lingering_live_view_shows_the_last_frame_after_the_recording_ends() {
+    use foxglove::messages::SceneUpdate;
+    use foxglove::Decode;
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let sim = simulate(d, 4, 0.1);
+    let bag = d.join("robot.mcap");
+    write_bag(&bag, &sim, |_, b| b);
+    let cfg = d.join("demo.toml");
+    std::fs::write(
+        &cfg,
+        format!(
+            "[input]\npath = {bag:?}\nodometry = \"/odom\"\n[output]\npath = {:?}\n\
+             [live]\nbind = \"127.0.0.1:0\"\nlinger = true\n",
+            d.join("out.mcap")
+        ),
+    )
+    .unwrap();
+    let mut child = Command::new(env!("CARGO_BIN_EXE_isoline"))
+        .args(["run", "-c", p(&cfg)])
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut stderr = BufReader::new(child.stderr.take().unwrap());
+    let mut line = String::new();
+    let mut addr = None;
+    loop {
+        line.clear();
+        assert!(stderr.read_line(&mut line).unwrap() > 0, "the run ended");
+        if let Some(rest) = line.split("live view on ws://").nth(1) {
+            addr = Some(rest.split_whitespace().next().unwrap().to_string());
+        }
+        if line.contains("the input has ended") {
+            break;
+        }
+    }
+    // The run is over (its summary printed, its MCAP complete); the view still serves.
+    assert!(d.join("out.mcap").exists());
+    std::thread::sleep(Duration::from_millis(200));
+    let got = watch(
+        &addr.unwrap(),
+        &["/isoline/curves"],
+        Instant::now() + Duration::from_millis(1500),
+    );
+    let scene = got
+        .iter()
+        .find(|(t, _)| t == "/isoline/curves")
+        .expect("the last frame's curves");
+    let s = SceneUpdate::decode(scene.1.as_slice()).unwrap();
+    assert!(!s.entities[0].lines.is_empty());
+    let ok = Command::new("kill")
+        .args(["-TERM", &child.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(ok.success());
+    assert!(child.wait().unwrap().success());
+}
