@@ -43,6 +43,8 @@ x0, x1, y0, y1 = min(xs), max(xs), min(ys), max(ys)
 pad = 0.05 * max(x1 - x0, y1 - y0)
 scale = 900 / (x1 - x0 + 2 * pad)
 width, height = 900, (y1 - y0 + 2 * pad) * scale
+# A strip below the map for the legend and the scale bar, so neither covers data.
+footer = 90
 
 
 def xy(p):
@@ -50,8 +52,8 @@ def xy(p):
 
 
 out = [
-    f'<svg xmlns="http://www.w3.org/2000/svg" width="{width:.0f}" height="{height:.0f}" '
-    f'viewBox="0 0 {width:.0f} {height:.0f}">',
+    f'<svg xmlns="http://www.w3.org/2000/svg" width="{width:.0f}" height="{height + footer:.0f}" '
+    f'viewBox="0 0 {width:.0f} {height + footer:.0f}">',
     '<rect width="100%" height="100%" fill="white"/>',
 ]
 for c in curves:
@@ -61,5 +63,26 @@ out.append('<path d="' + "".join(f"M{xy(p)}h0.1" for p in returns) + '" '
            'stroke="#1d3557" stroke-width="1.6" stroke-linecap="round"/>')
 out.append(f'<polyline points="{" ".join(xy(p) for p in path)}" fill="none" '
            'stroke="#e76f51" stroke-width="3"/>')
+out.append(f'<path d="M0 {height:.1f}H{width:.0f}" stroke="#ccc" stroke-width="1"/>')
+legend = [
+    ('<path d="M0 -4H16" stroke="#e76f51" stroke-width="3"/>', "the scanner's path (its poses)"),
+    ('<path d="M0 -4H16" stroke="#2a9d8f" stroke-width="5" stroke-opacity="0.35"/>',
+     "curves of every 10th scan, placed by its pose"),
+    ('<circle cx="8" cy="-4" r="1.5" fill="#1d3557"/>', "returns of every 8th scan"),
+]
+for k, (swatch, label) in enumerate(legend):
+    y = height + 26 + 22 * k
+    out.append(f'<g transform="translate(18 {y:.0f})">{swatch}<text x="24" y="0" '
+               f'font-family="sans-serif" font-size="14">{label}</text></g>')
+# The round length nearest a fifth of the width.
+target = (x1 - x0 + 2 * pad) / 5
+mag = 10 ** math.floor(math.log10(target))
+length = min((m * mag for m in (1, 2, 5, 10)), key=lambda v: abs(v - target))
+bx1, by = width - 20, height + footer - 20
+bx0 = bx1 - length * scale
+out.append(f'<path fill="none" stroke="#222" stroke-width="2" '
+           f'd="M{bx0:.1f} {by - 6:.1f}V{by:.1f}H{bx1:.1f}V{by - 6:.1f}"/>'
+           f'<text x="{(bx0 + bx1) / 2:.1f}" y="{by - 10:.1f}" font-family="sans-serif" '
+           f'font-size="14" text-anchor="middle">{length:g} m</text>')
 out.append("</svg>")
 open(out_path, "w").write("\n".join(out) + "\n")

@@ -88,7 +88,8 @@ pub struct PartFile {
 }
 
 impl PartFile {
-    /// Creates the temporary file for `path`; returns the guard and the file to write.
+    /// Creates the temporary file for `path` (and `path`'s folder, if missing); returns
+    /// the guard and the file to write.
     pub fn create(path: &Path) -> std::io::Result<(PartFile, std::fs::File)> {
         use std::sync::atomic::{AtomicU64, Ordering};
         static NEXT: AtomicU64 = AtomicU64::new(0);
@@ -99,6 +100,7 @@ impl PartFile {
             Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
             _ => PathBuf::from("."),
         };
+        std::fs::create_dir_all(&dir)?;
         loop {
             let k = NEXT.fetch_add(1, Ordering::Relaxed);
             let mut part_name = std::ffi::OsString::from(".");

@@ -27,7 +27,11 @@ pub struct Drawing<'a> {
     pub truth: &'a [Polyline],
 }
 
-/// Renders `d` as an SVG document `width` pixels wide.
+/// Height of the strip under a scan's drawing that holds its legend and scale bar.
+const FOOTER: f64 = 118.0;
+
+/// Renders `d` as an SVG document `width` pixels wide (and, for a scan, a strip below
+/// with the legend and a scale bar).
 pub fn render(d: &Drawing<'_>, width: f64) -> String {
     let mut all: Vec<Point> = d.points.to_vec();
     if let Some(m) = d.mesh {
@@ -45,10 +49,13 @@ pub fn render(d: &Drawing<'_>, width: f64) -> String {
     let s = width / span;
     let (w, h) = (size[0] * s, size[1] * s);
     let tx = |p: Point| ((p[0] - view.min[0]) * s, (view.max[1] - p[1]) * s);
+    // A scan's legend and scale bar go in a strip below the drawing, never over data.
+    let footer = if d.sensor.is_some() { FOOTER } else { 0.0 };
+    let full = h + footer;
     let mut out = String::new();
     let _ = writeln!(
         out,
-        r#"<svg xmlns="http://www.w3.org/2000/svg" width="{w:.0}" height="{h:.0}" viewBox="0 0 {w:.2} {h:.2}">"#
+        r#"<svg xmlns="http://www.w3.org/2000/svg" width="{w:.0}" height="{full:.0}" viewBox="0 0 {w:.2} {full:.2}">"#
     );
     let _ = writeln!(out, r#"<rect width="100%" height="100%" fill="white"/>"#);
     let path = |pl: &Polyline| -> String {
@@ -129,8 +136,8 @@ pub fn render(d: &Drawing<'_>, width: f64) -> String {
             .map(|m| m * mag)
             .min_by(|a, b| (a - target).abs().total_cmp(&(b - target).abs()))
             .unwrap_or(mag);
-        let (x0, y0) = (20.0, h - 20.0);
-        let x1 = x0 + len * s;
+        let x1 = w - 20.0;
+        let (x0, y0) = (x1 - len * s, h + footer - 20.0);
         let _ = writeln!(
             out,
             r##"<path fill="none" stroke="#222" stroke-width="2" d="M{x0:.2} {:.2}V{y0:.2}H{x1:.2}V{:.2}"/><text x="{:.2}" y="{:.2}" font-family="sans-serif" font-size="14" text-anchor="middle">{len} m</text>"##,
@@ -139,7 +146,7 @@ pub fn render(d: &Drawing<'_>, width: f64) -> String {
             0.5 * (x0 + x1),
             y0 - 10.0
         );
-        // A legend in the top left corner.
+        // The legend, in the strip below the drawing.
         let items: [(&str, &str); 5] = [
             (
                 r##"<circle cx="8" cy="-4" r="6" fill="#f4a261" stroke="#222" stroke-width="1.2"/>"##,
@@ -164,11 +171,10 @@ pub fn render(d: &Drawing<'_>, width: f64) -> String {
         ];
         let _ = writeln!(
             out,
-            r##"<rect x="10" y="10" width="250" height="{:.0}" fill="white" fill-opacity="0.85"/>"##,
-            12.0 + 20.0 * items.len() as f64
+            r##"<path d="M0 {h:.2}H{w:.2}" stroke="#ccc" stroke-width="1"/>"##
         );
         for (k, (swatch, label)) in items.iter().enumerate() {
-            let y = 30.0 + 20.0 * k as f64;
+            let y = h + 24.0 + 20.0 * k as f64;
             let _ = writeln!(
                 out,
                 r##"<g transform="translate(18 {y:.0})">{swatch}<text x="24" y="0" font-family="sans-serif" font-size="14">{label}</text></g>"##
