@@ -270,6 +270,9 @@ struct GroupContext {
     ledger: Arc<Ledger>,
     metrics: Arc<Metrics>,
     brokers: BrokerWatch,
+    /// Why written frames' offsets were not committed when their partitions went (the
+    /// broker unreachable, the assignment lost): the group will read them again.
+    uncommitted: Arc<Mutex<Option<String>>>,
 }
 
 impl ClientContext for GroupContext {
@@ -315,6 +318,29 @@ impl GroupContext {
 }
 
 impl ConsumerContext for GroupContext {
+    /// An offset commit's outcome: only a commit the broker took moves the ledger's
+    /// committed positions (an asynchronous commit is merely queued when it returns).
+    fn commit_callback(
+        &self,
+        result: rdkafka::error::KafkaResult<()>,
+        offsets: &TopicPartitionList,
+    ) {
+        match result {
+            Ok(()) => {
+                let done: Vec<(i32, i64)> = offsets
+                    .elements()
+                    .iter()
+                    .filter(|e| e.topic() == self.topic)
+                    .filter_map(|e| Some((e.partition(), e.offset().to_raw()?)))
+                    .collect();
+                self.ledger.committed(&done);
+            }
+            Err(e) => CLIENT_WARNINGS.warn(|skipped| {
+                tracing::warn!(error = %e, skipped, "offset commit failed; retried with the next")
+            }),
+        }
+    }
+
     fn pre_rebalance(&self, consumer: &BaseConsumer<Self>, rebalance: &Rebalance<'_>) {
         let Rebalance::Revoke(tpl) = rebalance else {
             return;
@@ -333,9 +359,23 @@ impl ConsumerContext for GroupContext {
         }
         // Written records count before the partitions go; a lost assignment (this member
         // was taken for dead) has no right to commit any more.
-        if commit.count() > 0 && !consumer.assignment_lost() {
-            if let Err(e) = consumer.commit(&commit, CommitMode::Sync) {
-                tracing::warn!(error = %e, "commit at revocation failed: those frames will be read again");
+        if commit.count() > 0 {
+            let failed = if consumer.assignment_lost() {
+                Some("the assignment was lost".to_string())
+            } else {
+                consumer
+                    .commit(&commit, CommitMode::Sync)
+                    .err()
+                    .map(|e| e.to_string())
+            };
+            if let Some(why) = failed {
+                tracing::warn!(
+                    partitions = ?parts,
+                    "written frames not committed at revocation ({why}): they will be read again"
+                );
+                lock(&self.uncommitted).get_or_insert(format!(
+                    "partitions {parts:?} went with written frames uncommitted: {why}"
+                ));
             }
         }
         tracing::info!(
@@ -396,7 +436,11 @@ fn commit(
     }
     match consumer.commit(&tpl, mode) {
         Ok(()) => {
-            ledger.committed(&due);
+            // An asynchronous commit is only queued: `commit_callback` says when it
+            // is taken.
+            if matches!(mode, CommitMode::Sync) {
+                ledger.committed(&due);
+            }
             Ok(())
         }
         Err(e) => {
@@ -523,12 +567,14 @@ pub(crate) fn spawn_kafka(
     let leases = Arc::new(Leases::default());
     let ledger = Arc::new(Ledger::default());
     let topic = input.topic.topic.clone();
+    let uncommitted = Arc::new(Mutex::new(None));
     let context = GroupContext {
         topic: topic.clone(),
         leases: leases.clone(),
         ledger: ledger.clone(),
         metrics: metrics.clone(),
         brokers: BrokerWatch::new("kafka input", input.topic.stall, metrics.clone()),
+        uncommitted: uncommitted.clone(),
     };
     let consumer: BaseConsumer<GroupContext> = client_config(
         &input.topic,
@@ -588,15 +634,20 @@ pub(crate) fn spawn_kafka(
                     "frames without a written record: they will be read again"
                 );
             }
-            // The next member starts from the last committed offsets: without this
-            // commit it repeats frames whose records are written, and must be told.
-            last.map_err(|e| {
-                kafka_error(
-                    "the final offset commit failed (the frames since the last commit \
-                     will be read again by the group)",
-                    e,
-                )
-            })
+            // The next member starts from the last committed offsets: without these
+            // commits it repeats frames whose records are written, and must be told.
+            let why = last
+                .err()
+                .map(|e| format!("the final offset commit failed: {e}"))
+                .or_else(|| lock(&uncommitted).take());
+            match why {
+                Some(why) => Err(kafka_error(
+                    "offsets of written frames were not committed (the group will read \
+                     those frames again)",
+                    why,
+                )),
+                None => Ok(()),
+            }
         })
         .map_err(|e| Error::Internal(format!("cannot start thread source-kafka: {e}")))?;
     Ok((handle, leases))

@@ -158,7 +158,10 @@ fn run(dir: &Path, page: &Path, command: &str) {
     let reader = std::thread::spawn(move || {
         use std::io::BufRead;
         let mut all = String::new();
-        for line in std::io::BufReader::new(stderr).lines().map_while(Result::ok) {
+        for line in std::io::BufReader::new(stderr)
+            .lines()
+            .map_while(Result::ok)
+        {
             if line.contains("until Ctrl-C") {
                 let _ = Command::new("kill").args(["-INT", &pid]).status();
             }
@@ -167,7 +170,9 @@ fn run(dir: &Path, page: &Path, command: &str) {
         }
         all
     });
-    let out = child.wait_with_output().unwrap_or_else(|e| panic!("{what}: {e}"));
+    let out = child
+        .wait_with_output()
+        .unwrap_or_else(|e| panic!("{what}: {e}"));
     let stderr = reader.join().unwrap();
     assert!(
         out.status.success(),

@@ -610,7 +610,8 @@ fn a_broker_killed_and_restarted_is_seen_and_survived() {
 }
 
 /// SIGTERM while the broker is down, with records written since the last commit: the
-/// final commit fails, the exit is non-zero and says so with the run's summary.
+/// final commit fails (or, if the member's session ran out first, the commit as its
+/// partitions went), and the exit is non-zero and says so with the run's summary.
 #[test]
 fn a_final_commit_that_fails_fails_the_run() {
     let dir = tempfile::tempdir().unwrap();
@@ -627,9 +628,21 @@ fn a_final_commit_that_fails_fails_the_run() {
     // while no commit can reach the broker.
     until(Duration::from_secs(30), "a record", || lines(&out) >= 1);
     broker.kill();
-    until(Duration::from_secs(60), "every record", || {
-        lines(&out) == 20
-    });
+    // The frames fetched before the kill get their records (how many were fetched is
+    // up to librdkafka's prefetch); then none come for a while.
+    let (mut seen, mut since) = (lines(&out), Instant::now());
+    until(
+        Duration::from_secs(60),
+        "the records to stop coming",
+        || {
+            let n = lines(&out);
+            if n != seen {
+                (seen, since) = (n, Instant::now());
+            }
+            since.elapsed() > Duration::from_secs(3)
+        },
+    );
+    assert!(seen >= 2, "{seen} records");
     daemon.signal("-TERM");
     let status = daemon.child.wait().unwrap();
     std::thread::sleep(Duration::from_millis(200));
@@ -637,7 +650,8 @@ fn a_final_commit_that_fails_fails_the_run() {
     let log = daemon.seen.join("\n");
     assert!(!status.success(), "{log}");
     assert!(
-        log.contains("final offset commit failed") && log.contains("20 records"),
+        log.contains("offsets of written frames were not committed")
+            && log.contains(&format!("{seen} records")),
         "{log}"
     );
 }
