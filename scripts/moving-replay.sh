@@ -11,7 +11,7 @@ set -euo pipefail
 . "$(dirname "$0")/lib.sh"
 dir=target/moving-replay
 n=${1:-300}
-[ "$quick" = 1 ] && n=20
+[ "$quick" = 1 ] && n=8
 mkdir -p "$dir"
 for scene in room corridor; do
   $bin synth "$scene" --sensor hokuyo-utm30lx --noise 0.01 --outliers 0.01 --dropout 0.02 \

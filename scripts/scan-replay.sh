@@ -11,7 +11,7 @@ set -euo pipefail
 . "$(dirname "$0")/lib.sh"
 dir=target/scan-replay
 n=${1:-400}
-[ "$quick" = 1 ] && n=20
+[ "$quick" = 1 ] && n=8
 mkdir -p "$dir"
 score() { # records truth frames label
   $bin eval "$1" --truth "$2" --frames "$3" > "$1.eval.json"
