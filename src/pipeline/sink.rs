@@ -145,7 +145,11 @@ impl Sink {
         line.push(b'\n');
         match self {
             #[cfg(feature = "kafka")]
-            Sink::Kafka(k) => k.send_with(rec.stream.as_deref().unwrap_or(""), &line, None, None),
+            Sink::Kafka(k) => {
+                // One record a message, without the line's end.
+                let payload = &line[..line.len() - 1];
+                k.send_with(rec.stream.as_deref().unwrap_or(""), payload, None, None)
+            }
             Sink::Mcap(m) => Ok(m.write(&FrameView {
                 record: rec.clone(),
                 ..Default::default()
