@@ -290,13 +290,13 @@ fn refinement_over_frames_averages_the_noise_down() {
     assert!(hr <= 1.1 * hs, "Hausdorff {hr} refined, {hs} one frame");
 }
 
-/// Refinement over frames on the moving scanner (300 frames round the room, 0.1 m a
+/// Refinement over frames on the moving scanner (150 frames round the room, 0.1 m a
 /// frame): every frame has curves, and the last frame's, taken into the world by its
 /// pose, lie within 3 sigma + 2 hmin (5 cm) of the scene's walls.
 #[test]
 fn refinement_on_a_moving_scanner_stays_on_the_walls() {
     let dir = tempfile::tempdir().unwrap();
-    let (frames, truth) = scans(dir.path(), "room", 300, 0.1, &["--outliers", "0.01"]);
+    let (frames, truth) = scans(dir.path(), "room", 150, 0.1, &["--outliers", "0.01"]);
     let refined = replay_with(dir.path(), &frames, "refined", "accumulate = 10");
     assert!(refined
         .iter()

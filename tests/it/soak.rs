@@ -3,7 +3,7 @@
 //! hundreds of stream ids and a client too many. The daemon's threads and memory must
 //! stay flat and every line it read must get exactly one record.
 //!
-//! `ISOLINE_SOAK_CYCLES` sets the number of connect/close cycles (default 3,000; the
+//! `ISOLINE_SOAK_CYCLES` sets the number of connect/close cycles (default 1,500; the
 //! documented run uses 40,000, past the 32,800 that used to abort the daemon).
 
 use std::io::{BufRead, BufReader, Read, Write};
@@ -94,7 +94,7 @@ fn churn_leaves_threads_and_memory_flat_and_every_line_read_one_record() {
     let cycles: usize = std::env::var("ISOLINE_SOAK_CYCLES")
         .ok()
         .and_then(|v| v.parse().ok())
-        .unwrap_or(3000);
+        .unwrap_or(1500);
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("out.ndjson");
     let (mut child, addr) = start(dir.path());
@@ -201,7 +201,7 @@ fn churn_leaves_threads_and_memory_flat_and_every_line_read_one_record() {
     );
     // Finished clients are joined at once: the threads are the stages' and the
     // listener's, as before, and no dead thread's stack stays mapped (each cycle used to
-    // leave one, until the address space ran out: 3,000 stacks of 2 MiB are 6 GiB).
+    // leave one, until the address space ran out: 1,500 stacks of 2 MiB are 3 GiB).
     assert!(after.0 <= before.0 + 2, "threads {before:?} -> {after:?}");
     assert!(
         after.2 <= before.2 + 256_000,
