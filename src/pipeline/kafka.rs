@@ -273,6 +273,17 @@ struct GroupContext {
     /// Why written frames' offsets were not committed when their partitions went (the
     /// broker unreachable, the assignment lost): the group will read them again.
     uncommitted: Arc<Mutex<Option<String>>>,
+    /// The broker's answers to asynchronous commits.
+    commits: Arc<Mutex<Commits>>,
+}
+
+/// The broker's answers to asynchronous commits: how many came, and the error of the
+/// last one if it failed (a commit that fails after the last one taken leaves written
+/// frames uncommitted).
+#[derive(Debug, Default)]
+struct Commits {
+    answers: u64,
+    failed: Option<String>,
 }
 
 impl ClientContext for GroupContext {
@@ -325,19 +336,18 @@ impl ConsumerContext for GroupContext {
         result: rdkafka::error::KafkaResult<()>,
         offsets: &TopicPartitionList,
     ) {
+        let _ = offsets;
+        let mut state = lock(&self.commits);
+        state.answers += 1;
         match result {
-            Ok(()) => {
-                let done: Vec<(i32, i64)> = offsets
-                    .elements()
-                    .iter()
-                    .filter(|e| e.topic() == self.topic)
-                    .filter_map(|e| Some((e.partition(), e.offset().to_raw()?)))
-                    .collect();
-                self.ledger.committed(&done);
+            // A later commit covers every earlier one's offsets.
+            Ok(()) => state.failed = None,
+            Err(e) => {
+                CLIENT_WARNINGS.warn(|skipped| {
+                    tracing::warn!(error = %e, skipped, "offset commit failed; retried with the next")
+                });
+                state.failed = Some(e.to_string());
             }
-            Err(e) => CLIENT_WARNINGS.warn(|skipped| {
-                tracing::warn!(error = %e, skipped, "offset commit failed; retried with the next")
-            }),
         }
     }
 
@@ -362,6 +372,9 @@ impl ConsumerContext for GroupContext {
         if commit.count() > 0 {
             let failed = if consumer.assignment_lost() {
                 Some("the assignment was lost".to_string())
+            } else if lock(&self.brokers.down_since).is_some() {
+                // A synchronous commit would wait for the broker without end.
+                Some("no broker reachable".to_string())
             } else {
                 consumer
                     .commit(&commit, CommitMode::Sync)
@@ -436,11 +449,9 @@ fn commit(
     }
     match consumer.commit(&tpl, mode) {
         Ok(()) => {
-            // An asynchronous commit is only queued: `commit_callback` says when it
-            // is taken.
-            if matches!(mode, CommitMode::Sync) {
-                ledger.committed(&due);
-            }
+            // An asynchronous commit is only queued: `commit_callback` records whether
+            // the broker took it.
+            ledger.committed(&due);
             Ok(())
         }
         Err(e) => {
@@ -449,6 +460,40 @@ fn commit(
             });
             Err(e)
         }
+    }
+}
+
+/// How long the final offset commit may wait for the broker's answer.
+const FINAL_COMMIT_TIMEOUT: Duration = Duration::from_secs(10);
+
+/// The member's last commit, bounded in time: sent asynchronously, then the consumer is
+/// polled until the broker answers ([`GroupContext`]'s commit callback) or
+/// [`FINAL_COMMIT_TIMEOUT`] passes; an error if that answer, or the last one before,
+/// was a failure. A synchronous commit to an unreachable broker would wait without end.
+fn final_commit(
+    consumer: &BaseConsumer<GroupContext>,
+    ledger: &Ledger,
+    topic: &str,
+    commits: &Mutex<Commits>,
+) -> std::result::Result<(), String> {
+    let answers = lock(commits).answers;
+    if !ledger.due().is_empty() {
+        commit(consumer, ledger, topic, CommitMode::Async).map_err(|e| e.to_string())?;
+        let deadline = Instant::now() + FINAL_COMMIT_TIMEOUT;
+        while lock(commits).answers == answers {
+            if Instant::now() >= deadline {
+                return Err(format!(
+                    "no answer from the broker within {} s",
+                    FINAL_COMMIT_TIMEOUT.as_secs()
+                ));
+            }
+            // Polled for the commit callback; nothing is read any more.
+            let _ = consumer.poll(Duration::from_millis(50));
+        }
+    }
+    match lock(commits).failed.take() {
+        Some(e) => Err(e),
+        None => Ok(()),
     }
 }
 
@@ -568,7 +613,9 @@ pub(crate) fn spawn_kafka(
     let ledger = Arc::new(Ledger::default());
     let topic = input.topic.topic.clone();
     let uncommitted = Arc::new(Mutex::new(None));
+    let commits: Arc<Mutex<Commits>> = Arc::default();
     let context = GroupContext {
+        commits: commits.clone(),
         topic: topic.clone(),
         leases: leases.clone(),
         ledger: ledger.clone(),
@@ -626,7 +673,11 @@ pub(crate) fn spawn_kafka(
                     last = Instant::now();
                 }
             }
-            let last = commit(&consumer, &ledger, &topic, CommitMode::Sync);
+            let last = final_commit(&consumer, &ledger, &topic, &commits);
+            // Whatever the final commit did, a revocation as the consumer closes has
+            // nothing left to commit (a synchronous commit there would wait for an
+            // unreachable broker without end).
+            ledger.close_all();
             let left = ledger.in_flight();
             if left > 0 {
                 tracing::warn!(
@@ -640,6 +691,7 @@ pub(crate) fn spawn_kafka(
                 .err()
                 .map(|e| format!("the final offset commit failed: {e}"))
                 .or_else(|| lock(&uncommitted).take());
+            drop(consumer);
             match why {
                 Some(why) => Err(kafka_error(
                     "offsets of written frames were not committed (the group will read \

@@ -154,6 +154,12 @@ impl Ledger {
         t.position().filter(|&o| Some(o) != t.committed)
     }
 
+    /// Stops tracking every partition (the member is leaving and has committed what it
+    /// could): nothing is left for a revocation to commit.
+    pub(crate) fn close_all(&self) {
+        lock(&self.parts).clear();
+    }
+
     /// Frames read and not yet written.
     pub(crate) fn in_flight(&self) -> usize {
         lock(&self.parts).values().map(|t| t.pending.len()).sum()
