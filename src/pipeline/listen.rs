@@ -309,6 +309,21 @@ pub fn read_head(conn: &mut TcpStream) -> std::result::Result<Head, HeadError> {
     }
 }
 
+/// [`read_head`], answering a head that is too large (431) or not HTTP (400) itself;
+/// `None` when there is nothing more to do with the connection.
+pub fn read_head_or_answer(conn: &mut TcpStream) -> Option<Head> {
+    let (status, why): (u16, &[u8]) = match read_head(conn) {
+        Ok(h) => return Some(h),
+        Err(HeadError::TooLarge) => (431, b"request head too large\n"),
+        Err(HeadError::Malformed) => (400, b"not an HTTP request\n"),
+        Err(HeadError::Gone) => return None,
+    };
+    if let Ok(c) = conn.try_clone() {
+        respond(c, status, "text/plain", why);
+    }
+    None
+}
+
 /// Writes a whole response and closes the connection the way that lets the client read
 /// it: the body is never read, so the unread rest of the request is drained (a bounded
 /// amount, briefly) before closing, or the close would reset the connection.

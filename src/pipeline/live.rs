@@ -26,7 +26,7 @@ use tungstenite::protocol::{Role, WebSocketConfig};
 use tungstenite::{Message, WebSocket};
 
 use crate::error::{Error, Result};
-use crate::pipeline::listen::{read_head, respond, Bounds, HeadError, Server, Throttle};
+use crate::pipeline::listen::{read_head_or_answer, respond, Bounds, Server, Throttle};
 
 /// How many frames the live view holds for its thread at most; the pipeline never waits
 /// for it (a frame that finds the queue full is not shown).
@@ -314,15 +314,8 @@ fn serve_viewer(
     refused: &Throttle,
     latched: &Mutex<Latched>,
 ) {
-    let head = match read_head(&mut conn) {
-        Ok(h) => h,
-        Err(HeadError::TooLarge) => {
-            return respond(conn, 431, "text/plain", b"request head too large\n")
-        }
-        Err(HeadError::Malformed) => {
-            return respond(conn, 400, "text/plain", b"not an HTTP request\n")
-        }
-        Err(HeadError::Gone) => return,
+    let Some(head) = read_head_or_answer(&mut conn) else {
+        return;
     };
     let offered: Vec<&str> = head.values("sec-websocket-protocol").collect();
     let chosen: Option<&'static str> = offered

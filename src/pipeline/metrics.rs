@@ -12,7 +12,7 @@ use prometheus::{
 };
 
 use crate::error::Result;
-use crate::pipeline::listen::{read_head, respond, Bounds, HeadError, Server};
+use crate::pipeline::listen::{read_head_or_answer, respond, Bounds, Server};
 
 /// The queues between stages, by the stage that reads them.
 pub const QUEUES: [&str; 6] = [
@@ -289,15 +289,8 @@ impl MetricsServer {
             max_connections: MAX_METRICS_CONNECTIONS,
         };
         let server = Server::start("metrics", bind, bounds, move |mut conn, _, _| {
-            let head = match read_head(&mut conn) {
-                Ok(h) => h,
-                Err(HeadError::TooLarge) => {
-                    return respond(conn, 431, "text/plain", b"request head too large\n")
-                }
-                Err(HeadError::Malformed) => {
-                    return respond(conn, 400, "text/plain", b"not an HTTP request\n")
-                }
-                Err(HeadError::Gone) => return,
+            let Some(head) = read_head_or_answer(&mut conn) else {
+                return;
             };
             if head.method != "GET" {
                 return respond(conn, 405, "text/plain", b"GET /metrics, GET /health\n");
