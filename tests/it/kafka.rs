@@ -490,6 +490,18 @@ fn reader(dir: &Path, name: &str, broker: &str, out: &Path) -> Daemon {
     )
 }
 
+/// A broker, and a [`reader`] of it writing to `dir/out.ndjson` that holds every
+/// partition.
+fn reading(dir: &Path) -> (Broker, Daemon, PathBuf) {
+    let broker = Broker::start();
+    let out = dir.join("out.ndjson");
+    let mut daemon = reader(dir, "r", &broker.addr(), &out);
+    until(Duration::from_secs(30), "partitions assigned", || {
+        daemon.partitions().len() == PARTITIONS as usize
+    });
+    (broker, daemon, out)
+}
+
 /// Publishes the first `n` frames of the ellipse stream to `frames`.
 fn publish(dir: &Path, broker: &str, n: usize, stream: &str) {
     let text = std::fs::read_to_string(format!(
@@ -554,13 +566,8 @@ fn no_broker_at_start_is_unhealthy_and_quiet() {
 fn a_broker_killed_and_restarted_is_seen_and_survived() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    let mut broker = Broker::start();
+    let (mut broker, mut daemon, out) = reading(d);
     let addr = broker.addr();
-    let out = d.join("out.ndjson");
-    let mut daemon = reader(d, "r", &addr, &out);
-    until(Duration::from_secs(30), "partitions assigned", || {
-        daemon.partitions().len() == PARTITIONS as usize
-    });
     let metrics = daemon.metrics_addr().unwrap();
     let text = http_get(&metrics, "/metrics");
     for p in 0..PARTITIONS {
@@ -619,13 +626,8 @@ fn a_broker_killed_and_restarted_is_seen_and_survived() {
 fn a_final_commit_that_fails_fails_the_run() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    let mut broker = Broker::start();
+    let (mut broker, mut daemon, out) = reading(d);
     let addr = broker.addr();
-    let out = d.join("out.ndjson");
-    let mut daemon = reader(d, "r", &addr, &out);
-    until(Duration::from_secs(30), "partitions assigned", || {
-        daemon.partitions().len() == PARTITIONS as usize
-    });
     publish(d, &addr, 20, "one");
     // Killed as the first record is written: the frames read after it are written
     // while no commit can reach the broker.
