@@ -273,17 +273,6 @@ struct GroupContext {
     /// Why written frames' offsets were not committed when their partitions went (the
     /// broker unreachable, the assignment lost): the group will read them again.
     uncommitted: Arc<Mutex<Option<String>>>,
-    /// The broker's answers to asynchronous commits.
-    commits: Arc<Mutex<Commits>>,
-}
-
-/// The broker's answers to asynchronous commits: how many came, and the error of the
-/// last one if it failed (a commit that fails after the last one taken leaves written
-/// frames uncommitted).
-#[derive(Debug, Default)]
-struct Commits {
-    answers: u64,
-    failed: Option<String>,
 }
 
 impl ClientContext for GroupContext {
@@ -329,28 +318,6 @@ impl GroupContext {
 }
 
 impl ConsumerContext for GroupContext {
-    /// An offset commit's outcome: only a commit the broker took moves the ledger's
-    /// committed positions (an asynchronous commit is merely queued when it returns).
-    fn commit_callback(
-        &self,
-        result: rdkafka::error::KafkaResult<()>,
-        offsets: &TopicPartitionList,
-    ) {
-        let _ = offsets;
-        let mut state = lock(&self.commits);
-        state.answers += 1;
-        match result {
-            // A later commit covers every earlier one's offsets.
-            Ok(()) => state.failed = None,
-            Err(e) => {
-                CLIENT_WARNINGS.warn(|skipped| {
-                    tracing::warn!(error = %e, skipped, "offset commit failed; retried with the next")
-                });
-                state.failed = Some(e.to_string());
-            }
-        }
-    }
-
     fn pre_rebalance(&self, consumer: &BaseConsumer<Self>, rebalance: &Rebalance<'_>) {
         let Rebalance::Revoke(tpl) = rebalance else {
             return;
@@ -367,19 +334,28 @@ impl ConsumerContext for GroupContext {
                 .consumer_lag
                 .remove_label_values(&[&p.to_string()]);
         }
-        // Written records count before the partitions go; a lost assignment (this member
-        // was taken for dead) has no right to commit any more.
+        // Written records count before the partitions go: their positions are committed
+        // synchronously (the broker's answer is the acknowledgement). A lost assignment
+        // (this member was taken for dead) has no right to commit any more, and a
+        // synchronous commit to an unreachable broker would wait without end: then the
+        // positions count as committed only if the broker, asked, already holds them.
         if commit.count() > 0 {
-            let failed = if consumer.assignment_lost() {
-                Some("the assignment was lost".to_string())
+            let cannot = if consumer.assignment_lost() {
+                Some("the assignment was lost")
             } else if lock(&self.brokers.down_since).is_some() {
-                // A synchronous commit would wait for the broker without end.
-                Some("no broker reachable".to_string())
+                Some("no broker reachable")
             } else {
-                consumer
+                None
+            };
+            let failed = match cannot {
+                None => consumer
                     .commit(&commit, CommitMode::Sync)
                     .err()
-                    .map(|e| e.to_string())
+                    .map(|e| e.to_string()),
+                Some(why) => {
+                    let behind = behind(consumer, &self.topic, &commit, REVOKE_READ_BACK);
+                    (!behind.is_empty()).then(|| format!("{why}; not committed: {behind:?}"))
+                }
             };
             if let Some(why) = failed {
                 tracing::warn!(
@@ -449,8 +425,8 @@ fn commit(
     }
     match consumer.commit(&tpl, mode) {
         Ok(()) => {
-            // An asynchronous commit is only queued: `commit_callback` records whether
-            // the broker took it.
+            // An asynchronous commit is only queued; the final commit checks that the
+            // broker holds the positions.
             ledger.committed(&due);
             Ok(())
         }
@@ -463,37 +439,84 @@ fn commit(
     }
 }
 
+/// How long a revocation that cannot commit may wait to read the committed offsets
+/// back: it runs in the consumer's poll, which it holds up meanwhile.
+const REVOKE_READ_BACK: Duration = Duration::from_secs(1);
+
+/// The partitions of `positions` (offsets to commit) whose committed offset the broker
+/// does not confirm within `timeout`, with the position each should have reached.
+fn behind(
+    consumer: &BaseConsumer<GroupContext>,
+    topic: &str,
+    positions: &TopicPartitionList,
+    timeout: Duration,
+) -> Vec<(i32, i64)> {
+    let want: Vec<(i32, i64)> = positions
+        .elements()
+        .iter()
+        .filter_map(|e| e.offset().to_raw().map(|o| (e.partition(), o)))
+        .collect();
+    let mut ask = TopicPartitionList::new();
+    for &(p, _) in &want {
+        let _ = ask.add_partition(topic, p);
+    }
+    let held = consumer.committed_offsets(ask, timeout).ok();
+    want.into_iter()
+        .filter(|&(p, o)| {
+            let at = held
+                .as_ref()
+                .and_then(|h| h.find_partition(topic, p))
+                .and_then(|e| e.offset().to_raw());
+            at.is_none_or(|at| at < o)
+        })
+        .collect()
+}
+
 /// How long the final offset commit may wait for the broker's answer.
 const FINAL_COMMIT_TIMEOUT: Duration = Duration::from_secs(10);
 
-/// The member's last commit, bounded in time: sent asynchronously, then the consumer is
-/// polled until the broker answers ([`GroupContext`]'s commit callback) or
-/// [`FINAL_COMMIT_TIMEOUT`] passes; an error if that answer, or the last one before,
-/// was a failure. A synchronous commit to an unreachable broker would wait without end.
+/// The member's last commit, bounded in time: the positions that moved are sent
+/// asynchronously, then the group's committed offsets are read back from the broker
+/// until they reach every position committed so far, for at most
+/// [`FINAL_COMMIT_TIMEOUT`]; an error if they do not. Reading back is the only
+/// acknowledgement there is: librdkafka answers a manual asynchronous commit only through
+/// an `offset_commit_cb`, which rust-rdkafka's event-based consumer does not set, and a
+/// synchronous commit to an unreachable broker waits without end. So with the broker
+/// gone, the positions of the frames written since its last answer are reported
+/// uncommitted, never assumed.
 fn final_commit(
     consumer: &BaseConsumer<GroupContext>,
     ledger: &Ledger,
     topic: &str,
-    commits: &Mutex<Commits>,
 ) -> std::result::Result<(), String> {
-    let answers = lock(commits).answers;
     if !ledger.due().is_empty() {
         commit(consumer, ledger, topic, CommitMode::Async).map_err(|e| e.to_string())?;
-        let deadline = Instant::now() + FINAL_COMMIT_TIMEOUT;
-        while lock(commits).answers == answers {
-            if Instant::now() >= deadline {
-                return Err(format!(
-                    "no answer from the broker within {} s",
-                    FINAL_COMMIT_TIMEOUT.as_secs()
-                ));
-            }
-            // Polled for the commit callback; nothing is read any more.
-            let _ = consumer.poll(Duration::from_millis(50));
-        }
     }
-    match lock(commits).failed.take() {
-        Some(e) => Err(e),
-        None => Ok(()),
+    let want = ledger.queued();
+    if want.is_empty() {
+        return Ok(());
+    }
+    let mut tpl = TopicPartitionList::new();
+    for &(p, o) in &want {
+        let _ = tpl.add_partition_offset(topic, p, Offset::Offset(o));
+    }
+    let deadline = Instant::now() + FINAL_COMMIT_TIMEOUT;
+    let mut why = "the broker did not answer".to_string();
+    loop {
+        let left = deadline.saturating_duration_since(Instant::now());
+        if left.is_zero() {
+            return Err(format!(
+                "the broker did not confirm the offsets within {} s ({why})",
+                FINAL_COMMIT_TIMEOUT.as_secs()
+            ));
+        }
+        let late = behind(consumer, topic, &tpl, left.min(Duration::from_secs(2)));
+        if late.is_empty() {
+            return Ok(());
+        }
+        why = format!("not confirmed: {late:?}");
+        // Polled so that the queued commit goes out; nothing is read any more.
+        let _ = consumer.poll(Duration::from_millis(50));
     }
 }
 
@@ -613,9 +636,7 @@ pub(crate) fn spawn_kafka(
     let ledger = Arc::new(Ledger::default());
     let topic = input.topic.topic.clone();
     let uncommitted = Arc::new(Mutex::new(None));
-    let commits: Arc<Mutex<Commits>> = Arc::default();
     let context = GroupContext {
-        commits: commits.clone(),
         topic: topic.clone(),
         leases: leases.clone(),
         ledger: ledger.clone(),
@@ -673,7 +694,7 @@ pub(crate) fn spawn_kafka(
                     last = Instant::now();
                 }
             }
-            let last = final_commit(&consumer, &ledger, &topic, &commits);
+            let last = final_commit(&consumer, &ledger, &topic);
             // Whatever the final commit did, a revocation as the consumer closes has
             // nothing left to commit (a synchronous commit there would wait for an
             // unreachable broker without end).

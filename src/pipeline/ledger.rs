@@ -139,6 +139,17 @@ impl Ledger {
         due
     }
 
+    /// Each tracked partition's position as last sent to the broker in a commit.
+    pub(crate) fn queued(&self) -> Vec<(i32, i64)> {
+        let parts = lock(&self.parts);
+        let mut queued: Vec<(i32, i64)> = parts
+            .iter()
+            .filter_map(|(&p, t)| t.committed.map(|o| (p, o)))
+            .collect();
+        queued.sort_unstable();
+        queued
+    }
+
     pub(crate) fn committed(&self, positions: &[(i32, i64)]) {
         let mut parts = lock(&self.parts);
         for (p, o) in positions {
@@ -148,10 +159,10 @@ impl Ledger {
         }
     }
 
-    /// Stops tracking a partition; its position if it moved since the last commit.
+    /// Stops tracking a partition; its position, if it read anything (committed or not:
+    /// a commit is only known to have reached the broker once it answered).
     pub(crate) fn close(&self, partition: i32) -> Option<i64> {
-        let t = lock(&self.parts).remove(&partition)?;
-        t.position().filter(|&o| Some(o) != t.committed)
+        lock(&self.parts).remove(&partition)?.position()
     }
 
     /// Stops tracking every partition (the member is leaving and has committed what it

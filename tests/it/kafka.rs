@@ -622,7 +622,6 @@ fn a_broker_killed_and_restarted_is_seen_and_survived() {
 /// final commit fails (or, if the member's session ran out first, the commit as its
 /// partitions went), and the exit is non-zero and says so with the run's summary.
 #[test]
-#[ignore = "open (issue 40): with the broker gone, the asynchronous commits' failures do not yet reach the final check reliably, so the run can still exit 0"]
 fn a_final_commit_that_fails_fails_the_run() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
