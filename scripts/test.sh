@@ -1,7 +1,11 @@
 #!/usr/bin/env bash
 # The whole test suite, what CI runs: installs the Kafka-compatible broker the Kafka
-# test starts (scripts/kafka-broker.sh, into .tools/), then runs every test.
+# test starts (scripts/kafka-broker.sh, into .tools/), runs every Rust test, then builds
+# the Python package into a fresh virtual environment and runs its tests
+# (scripts/python.sh).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 scripts/kafka-broker.sh install
-cargo test --workspace --locked
+# The Python bindings have no Rust tests: scripts/python.sh builds and tests them.
+cargo test --workspace --exclude isoline-py --locked
+scripts/python.sh

@@ -217,7 +217,7 @@ impl Job {
             }
         };
         let name = path.display().to_string();
-        let base = match Config::from_table(table.clone(), &name, "") {
+        let base = match Config::from_table(table.clone(), &name, "").map_err(Error::from) {
             Ok(c) => Some(c),
             Err(Error::Config { problems: p, .. }) => {
                 problems.extend(p);
@@ -243,7 +243,7 @@ impl Job {
             };
             let mut merged = table.clone();
             merge(&mut merged, over);
-            match Config::from_table(merged, &name, &prefix) {
+            match Config::from_table(merged, &name, &prefix).map_err(Error::from) {
                 Ok(c) => overrides.push((pattern, c.params())),
                 Err(Error::Config { problems: p, .. }) => problems.extend(p),
                 Err(e) => return Err(e),

@@ -9,7 +9,7 @@ use std::path::PathBuf;
 pub enum Error {
     /// A file could not be read or written, or its data are wrong for the method.
     #[error(transparent)]
-    File(#[from] isoline_io::Error),
+    File(isoline_io::Error),
     /// Reading or writing a file, a socket or a pipe failed.
     #[error("{path}: {source}")]
     Io {
@@ -53,6 +53,18 @@ impl Error {
         Error::Io {
             path: path.into(),
             source,
+        }
+    }
+}
+
+/// An invalid configuration is the daemon's [`Error::Config`], whichever layer read it.
+impl From<isoline_io::Error> for Error {
+    fn from(e: isoline_io::Error) -> Self {
+        match e {
+            isoline_io::Error::Core(isoline_core::Error::Config { path, problems }) => {
+                Error::Config { path, problems }
+            }
+            e => Error::File(e),
         }
     }
 }

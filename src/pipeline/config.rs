@@ -450,7 +450,7 @@ impl DaemonConfig {
         let live: Option<ListenerConfig> = take(&mut t, "live", &mut problems);
         let metrics: Option<ListenerConfig> = take(&mut t, "metrics", &mut problems);
         // What is left is the shared tables, which refuse any other key.
-        let params = match Config::from_table(t, name, "") {
+        let params = match Config::from_table(t, name, "").map_err(Error::from) {
             Ok(c) => Some(c.params()),
             Err(Error::Config { problems: p, .. }) => {
                 problems.extend(p);

@@ -22,12 +22,10 @@ use super::source::Line;
 use super::RunSummary;
 use crate::error::{Error, Result};
 use isoline_core::geom::{Point, Pose};
-use isoline_core::stages::AdaptedMesh;
-use isoline_core::stages::LevelSet;
-use isoline_core::stages::Solved;
 use isoline_core::stages::{self as reconstruct, Prepared};
+use isoline_core::stages::{AdaptedMesh, LevelSet, LevelSetMemory, MeshMemory, Solved};
 use isoline_core::Params;
-use isoline_core::{Mesh, Reconstruction};
+use isoline_core::Reconstruction;
 use isoline_core::{Window, WindowLimits};
 use isoline_io::format::ResultRecord;
 
@@ -189,23 +187,7 @@ enum Work {
 /// The renormalized level set of a stream's last frame, sent back to the solve stage.
 pub(crate) struct Feedback {
     key: String,
-    level_set: Option<Kept>,
-}
-
-/// What the next frame of a stream starts from: the level set in data coordinates, and
-/// the pose of the frame it is in.
-struct Kept {
-    level_set: LevelSet,
-    pose: Option<Pose>,
-}
-
-/// Moves a stream's state (in the coordinates of the frame at `from`) into the
-/// coordinates of the next frame, at `to`, when both frames carry poses.
-fn follow(map: impl FnOnce(&dyn Fn(Point) -> Point), from: &mut Option<Pose>, to: Option<Pose>) {
-    if let (Some(a), Some(b)) = (*from, to) {
-        map(&|p| isoline_core::geom::to_sensor(b, isoline_core::geom::to_world(a, p)));
-        *from = Some(b);
-    }
+    level_set: Option<(LevelSet, Option<Pose>)>,
 }
 
 fn spawn<T: Send + 'static>(
@@ -489,7 +471,7 @@ pub(crate) fn spawn_adapt(
     metrics: Arc<Metrics>,
 ) -> Result<JoinHandle<()>> {
     spawn("adapt", move || {
-        let mut last: Streams<Option<(u64, Mesh, Option<Pose>)>> = Streams::new(&streams);
+        let mut last: Streams<MeshMemory> = Streams::new(&streams);
         run_stage(
             "adapt",
             rx,
@@ -501,15 +483,10 @@ pub(crate) fn spawn_adapt(
                 let Work::Prepared(p) = std::mem::replace(&mut m.work, Work::Skipped) else {
                     unreachable!("adapt takes prepared frames")
                 };
-                let frame = m.number();
                 let adapted = if warm {
-                    let slot = last.seen(m.key(), m.lease(), Instant::now(), |_| true, || None);
-                    let previous = slot.as_ref().filter(|(f, _, _)| *f < frame);
-                    let motion = previous.and_then(|(_, _, pose)| pose.zip(m.pose));
-                    let adapted =
-                        reconstruct::adapt_moving(&p, previous.map(|(_, mesh, _)| mesh), motion);
-                    *slot = Some((frame, p.mesh_in_data(&adapted), m.pose));
-                    adapted
+                    let memory =
+                        last.seen(m.key(), m.lease(), Instant::now(), |_| true, <_>::default);
+                    memory.adapt(&p, m.number(), m.pose)
                 } else {
                     reconstruct::adapt(&p, None)
                 };
@@ -524,8 +501,7 @@ pub(crate) fn spawn_adapt(
 struct SolveState {
     /// Frames sent to renormalization whose level set has not come back.
     pending: usize,
-    last_frame: Option<u64>,
-    level_set: Option<Kept>,
+    memory: LevelSetMemory,
 }
 
 /// Solve: the level set of each frame, warm-started from the stream's last renormalized
@@ -546,8 +522,8 @@ pub(crate) fn spawn_solve(
         let apply = |state: &mut Streams<SolveState>, fb: Feedback| {
             if let Some(s) = state.peek_mut(&fb.key) {
                 s.pending = s.pending.saturating_sub(1);
-                if fb.level_set.is_some() {
-                    s.level_set = fb.level_set;
+                if let Some((level_set, pose)) = fb.level_set {
+                    s.memory.keep(level_set, pose);
                 }
             }
         };
@@ -574,28 +550,19 @@ pub(crate) fn spawn_solve(
                         }
                     }
                 }
-                let frame = m.number();
-                let s = state.seen(
-                    m.key(),
-                    m.lease(),
-                    Instant::now(),
-                    |s| s.pending == 0,
-                    SolveState::default,
-                );
-                if s.last_frame.is_some_and(|f| f >= frame) {
-                    tracing::info!(frame, "stream restarted: cold start");
-                    s.level_set = None;
-                }
-                s.last_frame = Some(frame);
-                let previous = s.level_set.as_mut().filter(|_| warm).map(|k| {
-                    let level_set = &mut k.level_set;
-                    follow(|f| level_set.map_coords(f), &mut k.pose, m.pose);
-                    k.level_set.as_previous()
-                });
-                let solved = reconstruct::solve(&p, &adapted, previous);
-                if warm {
+                let solved = if warm {
+                    let s = state.seen(
+                        m.key(),
+                        m.lease(),
+                        Instant::now(),
+                        |s| s.pending == 0,
+                        SolveState::default,
+                    );
                     s.pending += 1;
-                }
+                    s.memory.solve(&p, &adapted, m.number(), m.pose)
+                } else {
+                    reconstruct::solve(&p, &adapted, None)
+                };
                 m.work = Work::Solved(Box::new((p, adapted, solved)));
             },
         )
@@ -631,10 +598,9 @@ pub(crate) fn spawn_renormalize(
                     reconstruct::renormalize(&adapted.mesh, solved);
                     // Kept in data coordinates and units: the next frame is placed
                     // differently.
-                    feedback.as_ref().map(|_| Kept {
-                        level_set: p.level_set(adapted, solved),
-                        pose,
-                    })
+                    feedback
+                        .as_ref()
+                        .map(|_| (p.level_set(adapted, solved), pose))
                 }));
                 let level_set = match level_set {
                     Ok(l) => l,

@@ -6,8 +6,9 @@
 //! `isoline ...` and `cargo run --release -- ...` run the binary under test; scripts run
 //! with `QUICK=1` (a small version of their run) and that binary. `cargo test`, `cargo
 //! bench`, `cargo build`, `scripts/test.sh` and `.ci/run` are the suite and its build,
-//! and `scripts/cgal-peer.sh` installs a Debian package and builds a C++ peer: not run
-//! here. Any
+//! `scripts/cgal-peer.sh` installs a Debian package and builds a C++ peer, and `python`,
+//! `pip` and `scripts/python.sh` are the Python package's, which scripts/python.sh tests
+//! (with the `python` blocks of docs/python.md): not run here. Any
 //! other command fails the test, so a page cannot show one that nothing checks. `toml`
 //! blocks are parsed as the configuration they are (daemon, batch job, or the shared
 //! tables), `json` blocks as the frame, result or truth they show.
@@ -125,6 +126,9 @@ fn run(dir: &Path, page: &Path, command: &str) {
         ["cargo", "test" | "bench" | "build" | "clippy" | "fmt", ..]
         | [".ci/run"]
         | ["scripts/test.sh"]
+        // The Python package: scripts/python.sh (run by scripts/test.sh) builds it into a
+        // fresh virtual environment and tests it, its examples included.
+        | ["python" | "pip" | "scripts/python.sh", ..]
         // Installs a Debian package and builds a C++ driver: a measurement run by hand.
         | ["scripts/cgal-peer.sh", ..] => return,
         ["cargo", "run", "--release", "--", rest @ ..] | ["isoline", rest @ ..] => {

@@ -156,6 +156,15 @@ pub struct Window {
     views: VecDeque<View>,
 }
 
+impl std::fmt::Debug for Window {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Window")
+            .field("frames", &self.len())
+            .field("bytes", &self.bytes())
+            .finish()
+    }
+}
+
 impl Window {
     /// Adds the newest view and lets the views the limits no longer allow leave. A
     /// frame number that does not follow the last one's (a restarted stream) or a time

@@ -75,6 +75,7 @@ mod redistance;
 mod repair;
 mod scan;
 mod stats;
+mod stream;
 mod warning;
 
 pub use distance::{validate_points, DistanceField, MAX_COORDINATE, MIN_EXTENT};
@@ -91,6 +92,7 @@ pub use reconstruct::{reconstruct, reconstruct_scan, reconstruct_warm, Params, R
 pub use repair::strokes::Junction;
 pub use scan::{FreeSpace, LaserScan, Scan, ScanParams, MAX_BEAMS};
 pub use stats::{StageMs, Stats, WindowStats};
+pub use stream::{Stream, StreamFrame};
 pub use warning::Warning;
 
 /// The pipeline's stages one by one, for a caller that runs them apart (the daemon runs
@@ -127,4 +129,5 @@ pub mod stages {
         adapt, adapt_moving, export, export_refined, prepare, reconstruct_with, renormalize, solve,
         Prepared,
     };
+    pub use crate::stream::{LevelSetMemory, MeshMemory};
 }

@@ -29,6 +29,7 @@
 #![warn(missing_docs)]
 #![deny(rustdoc::broken_intra_doc_links)]
 
+pub mod config;
 mod error;
 pub mod format;
 pub mod foxglove;

@@ -1,0 +1,390 @@
+"""The Python package against the `isoline` binary: the same frames give the same
+curves, a Stream takes the daemon's warm/cold decisions, and nothing a caller passes
+crashes the interpreter.
+
+The binary is `$ISOLINE_BIN`, else `target/debug/isoline` (built when missing). The real
+recordings are read from `$ISOLINE_REAL` when it is set (CARMEN `*.log.gz`, bags
+`*.mcap`); without it those tests are skipped, and the shipped fixtures cover the same
+paths.
+"""
+
+import json
+import math
+import os
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import isoline
+
+ROOT = Path(__file__).resolve().parents[2]
+FIXTURES = ROOT / "fixtures"
+
+
+@pytest.fixture(scope="session")
+def binary():
+    path = os.environ.get("ISOLINE_BIN")
+    if path:
+        return Path(path)
+    path = ROOT / "target" / "debug" / "isoline"
+    if not path.exists():
+        subprocess.run(["cargo", "build", "--bin", "isoline"], cwd=ROOT, check=True)
+    return path
+
+
+def records(path):
+    return [json.loads(line) for line in Path(path).read_text().splitlines() if line.strip()]
+
+
+def binary_records(binary, tmp_path, input_path, *args):
+    out = tmp_path / "out.ndjson"
+    subprocess.run(
+        [str(binary), "reconstruct", str(input_path), "-o", str(out), *args],
+        check=True,
+        capture_output=True,
+    )
+    return records(out)
+
+
+def assert_same_curves(result, record, tol=1e-9):
+    """The same curves within `tol`: the Python API and the binary run the same code,
+    so only the last bits of the floating-point numbers written as JSON may differ."""
+    theirs = record.get("polylines", [])
+    assert len(result.polylines) == len(theirs)
+    assert result.closed == [p["closed"] for p in theirs]
+    for ours, p in zip(result.polylines, theirs):
+        np.testing.assert_allclose(ours, np.array(p["points"]).reshape(-1, 2), atol=tol)
+    assert result.warnings == record.get("warnings", [])
+
+
+def real(name):
+    folder = os.environ.get("ISOLINE_REAL")
+    if not folder or not (Path(folder) / name).exists():
+        pytest.skip(f"{name}: set ISOLINE_REAL to the folder of the real recordings")
+    return Path(folder) / name
+
+
+# --- one frame -------------------------------------------------------------------
+
+
+def test_a_circle_is_one_closed_counter_clockwise_curve():
+    a = np.linspace(0, 2 * np.pi, 300, endpoint=False)
+    r = isoline.reconstruct(np.c_[0.5 + 0.4 * np.cos(a), 0.5 + 0.4 * np.sin(a)])
+    assert r.closed == [True]
+    (curve,) = r.polylines
+    assert curve.dtype == np.float64 and curve.shape[1] == 2
+    radius = np.hypot(curve[:, 0] - 0.5, curve[:, 1] - 0.5)
+    # Clean samples: the curve lies within a few hmin (D / 1000 each) of the circle.
+    assert np.abs(radius - 0.4).max() < 5 * math.hypot(0.8, 0.8) / 1000
+    x, y = curve[:, 0], curve[:, 1]
+    assert 0.5 * np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y) > 0
+    assert r.stats["points"] == 300 and not r.warm_start
+
+
+@pytest.mark.parametrize("name", ["star-600-n001.ndjson", "two-circles-600-n001.ndjson"])
+def test_points_give_the_binarys_curves(binary, tmp_path, name):
+    (record,) = binary_records(binary, tmp_path, FIXTURES / name)
+    (frame,) = list(isoline.read_frames(FIXTURES / name))
+    assert_same_curves(isoline.reconstruct(frame.points), record)
+    assert_same_curves(isoline.reconstruct_frame(frame), record)
+
+
+def test_a_point_file_gives_the_binarys_curves(binary, tmp_path):
+    (record,) = binary_records(binary, tmp_path, FIXTURES / "circle-500.xy")
+    points = np.loadtxt(FIXTURES / "circle-500.xy")
+    assert_same_curves(isoline.reconstruct(points), record)
+
+
+def test_scans_give_the_binarys_curves(binary, tmp_path):
+    stream = FIXTURES / "clutter-hokuyo-20.ndjson"
+    theirs = binary_records(binary, tmp_path, stream, "--frame", "3")
+    (record,) = theirs
+    line = json.loads(stream.read_text().splitlines()[3])
+    ranges = np.array([np.nan if r is None else r for r in line["ranges"]])
+    r = isoline.reconstruct_scan(
+        ranges,
+        line["angle_min"],
+        line["angle_increment"],
+        line.get("range_min", 0.0),
+        line["range_max"],
+        pose=tuple(line["pose"]),
+    )
+    assert_same_curves(r, record)
+    assert r.features.shape == (len(record["features"]), 2)
+    assert r.pose == tuple(line["pose"])
+    # The world placement is the pose's rigid motion of the frame's curves.
+    x, y, th = line["pose"]
+    for local, world in zip(r.polylines, r.to_world()):
+        c, s = math.cos(th), math.sin(th)
+        np.testing.assert_allclose(world[:, 0], x + c * local[:, 0] - s * local[:, 1])
+        np.testing.assert_allclose(world[:, 1], y + s * local[:, 0] + c * local[:, 1])
+
+
+def test_a_bag_reads_as_the_binary_reads_it(binary, tmp_path):
+    bag = FIXTURES / "room-laser-80.mcap"
+    theirs = binary_records(binary, tmp_path, bag)
+    frames = list(isoline.read_frames(bag))
+    assert len(frames) == len(theirs) == 80
+    for frame, record in list(zip(frames, theirs))[::20]:
+        assert (frame.stream, frame.frame) == (record["stream"], record["frame"])
+        assert_same_curves(isoline.reconstruct_frame(frame), record)
+
+
+def test_the_result_record_is_the_binarys(binary, tmp_path):
+    (record,) = binary_records(binary, tmp_path, FIXTURES / "c-600-n001.ndjson")
+    (frame,) = list(isoline.read_frames(FIXTURES / "c-600-n001.ndjson"))
+    ours = json.loads(isoline.reconstruct_frame(frame).to_json())
+    timings = ("ms",)
+    for key in set(ours) | set(record):
+        if key == "stats":
+            for k in set(ours[key]) | set(record[key]):
+                if k not in timings:
+                    assert ours[key].get(k) == pytest.approx(record[key].get(k)), k
+        elif key != "polylines":
+            assert ours.get(key) == record.get(key), key
+
+
+def test_params_reach_the_method():
+    points = np.loadtxt(FIXTURES / "circle-500.xy")
+    fine = isoline.reconstruct(points)
+    coarse = isoline.reconstruct(points, params=isoline.Params("[export]\nsimplify = 0.01\n"))
+    assert len(coarse.polylines[0]) < len(fine.polylines[0]) / 4
+    with pytest.raises(ValueError, match="mesh.hmin"):
+        isoline.Params("[mesh]\nhmin = -1\n")
+    with pytest.raises(ValueError, match="hmni"):
+        isoline.Params("[mesh]\nhmni = 1\n")
+    assert isoline.Params.load(ROOT / "config" / "example.toml")
+
+
+# --- refusals, never crashes -------------------------------------------------------
+
+
+@pytest.mark.parametrize(
+    "points, message",
+    [
+        (np.zeros((5, 3)), "expected \\(N, 2\\)"),
+        (np.zeros(10), "expected \\(N, 2\\)"),
+        (np.zeros((2, 2, 2)), "expected \\(N, 2\\)"),
+        ([[0.0, 0.0], [1.0, math.nan], [2.0, 2.0]], "point 1"),
+        ([[0.0, 0.0], [math.inf, 1.0]], "point 1"),
+        (np.zeros((0, 2)), "no points|empty"),
+        (np.zeros((50, 2)), "coincide"),
+        ("not points", "not an array"),
+        ([[0, 0], [1]], "not an array"),
+        (None, "expected \\(N, 2\\)"),
+    ],
+)
+def test_bad_points_raise_value_error(points, message):
+    with pytest.raises(ValueError, match=message):
+        isoline.reconstruct(points)
+
+
+def test_bad_scans_raise_value_error():
+    with pytest.raises(ValueError):
+        isoline.reconstruct_scan(np.ones((3, 3)), 0.0, 0.01, 0.0, 10.0)
+    with pytest.raises(ValueError):
+        isoline.reconstruct_scan(np.ones(100), math.nan, 0.01, 0.0, 10.0)
+    with pytest.raises(ValueError):
+        isoline.reconstruct_scan(np.ones(100), 0.0, 0.01, 0.0, 10.0, pose=(0.0, math.inf, 0.0))
+    with pytest.raises(ValueError):
+        isoline.reconstruct_scan(np.ones(70_000), 0.0, 1e-5, 0.0, 10.0)
+    # No return at all is a frame without data, not a crash.
+    with pytest.raises(ValueError):
+        isoline.reconstruct_scan(np.full(100, np.nan), 0.0, 0.01, 0.0, 10.0)
+
+
+def test_bad_files_and_options_raise(tmp_path):
+    with pytest.raises(OSError):
+        isoline.read_frames(tmp_path / "missing.ndjson")
+    bad = tmp_path / "bad.ndjson"
+    good = json.dumps({"frame": 0, "points": [[0, 0], [1, 0], [1, 1], [0, 1]] * 10})
+    bad.write_text(good + "\n{\"frame\": 1, \"points\": 7}\n" + good.replace('"frame": 0', '"frame": 2') + "\n")
+    with pytest.warns(UserWarning, match="line 2"):
+        frames = list(isoline.read_frames(bad))
+    assert [f.frame for f in frames] == [0, 2]
+    with pytest.raises(isoline.IsolineError, match="line 2"):
+        list(isoline.read_frames(bad, errors="raise"))
+    assert len(list(isoline.read_frames(bad, errors="ignore"))) == 2
+    with pytest.raises(ValueError):
+        isoline.read_frames(bad, errors="sometimes")
+    notes = tmp_path / "notes.log"
+    notes.write_text("PARAM robot x\nthis is not a log\n")
+    with pytest.raises(ValueError):
+        list(isoline.read_frames(notes))
+    with pytest.raises(ValueError):
+        isoline.Stream(accumulate=1000)
+
+
+# --- streams -------------------------------------------------------------------------
+
+
+def daemon_records(binary, tmp_path, input_path, accumulate=0):
+    out = tmp_path / "daemon.ndjson"
+    config = tmp_path / "run.toml"
+    config.write_text(
+        f"""
+[input]
+path = {json.dumps(str(input_path))}
+replay = "fast"
+
+[output]
+path = {json.dumps(str(out))}
+
+[pipeline]
+policy = "block"
+warm_start = true
+accumulate = {accumulate}
+"""
+    )
+    subprocess.run([str(binary), "run", "-c", str(config)], check=True, capture_output=True)
+    return sorted(records(out), key=lambda r: (r.get("stream", ""), r["frame"]))
+
+
+def decisions(record):
+    s = record["stats"]
+    return (record["frame"], s["warm_start"], s["start"], s.get("cold_fallback", False))
+
+
+def assert_stream_matches_daemon(binary, tmp_path, path, accumulate=0, frames=None):
+    theirs = daemon_records(binary, tmp_path, path, accumulate)
+    by_stream = {}
+    for f in isoline.read_frames(path, errors="ignore"):
+        by_stream.setdefault(f.stream, []).append(f)
+    ours = []
+    for name, fs in sorted(by_stream.items(), key=lambda kv: kv[0] or ""):
+        stream = isoline.Stream(accumulate=accumulate)
+        ours += [json.loads(stream.push(f).to_json()) for f in fs]
+    ours = [r for r in ours if frames is None or r["frame"] < frames]
+    theirs = [r for r in theirs if "error" not in r and (frames is None or r["frame"] < frames)]
+    assert len(ours) == len(theirs)
+    assert [decisions(r) for r in ours] == [decisions(r) for r in theirs]
+    # Same decisions from the same state: the same curves.
+    for a, b in zip(ours, theirs):
+        assert len(a.get("polylines", [])) == len(b.get("polylines", [])), a["frame"]
+    return ours
+
+
+def test_a_stream_of_points_takes_the_daemons_decisions(binary, tmp_path):
+    ours = assert_stream_matches_daemon(binary, tmp_path, FIXTURES / "ellipse-stream-20.ndjson")
+    # A slowly changing ellipse: every frame after the first starts warm.
+    assert [r["stats"]["warm_start"] for r in ours] == [False] + [True] * (len(ours) - 1)
+
+
+def test_a_stream_of_scans_takes_the_daemons_decisions(binary, tmp_path):
+    assert_stream_matches_daemon(binary, tmp_path, FIXTURES / "clutter-hokuyo-20.ndjson")
+
+
+def test_a_refined_stream_takes_the_daemons_decisions(binary, tmp_path):
+    ours = assert_stream_matches_daemon(
+        binary, tmp_path, FIXTURES / "clutter-hokuyo-20.ndjson", accumulate=5
+    )
+    assert any(r["stats"]["start"] in ("fused", "fallback") for r in ours)
+
+
+def test_a_stream_over_a_real_log_takes_the_daemons_decisions(binary, tmp_path):
+    log = real("aces-corrected.log.gz")
+    # The first 120 frames: the whole log takes minutes in a debug build.
+    head = tmp_path / "aces-head.log"
+    lines, lasers = [], 0
+    import gzip
+
+    with gzip.open(log, "rt") as f:
+        for line in f:
+            lines.append(line)
+            lasers += line.startswith(("FLASER", "ROBOTLASER1"))
+            if lasers == 120:
+                break
+    head.write_text("".join(lines))
+    ours = assert_stream_matches_daemon(binary, tmp_path, head)
+    assert len(ours) == 120
+
+
+def test_a_restarted_stream_starts_cold():
+    a = np.linspace(0, 2 * np.pi, 240, endpoint=False)
+    ring = np.c_[np.cos(a), np.sin(a)]
+    stream = isoline.Stream()
+    assert [stream.push(ring * (1 + 0.01 * i)).warm_start for i in range(3)] == [False, True, True]
+    assert not stream.push(ring, frame=0).warm_start
+    assert stream.push(ring * 1.01).frame == 1
+    cold = isoline.Stream(warm_start=False)
+    assert not any(cold.push(ring).warm_start for _ in range(3))
+
+
+def test_the_gil_is_released_while_reconstructing():
+    a = np.linspace(0, 2 * np.pi, 4000, endpoint=False)
+    points = np.c_[np.cos(a), np.sin(a)] + np.random.default_rng(1).normal(0, 0.01, (4000, 2))
+    ticks = []
+    done = threading.Event()
+
+    def tick():
+        while not done.is_set():
+            ticks.append(time.perf_counter())
+            time.sleep(0.001)
+
+    t = threading.Thread(target=tick)
+    t.start()
+    start = time.perf_counter()
+    isoline.reconstruct(points)
+    end = time.perf_counter()
+    done.set()
+    t.join()
+    during = [x for x in ticks if start < x < end]
+    # A held GIL would stop the ticker for the whole call; released, it ticks about
+    # every millisecond (at least once every 50 ms on a loaded machine).
+    assert len(during) >= (end - start) / 0.05, (len(during), end - start)
+
+
+# --- the package around the module --------------------------------------------------
+
+
+def test_the_stubs_name_what_the_module_has():
+    import ast
+
+    stub = ast.parse((Path(isoline.__file__).parent / "__init__.pyi").read_text())
+    classes = {n.name: n for n in stub.body if isinstance(n, ast.ClassDef)}
+    functions = {n.name for n in stub.body if isinstance(n, ast.FunctionDef)}
+    assert set(isoline.__all__) - {"__version__"} == set(classes) | functions
+    for name, node in classes.items():
+        members = {m.name for m in node.body if isinstance(m, ast.FunctionDef)}
+        for member in members - {"__init__"}:
+            assert hasattr(getattr(isoline, name), member), f"{name}.{member}"
+    for name in functions:
+        assert getattr(isoline, name).__doc__, name
+
+
+def test_the_plot_example_draws_a_scan(tmp_path):
+    pytest.importorskip("matplotlib")
+    out = tmp_path / "scan.png"
+    subprocess.run(
+        [
+            sys.executable,
+            str(ROOT / "examples" / "python" / "plot_scan.py"),
+            str(FIXTURES / "room-laser-80.mcap"),
+            "--frame",
+            "10",
+            "-o",
+            str(out),
+        ],
+        check=True,
+        capture_output=True,
+    )
+    assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and out.stat().st_size > 10_000
+
+
+def test_the_snippets_of_docs_python_md_run(monkeypatch):
+    import re
+
+    page = (ROOT / "docs" / "python.md").read_text()
+    blocks = re.findall(r"```python\n(.*?)```", page, re.S)
+    assert len(blocks) >= 2
+    monkeypatch.chdir(ROOT)
+    # In order, in one namespace, as a reader pastes them into one session.
+    namespace = {}
+    for block in blocks:
+        exec(compile(block, "docs/python.md", "exec"), namespace)
+    assert namespace["r"].polylines and namespace["world"]
