@@ -65,6 +65,13 @@ pub fn run(a: Args) -> Result<()> {
         settings: a.settings.into_iter().collect::<BTreeMap<_, _>>(),
         stall: std::time::Duration::from_secs_f64(isoline::pipeline::kafka::DEFAULT_STALL_SECONDS),
     };
+    if let Some(why) = isoline::pipeline::kafka::without_tls(&topic.settings) {
+        return Err(isoline::Error::Config {
+            path: "--kafka".into(),
+            problems: vec![why],
+        }
+        .into());
+    }
     let writer = KafkaWriter::open(&topic)?;
     let mut pacer = Pacer::new(a.replay);
     let never = AtomicBool::new(false);

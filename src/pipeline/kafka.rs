@@ -146,11 +146,26 @@ fn topic_of(
         };
         kafka.insert(k, text);
     }
+    if let Some(why) = without_tls(&kafka) {
+        problems.push(format!("{table}.kafka: {why}"));
+    }
     (!blank).then_some(KafkaTopic {
         brokers,
         topic,
         settings: kafka,
         stall,
+    })
+}
+
+/// Why `settings` cannot work in this build: a TLS `security.protocol` when isoline was
+/// built without the `kafka-tls` feature (librdkafka then has no OpenSSL, and would say
+/// only that the value is unsupported).
+pub fn without_tls(settings: &BTreeMap<String, String>) -> Option<String> {
+    let protocol = settings.get("security.protocol")?.to_ascii_lowercase();
+    (!cfg!(feature = "kafka-tls") && matches!(protocol.as_str(), "ssl" | "sasl_ssl")).then(|| {
+        format!(
+            "security.protocol = {protocol:?} needs TLS, and this isoline was built without              it: build with `--features kafka-tls` (docs/kafka.md, \"TLS and SASL\")"
+        )
     })
 }
 
@@ -962,5 +977,32 @@ impl KafkaWriter {
             .flush(FLUSH_TIMEOUT)
             .map_err(|e| kafka_error(&format!("flushing to {}", self.topic), e))?;
         self.check()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn tls_settings_are_refused_only_by_a_build_without_tls() {
+        let with = |protocol: &str| {
+            BTreeMap::from([("security.protocol".to_string(), protocol.to_string())])
+        };
+        for protocol in ["ssl", "SASL_SSL"] {
+            let refused = without_tls(&with(protocol));
+            assert_eq!(
+                refused.is_some(),
+                !cfg!(feature = "kafka-tls"),
+                "{protocol}"
+            );
+            if let Some(why) = refused {
+                assert!(why.contains("--features kafka-tls"), "{why}");
+            }
+        }
+        for protocol in ["plaintext", "sasl_plaintext"] {
+            assert_eq!(without_tls(&with(protocol)), None);
+        }
+        assert_eq!(without_tls(&BTreeMap::new()), None);
     }
 }

@@ -3,7 +3,8 @@
 //! daemons in one consumer group share 8 streams on a 4-partition topic, one is killed
 //! with SIGKILL mid-stream, and the other takes its partitions over. Then the faults:
 //! no broker at start, a broker killed and restarted empty, a broker down at SIGTERM,
-//! a sink's broker killed.
+//! a sink's broker killed. With the `kafka-tls` feature, all of it over TLS with client
+//! certificates, through a TLS-terminating proxy.
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::io::{BufRead, BufReader};
@@ -65,15 +66,21 @@ impl Broker {
 
     /// A broker on `port`, in memory: a restarted broker has lost every topic.
     fn start_on(port: u16) -> Broker {
+        Broker::start_advertising(port, port)
+    }
+
+    /// A broker on `port` that tells clients to connect to `advertised` (a proxy's).
+    fn start_advertising(port: u16, advertised: u16) -> Broker {
         let bin = tansu();
         let url = format!("tcp://127.0.0.1:{port}");
+        let public = format!("tcp://127.0.0.1:{advertised}");
         let child = Command::new(&bin)
             .args([
                 "broker",
                 "--listener-url",
                 &url,
                 "--advertised-listener-url",
-                &url,
+                &public,
             ])
             .args(["--storage-engine", "memory://tansu/"])
             .stdout(Stdio::null())
@@ -727,4 +734,281 @@ fn a_sink_whose_broker_dies_is_seen_within_the_stall_time() {
     };
     daemon.pump();
     assert!(!status.success(), "{}", daemon.seen.join("\n"));
+}
+
+/// Kafka over TLS, as managed services require it: the broker behind a TLS-terminating
+/// proxy (`scripts/tls-proxy.py`) that it advertises, so every connection is TLS, and the
+/// proxy asks for a client certificate (mutual TLS). The certificates are made here with
+/// the `openssl` command.
+#[cfg(feature = "kafka-tls")]
+mod tls {
+    use super::*;
+
+    /// A CA, a server certificate for 127.0.0.1 and a client certificate signed by it,
+    /// and a second CA that signed nothing of this.
+    struct Pki {
+        dir: PathBuf,
+    }
+
+    fn openssl(dir: &Path, args: &[&str]) {
+        let out = Command::new("openssl")
+            .args(args)
+            .current_dir(dir)
+            .output()
+            .expect("the openssl command (Debian: openssl)");
+        assert!(out.status.success(), "openssl {args:?}: {out:?}");
+    }
+
+    impl Pki {
+        fn new(dir: &Path) -> Pki {
+            for ca in ["ca", "other-ca"] {
+                openssl(
+                    dir,
+                    &[
+                        "req",
+                        "-x509",
+                        "-newkey",
+                        "rsa:2048",
+                        "-nodes",
+                        "-days",
+                        "2",
+                        "-subj",
+                        &format!("/CN=isoline test {ca}"),
+                        "-keyout",
+                        &format!("{ca}.key"),
+                        "-out",
+                        &format!("{ca}.pem"),
+                    ],
+                );
+            }
+            for (name, ext) in [
+                (
+                    "server",
+                    "subjectAltName=IP:127.0.0.1\nextendedKeyUsage=serverAuth\n",
+                ),
+                ("client", "extendedKeyUsage=clientAuth\n"),
+            ] {
+                std::fs::write(dir.join(format!("{name}.ext")), ext).unwrap();
+                openssl(
+                    dir,
+                    &[
+                        "req",
+                        "-newkey",
+                        "rsa:2048",
+                        "-nodes",
+                        "-subj",
+                        &format!("/CN=isoline test {name}"),
+                        "-keyout",
+                        &format!("{name}.key"),
+                        "-out",
+                        &format!("{name}.csr"),
+                    ],
+                );
+                openssl(
+                    dir,
+                    &[
+                        "x509",
+                        "-req",
+                        "-in",
+                        &format!("{name}.csr"),
+                        "-CA",
+                        "ca.pem",
+                        "-CAkey",
+                        "ca.key",
+                        "-CAcreateserial",
+                        "-days",
+                        "2",
+                        "-extfile",
+                        &format!("{name}.ext"),
+                        "-out",
+                        &format!("{name}.pem"),
+                    ],
+                );
+            }
+            Pki {
+                dir: dir.to_path_buf(),
+            }
+        }
+
+        fn file(&self, name: &str) -> String {
+            self.dir.join(name).display().to_string()
+        }
+
+        /// librdkafka's settings for a client that trusts `ca` and shows the client
+        /// certificate.
+        fn settings(&self, ca: &str) -> Vec<(&'static str, String)> {
+            vec![
+                ("security.protocol", "ssl".into()),
+                ("ssl.ca.location", self.file(&format!("{ca}.pem"))),
+                ("ssl.certificate.location", self.file("client.pem")),
+                ("ssl.key.location", self.file("client.key")),
+            ]
+        }
+    }
+
+    /// The proxy, stopped when dropped; what it printed.
+    struct Proxy {
+        child: Child,
+        lines: Receiver<String>,
+    }
+
+    impl Drop for Proxy {
+        fn drop(&mut self) {
+            let _ = self.child.kill();
+            let _ = self.child.wait();
+        }
+    }
+
+    impl Proxy {
+        fn start(listen: u16, to: u16, pki: &Pki) -> Proxy {
+            let mut child = Command::new("python3")
+                .arg(Path::new(env!("CARGO_MANIFEST_DIR")).join("scripts/tls-proxy.py"))
+                .args(["--listen", &format!("127.0.0.1:{listen}")])
+                .args(["--to", &format!("127.0.0.1:{to}")])
+                .args([
+                    "--cert",
+                    &pki.file("server.pem"),
+                    "--key",
+                    &pki.file("server.key"),
+                ])
+                .args(["--client-ca", &pki.file("ca.pem")])
+                .stdout(Stdio::piped())
+                .stderr(Stdio::null())
+                .spawn()
+                .expect("start the TLS proxy");
+            let stdout = child.stdout.take().unwrap();
+            let (tx, lines) = std::sync::mpsc::channel();
+            std::thread::spawn(move || {
+                for line in BufReader::new(stdout).lines().map_while(Result::ok) {
+                    let _ = tx.send(line);
+                }
+            });
+            let first = lines.recv_timeout(Duration::from_secs(10));
+            assert_eq!(first.as_deref(), Ok("listening"), "the proxy did not start");
+            Proxy { child, lines }
+        }
+    }
+
+    /// A daemon reads frames over TLS and writes its records over TLS; `isoline publish`
+    /// and a test consumer use TLS too. A client that trusts another CA is refused at
+    /// the handshake and `isoline publish` fails, naming the broker.
+    #[test]
+    fn the_daemon_reads_and_writes_kafka_over_mutual_tls() {
+        let dir = tempfile::tempdir().unwrap();
+        let d = dir.path();
+        let pki = Pki::new(d);
+        let (plain, secure) = (free_port(), free_port());
+        let broker = Broker::start_advertising(plain, secure);
+        broker.create_topics();
+        let proxy = Proxy::start(secure, plain, &pki);
+        let addr = format!("127.0.0.1:{secure}");
+        let settings = pki.settings("ca");
+
+        let table: String = settings
+            .iter()
+            .map(|(k, v)| format!("\"{k}\" = {v:?}\n"))
+            .collect();
+        let mut daemon = Daemon::with(
+            d,
+            "tls",
+            &format!(
+                "[input]\nkind = \"kafka\"\nbrokers = \"{addr}\"\ntopic = \"frames\"\n\
+                 [input.kafka]\n\"session.timeout.ms\" = 2000\n\"heartbeat.interval.ms\" = 300\n\
+                 {table}\
+                 [output]\nkind = \"kafka\"\nbrokers = \"{addr}\"\ntopic = \"records\"\n\
+                 [output.kafka]\n{table}\
+                 [metrics]\nbind = \"127.0.0.1:0\"\n\
+                 [tracing]\nlevel = \"warn,isoline::pipeline::kafka=info\"\n"
+            ),
+        );
+        until(
+            Duration::from_secs(30),
+            "partitions assigned over TLS",
+            || daemon.partitions().len() == PARTITIONS as usize,
+        );
+
+        let frames = d.join("frames.ndjson");
+        std::fs::copy(
+            format!(
+                "{}/fixtures/ellipse-stream-20.ndjson",
+                env!("CARGO_MANIFEST_DIR")
+            ),
+            &frames,
+        )
+        .unwrap();
+        let mut args = vec!["publish", p(&frames), "--brokers", &addr, "--to", "frames"];
+        let flags: Vec<String> = settings.iter().map(|(k, v)| format!("{k}={v}")).collect();
+        for f in &flags {
+            args.extend(["--kafka", f]);
+        }
+        ok(&[args.as_slice(), &["--replay", "fast"]].concat());
+
+        let mut consumer = ClientConfig::new();
+        consumer
+            .set("bootstrap.servers", &addr)
+            .set("group.id", "test-reader")
+            .set("enable.auto.commit", "false");
+        for (k, v) in &settings {
+            consumer.set(*k, v);
+        }
+        let consumer: BaseConsumer = consumer.create().unwrap();
+        let mut tpl = TopicPartitionList::new();
+        for part in 0..PARTITIONS {
+            tpl.add_partition_offset("records", part, Offset::Beginning)
+                .unwrap();
+        }
+        consumer.assign(&tpl).unwrap();
+        let mut frames_seen = BTreeSet::new();
+        until(Duration::from_secs(60), "20 records over TLS", || {
+            while let Some(m) = consumer.poll(Duration::from_millis(100)) {
+                let rec: Value = serde_json::from_slice(m.unwrap().payload().unwrap()).unwrap();
+                assert!(
+                    rec["polylines"].as_array().is_some_and(|p| !p.is_empty()),
+                    "{rec}"
+                );
+                frames_seen.insert(rec["frame"].as_u64().unwrap());
+            }
+            frames_seen.len() == 20
+        });
+        daemon.signal("-TERM");
+        let status = daemon.child.wait().unwrap();
+        daemon.pump();
+        assert!(status.success(), "{}", daemon.seen.join("\n"));
+
+        // A client trusting another CA refuses the broker's certificate; a client
+        // without a certificate is refused by the broker's side (mutual TLS). Either
+        // way nothing is delivered and `isoline publish` fails, naming the broker.
+        let refused = |settings: Vec<(&'static str, String)>| {
+            let mut args = vec!["publish", p(&frames), "--brokers", &addr, "--to", "frames"];
+            let flags: Vec<String> = settings
+                .iter()
+                .map(|(k, v)| format!("{k}={v}"))
+                .chain(["message.timeout.ms=3000".to_string()])
+                .collect();
+            for f in &flags {
+                args.extend(["--kafka", f]);
+            }
+            args.extend(["--replay", "fast"]);
+            let out = Command::new(env!("CARGO_BIN_EXE_isoline"))
+                .args(&args)
+                .output()
+                .unwrap();
+            assert!(!out.status.success());
+            String::from_utf8_lossy(&out.stderr).into_owned()
+        };
+        let err = refused(pki.settings("other-ca"));
+        assert!(
+            err.contains("127.0.0.1") && err.contains("certificate verify failed"),
+            "{err}"
+        );
+        let anonymous: Vec<_> = pki.settings("ca").into_iter().take(2).collect();
+        let err = refused(anonymous);
+        assert!(err.contains("127.0.0.1"), "{err}");
+        let said: Vec<String> = proxy.lines.try_iter().collect();
+        assert!(
+            said.iter()
+                .any(|l| l.starts_with("handshake refused") && l.contains("CERTIFICATE")),
+            "{said:?}"
+        );
+    }
 }

@@ -891,8 +891,8 @@ fn damage_inside_a_bag_chunk_is_an_error_record() {
 }
 
 /// A demo that stays up: with `[live] linger`, the live view keeps serving after the
-/// recording has ended, and a viewer that connects then is sent each stream's last
-/// frame; SIGTERM ends it cleanly.
+/// recording has ended, and a viewer that connects then (10 s after the start) is sent
+/// each stream's last frame; SIGTERM ends it cleanly.
 #[test]
 fn a_lingering_live_view_shows_the_last_frame_after_the_recording_ends() {
     use foxglove::messages::SceneUpdate;
@@ -912,6 +912,7 @@ fn a_lingering_live_view_shows_the_last_frame_after_the_recording_ends() {
         ),
     )
     .unwrap();
+    let started = Instant::now();
     let mut child = Command::new(env!("CARGO_BIN_EXE_isoline"))
         .args(["run", "-c", p(&cfg)])
         .stderr(Stdio::piped())
@@ -930,9 +931,10 @@ fn a_lingering_live_view_shows_the_last_frame_after_the_recording_ends() {
             break;
         }
     }
-    // The run is over (its summary printed, its MCAP complete); the view still serves.
+    // The run is over (its summary printed, its MCAP complete); the view still serves
+    // a viewer that connects 10 s after the start.
     assert!(d.join("out.mcap").exists());
-    std::thread::sleep(Duration::from_millis(200));
+    std::thread::sleep(Duration::from_secs(10).saturating_sub(started.elapsed()));
     let got = watch(
         &addr.unwrap(),
         &["/isoline/curves"],
