@@ -8,6 +8,16 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 scripts/deps.sh
 scripts/kafka-broker.sh install
-# The Python bindings have no Rust tests: scripts/python.sh builds and tests them.
-cargo test --workspace --exclude isoline-py --features isoline/kafka-tls --locked
-scripts/python.sh
+# The Python environment is made (downloads, mostly) while cargo builds.
+mkdir -p target
+scripts/python.sh setup > target/python-setup.log 2>&1 &
+setup=$!
+# Every crate in one invocation: the Python bindings have no Rust tests, but their
+# dependencies' features are unified with the others', so that their build below
+# reuses these crates (crates/py/Cargo.toml).
+cargo test --workspace --features isoline/kafka-tls --locked
+if ! wait "$setup"; then
+  cat target/python-setup.log >&2
+  exit 1
+fi
+scripts/python.sh test

@@ -1,6 +1,6 @@
 //! Soak and fault test of the TCP daemon, bounded in time and count and on loopback
 //! only: thousands of connect/close cycles, clients dying mid-line, oversized lines,
-//! hundreds of stream ids and a client too many. The daemon's threads and memory must
+//! a hundred stream ids and a client too many. The daemon's threads and memory must
 //! stay flat and every line it read must get exactly one record.
 //!
 //! `ISOLINE_SOAK_CYCLES` sets the number of connect/close cycles (default 1,500; the
@@ -135,13 +135,13 @@ fn churn_leaves_threads_and_memory_flat_and_every_line_read_one_record() {
         expected += 20;
         wait_for_records(&out, expected);
     }
-    // Three hundred streams through one client: far more than max_streams = 16.
+    // 120 streams through one client: far more than max_streams = 16.
     let mut c = TcpStream::connect(&addr).unwrap();
-    for i in 0..300 {
+    for i in 0..120 {
         writeln!(c, "{}", frame(&template, &format!("s{i}"))).unwrap();
     }
     drop(c);
-    expected += 300;
+    expected += 120;
     // Health checks and sensors that reconnect.
     let t0 = Instant::now();
     for _ in 0..cycles {
@@ -209,7 +209,8 @@ fn churn_leaves_threads_and_memory_flat_and_every_line_read_one_record() {
         before.2,
         after.2
     );
-    // 300 streams' state held forever was about 175 MB; the bound keeps 16.
+    // 120 streams' state held forever would be about 70 MB (300 once measured 175 MB);
+    // the bound keeps 16, about 9 MB.
     assert!(
         after.1 <= before.1 + 40_000,
         "RSS {} kB -> {} kB",
@@ -239,5 +240,5 @@ fn churn_leaves_threads_and_memory_flat_and_every_line_read_one_record() {
         .filter(|r| r["stream"].as_str().is_some_and(|s| s.starts_with('s')))
         .filter(|r| r["polylines"].is_array())
         .count();
-    assert_eq!(streams, 300);
+    assert_eq!(streams, 120);
 }
