@@ -727,7 +727,7 @@ pub(crate) fn spawn_kafka(
                 .err()
                 .map(|e| format!("the final offset commit failed: {e}"))
                 .or_else(|| lock(&uncommitted).take());
-            drop(consumer);
+            close(consumer);
             match why {
                 Some(why) => Err(kafka_error(
                     "offsets of written frames were not committed (the group will read \
@@ -739,6 +739,32 @@ pub(crate) fn spawn_kafka(
         })
         .map_err(|e| Error::Internal(format!("cannot start thread source-kafka: {e}")))?;
     Ok((handle, leases))
+}
+
+/// How long leaving the group may take when the member stops.
+const CLOSE_TIMEOUT: Duration = Duration::from_secs(5);
+
+/// Closes the consumer (leaving its group), for at most [`CLOSE_TIMEOUT`]: rust-rdkafka
+/// closes by polling until librdkafka says the consumer is closed, which never happens
+/// while no broker is reachable. Past the bound the close is left to finish (or not)
+/// on its own thread, which ends with the process; the group notices the member gone
+/// by its session timeout.
+fn close(consumer: BaseConsumer<GroupContext>) {
+    let (done, closed) = std::sync::mpsc::channel::<()>();
+    let spawned = std::thread::Builder::new()
+        .name("kafka-close".into())
+        .spawn(move || {
+            drop(consumer);
+            let _ = done.send(());
+        });
+    // If the thread could not start, the consumer was dropped with the closure, here.
+    if spawned.is_ok() && closed.recv_timeout(CLOSE_TIMEOUT).is_err() {
+        tracing::warn!(
+            seconds = CLOSE_TIMEOUT.as_secs(),
+            "the consumer did not leave its group in time (no broker reachable): the \
+             group will take its partitions back after its session timeout"
+        );
+    }
 }
 
 /// Reads messages into `tx` until `stop` or a closed pipeline, committing as it goes
