@@ -152,13 +152,7 @@ impl Daemon {
             .stderr(Stdio::piped())
             .spawn()
             .expect("start isoline");
-        let stderr = child.stderr.take().unwrap();
-        let (tx, lines) = std::sync::mpsc::channel();
-        std::thread::spawn(move || {
-            for line in BufReader::new(stderr).lines().map_while(Result::ok) {
-                let _ = tx.send(line);
-            }
-        });
+        let lines = lines_of(child.stderr.take().unwrap());
         Daemon {
             child,
             lines,
@@ -220,6 +214,18 @@ impl Drop for Daemon {
         let _ = self.child.kill();
         let _ = self.child.wait();
     }
+}
+
+/// The lines a child process writes to `pipe`, read on a thread of their own so that
+/// the child never blocks on a full pipe.
+fn lines_of(pipe: impl std::io::Read + Send + 'static) -> Receiver<String> {
+    let (tx, lines) = std::sync::mpsc::channel();
+    std::thread::spawn(move || {
+        for line in BufReader::new(pipe).lines().map_while(Result::ok) {
+            let _ = tx.send(line);
+        }
+    });
+    lines
 }
 
 /// Waits until `done` holds, or fails after `limit` saying `what`.
@@ -895,13 +901,7 @@ mod tls {
                 .stderr(Stdio::null())
                 .spawn()
                 .expect("start the TLS proxy");
-            let stdout = child.stdout.take().unwrap();
-            let (tx, lines) = std::sync::mpsc::channel();
-            std::thread::spawn(move || {
-                for line in BufReader::new(stdout).lines().map_while(Result::ok) {
-                    let _ = tx.send(line);
-                }
-            });
+            let lines = lines_of(child.stdout.take().unwrap());
             let first = lines.recv_timeout(Duration::from_secs(10));
             assert_eq!(first.as_deref(), Ok("listening"), "the proxy did not start");
             Proxy { child, lines }
