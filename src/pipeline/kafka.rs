@@ -338,10 +338,10 @@ impl ConsumerContext for GroupContext {
             return;
         };
         let parts = self.partitions(tpl);
-        let mut commit = TopicPartitionList::new();
+        let mut written = Vec::new();
         for &p in &parts {
             if let Some(o) = self.ledger.close(p) {
-                let _ = commit.add_partition_offset(&self.topic, p, Offset::Offset(o));
+                written.push((p, o));
             }
             self.leases.revoke(p);
             let _ = self
@@ -354,7 +354,7 @@ impl ConsumerContext for GroupContext {
         // (this member was taken for dead) has no right to commit any more, and a
         // synchronous commit to an unreachable broker would wait without end: then the
         // positions count as committed only if the broker, asked, already holds them.
-        if commit.count() > 0 {
+        if !written.is_empty() {
             let cannot = if consumer.assignment_lost() {
                 Some("the assignment was lost")
             } else if lock(&self.brokers.down_since).is_some() {
@@ -364,11 +364,11 @@ impl ConsumerContext for GroupContext {
             };
             let failed = match cannot {
                 None => consumer
-                    .commit(&commit, CommitMode::Sync)
+                    .commit(&positions(&self.topic, &written), CommitMode::Sync)
                     .err()
                     .map(|e| e.to_string()),
                 Some(why) => {
-                    let behind = behind(consumer, &self.topic, &commit, REVOKE_READ_BACK);
+                    let behind = behind(consumer, &self.topic, &written, REVOKE_READ_BACK);
                     (!behind.is_empty()).then(|| format!("{why}; not committed: {behind:?}"))
                 }
             };
@@ -434,11 +434,7 @@ fn commit(
     if due.is_empty() {
         return Ok(());
     }
-    let mut tpl = TopicPartitionList::new();
-    for &(p, o) in &due {
-        let _ = tpl.add_partition_offset(topic, p, Offset::Offset(o));
-    }
-    match consumer.commit(&tpl, mode) {
+    match consumer.commit(&positions(topic, &due), mode) {
         Ok(()) => {
             // An asynchronous commit is only queued; the final commit checks that the
             // broker holds the positions.
@@ -458,25 +454,28 @@ fn commit(
 /// back: it runs in the consumer's poll, which it holds up meanwhile.
 const REVOKE_READ_BACK: Duration = Duration::from_secs(1);
 
-/// The partitions of `positions` (offsets to commit) whose committed offset the broker
-/// does not confirm within `timeout`, with the position each should have reached.
+/// `(partition, offset)` pairs of `topic` as librdkafka takes them.
+fn positions(topic: &str, at: &[(i32, i64)]) -> TopicPartitionList {
+    let mut tpl = TopicPartitionList::new();
+    for &(p, o) in at {
+        let _ = tpl.add_partition_offset(topic, p, Offset::Offset(o));
+    }
+    tpl
+}
+
+/// The `(partition, offset)` pairs of `want` whose committed offset the broker does not
+/// confirm within `timeout`.
 fn behind(
     consumer: &BaseConsumer<GroupContext>,
     topic: &str,
-    positions: &TopicPartitionList,
+    want: &[(i32, i64)],
     timeout: Duration,
 ) -> Vec<(i32, i64)> {
-    let want: Vec<(i32, i64)> = positions
-        .elements()
-        .iter()
-        .filter_map(|e| e.offset().to_raw().map(|o| (e.partition(), o)))
-        .collect();
-    let mut ask = TopicPartitionList::new();
-    for &(p, _) in &want {
-        let _ = ask.add_partition(topic, p);
-    }
-    let held = consumer.committed_offsets(ask, timeout).ok();
-    want.into_iter()
+    let held = consumer
+        .committed_offsets(positions(topic, want), timeout)
+        .ok();
+    want.iter()
+        .copied()
         .filter(|&(p, o)| {
             let at = held
                 .as_ref()
@@ -511,10 +510,6 @@ fn final_commit(
     if want.is_empty() {
         return Ok(());
     }
-    let mut tpl = TopicPartitionList::new();
-    for &(p, o) in &want {
-        let _ = tpl.add_partition_offset(topic, p, Offset::Offset(o));
-    }
     let deadline = Instant::now() + FINAL_COMMIT_TIMEOUT;
     let mut why = "the broker did not answer".to_string();
     loop {
@@ -525,7 +520,7 @@ fn final_commit(
                 FINAL_COMMIT_TIMEOUT.as_secs()
             ));
         }
-        let late = behind(consumer, topic, &tpl, left.min(Duration::from_secs(2)));
+        let late = behind(consumer, topic, &want, left.min(Duration::from_secs(2)));
         if late.is_empty() {
             return Ok(());
         }

@@ -367,16 +367,19 @@ impl Result {
         self.record.stats.as_ref().is_some_and(|s| s.warm_start)
     }
 
+    /// The frame's stream, if it had one.
     #[getter]
     fn stream(&self) -> Option<String> {
         self.record.stream.clone()
     }
 
+    /// The frame's number.
     #[getter]
     fn frame(&self) -> Option<u64> {
         self.record.frame
     }
 
+    /// The frame's time stamp, seconds, if it had one.
     #[getter]
     fn t(&self) -> Option<f64> {
         self.record.t
