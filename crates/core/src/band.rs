@@ -19,6 +19,7 @@
 
 use std::time::Instant;
 
+use crate::distance::DistanceField;
 use crate::field::{AdaptedMesh, MeshTimings, MetricField};
 use crate::geom::{add, dist, norm, orient, scale, sub, BBox, Point, Polyline};
 use crate::mesh::adapt::AdaptReport;
@@ -58,17 +59,17 @@ pub fn band(runs: &[Polyline], field: &MetricField, h: f64, half_width: f64) -> 
     let mut nearest: Vec<u32> = Vec::with_capacity(centres.len() * rows);
     let mut tris: Vec<[u32; 3]> = Vec::with_capacity(2 * centres.len() * rows);
     let mut grid: Vec<u32> = Vec::new();
+    let mut folded = vec![false; rows];
     for (cols, run) in columns.iter().zip(&runs) {
         // This run's vertices, column by column, row by row (`NONE` where left out).
         grid.clear();
         for &(p, n) in cols {
             let sample = field.field.nearest(p).index;
-            for &o in &offsets {
+            if let Some(f) = &near {
+                folds(f, p, n, &offsets, &mut folded);
+            }
+            for (&o, &folded) in offsets.iter().zip(&folded) {
                 let q = add(p, scale(n, o));
-                // Nearer another stretch of a run than its own offset: the band folds
-                // here (inside a tight bend).
-                let folded =
-                    o != 0.0 && near.as_ref().is_some_and(|f| f.distance(q) < 0.5 * o.abs());
                 if folded {
                     grid.push(NONE);
                 } else {
@@ -123,6 +124,40 @@ pub fn band(runs: &[Polyline], field: &MetricField, h: f64, half_width: f64) -> 
             total: field.ms.total + ms,
             ..field.ms
         },
+    }
+}
+
+/// Which rows of the column at `p` (normal `n`) fold, into `out`: a vertex at offset
+/// `o` nearer another column's centre (`near`'s points) than `|o| / 2` lies nearer
+/// another stretch of a run than its own (inside a tight bend). Each side's outermost
+/// vertex is measured; an inner one only where that measure, less the distance between
+/// them, does not already keep every centre far enough (the distance to the centres is
+/// 1-Lipschitz), which on a straight stretch it does.
+fn folds(near: &DistanceField, p: Point, n: Point, offsets: &[f64], out: &mut [bool]) {
+    let mut outer = [None::<(f64, f64)>; 2];
+    // Offsets are sorted: the outermost of each side first (from the ends inwards).
+    let order = (0..offsets.len())
+        .filter(|&k| offsets[k] < 0.0)
+        .chain((0..offsets.len()).rev().filter(|&k| offsets[k] > 0.0));
+    for k in order {
+        let o = offsets[k];
+        let side = usize::from(o > 0.0);
+        let bound = outer[side].map(|(oo, d)| d - (oo - o.abs()));
+        out[k] = match bound {
+            Some(b) if b >= 0.5 * o.abs() => false,
+            _ => {
+                let d = near.distance(add(p, scale(n, o)));
+                if outer[side].is_none() {
+                    outer[side] = Some((o.abs(), d));
+                }
+                d < 0.5 * o.abs()
+            }
+        };
+    }
+    for (k, &o) in offsets.iter().enumerate() {
+        if o == 0.0 {
+            out[k] = false;
+        }
     }
 }
 
@@ -242,4 +277,60 @@ fn compacted(coords: &[Point], nearest: &[u32], tris: Vec<[u32; 3]>) -> (Mesh, V
         })
         .collect();
     (Mesh::from_triangles(kept, tris), kept_nearest)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The fold test's shortcut decides exactly as measuring every row does: on a run
+    /// that turns back on itself in a hairpin tighter than the band (where inner rows
+    /// fold and outer ones may not), on a straight stretch beside it, and on random
+    /// columns.
+    #[test]
+    fn folds_match_measuring_every_row() {
+        let h = 0.01;
+        let half_width = 0.16;
+        let mut centres: Vec<Point> = (0..100).map(|i| [i as f64 * h, 0.0]).collect();
+        // A hairpin: back along y = 0.05 after a half circle of radius 0.025.
+        centres.extend((0..8).map(|k| {
+            let a = -std::f64::consts::FRAC_PI_2 + k as f64 * std::f64::consts::PI / 8.0;
+            [1.0 + 0.025 * a.cos(), 0.025 + 0.025 * a.sin()]
+        }));
+        centres.extend((0..100).map(|i| [1.0 - i as f64 * h, 0.05]));
+        let near = DistanceField::new(&centres).unwrap();
+        let mut offsets: Vec<f64> = ROWS
+            .iter()
+            .map(|&k| k * h)
+            .chain(std::iter::once(half_width))
+            .flat_map(|o| if o == 0.0 { vec![0.0] } else { vec![-o, o] })
+            .collect();
+        offsets.sort_by(f64::total_cmp);
+        let mut rng = 12345u64;
+        let mut next = || {
+            rng = rng
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (rng >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let mut columns: Vec<(Point, Point)> = centres.iter().map(|&p| (p, [0.0, 1.0])).collect();
+        columns.extend((0..200).map(|_| {
+            let a = std::f64::consts::TAU * next();
+            (
+                [1.2 * next() - 0.1, 0.2 * next() - 0.05],
+                [a.cos(), a.sin()],
+            )
+        }));
+        let mut out = vec![false; offsets.len()];
+        let mut folded = 0;
+        for (p, n) in columns {
+            folds(&near, p, n, &offsets, &mut out);
+            for (k, &o) in offsets.iter().enumerate() {
+                let measured = o != 0.0 && near.distance(add(p, scale(n, o))) < 0.5 * o.abs();
+                assert_eq!(out[k], measured, "column at {p:?}, offset {o}");
+                folded += usize::from(measured);
+            }
+        }
+        assert!(folded > 0, "the hairpin folds some rows");
+    }
 }

@@ -62,7 +62,8 @@ pub fn cut_to_support(
         .collect();
     let ends = &ends[..];
     let segs = index.segments();
-    let supported = |p: Point| match index.nearest(p) {
+    let run_ends: Vec<Point> = ends.iter().filter_map(|e| e.first().copied()).collect();
+    let exact = |p: Point, nearest: Option<(f64, usize, f64)>| match nearest {
         Some((d, i, t)) if d <= tol => {
             let (a, b) = segs[i];
             let (at_a, at_b) = run_end[i];
@@ -85,6 +86,31 @@ pub fn cut_to_support(
             }
         }
         _ => false,
+    };
+    // The tests walk along the curves a fraction of `tol` at a time, and the distance to
+    // the support is 1-Lipschitz: from the last point measured, `p0` at distance `d0`
+    // and `e0` from the nearest run end, a point `delta` away is within `d0 + delta`
+    // and beyond `d0 - delta`. Only within `tol` of a run end can a point within `tol`
+    // of the support be unsupported (past the end), so away from them the bounds
+    // decide, and most points need no search.
+    let last = std::cell::Cell::new(None::<(Point, f64, f64)>);
+    let supported = |p: Point| {
+        if let Some((p0, d0, e0)) = last.get() {
+            let delta = dist(p, p0);
+            if d0 - delta > tol {
+                return false;
+            }
+            if d0 + delta <= tol && e0 - delta > tol {
+                return true;
+            }
+        }
+        let nearest = index.nearest(p);
+        let e0 = run_ends
+            .iter()
+            .map(|&e| dist(e, p))
+            .fold(f64::INFINITY, f64::min);
+        last.set(Some((p, nearest.map_or(f64::INFINITY, |n| n.0), e0)));
+        exact(p, nearest)
     };
     let mut out = Vec::new();
     for c in curves {
@@ -388,8 +414,20 @@ pub fn unexplained(runs: &[Vec<Point>], curves: &[Polyline], tol: f64) -> Vec<Fe
                 group.clear();
             }
         };
+        // Neighbouring returns lie a fraction of `tol` apart: the distance measured at
+        // one bounds it at the next (it is 1-Lipschitz), and decides wherever it can.
+        let mut last: Option<(Point, f64)> = None;
         for &p in run {
-            if index.distance(p) > tol {
+            let far = match last {
+                Some((p0, d0)) if d0 + dist(p, p0) <= tol => false,
+                Some((p0, d0)) if d0 - dist(p, p0) > tol => true,
+                _ => {
+                    let d = index.distance(p);
+                    last = Some((p, d));
+                    d > tol
+                }
+            };
+            if far {
                 group.push(p);
             } else {
                 close(&mut group);

@@ -185,6 +185,51 @@ pub fn locate_all(mesh: &Mesh, points: &[Point]) -> Vec<Location> {
     out
 }
 
+/// Locates every point of `points`, each walk starting at the triangle of the vertex
+/// `start(i)` names for point `i` (a vertex near it; `None` where none is known, and
+/// the walk then starts where the previous point was found, and is retried as
+/// [`locate_all`]'s are if it ends outside the mesh). For points in no spatial order (a kd-tree's)
+/// on a mesh with gaps (a scan's band), where a walk from the previous point crosses
+/// much of the mesh or stops at a gap.
+pub(crate) fn locate_from(
+    mesh: &Mesh,
+    points: &[Point],
+    start: impl Fn(usize) -> Option<u32> + Sync,
+) -> Vec<Location> {
+    const CHUNK: usize = 256;
+    let first = first_live(mesh) as u32;
+    let mut out = vec![
+        Location {
+            tri: first,
+            bary: [1.0, 0.0, 0.0]
+        };
+        points.len()
+    ];
+    let vertices = std::sync::OnceLock::new();
+    out.par_chunks_mut(CHUNK)
+        .zip(points.par_chunks(CHUNK))
+        .enumerate()
+        .for_each(|(chunk, (locs, pts))| {
+            let mut from = first;
+            for (i, (l, &p)) in locs.iter_mut().zip(pts).enumerate() {
+                let near = start(chunk * CHUNK + i).map(|v| mesh.vert_tri[v as usize]);
+                *l = locate(mesh, p, near.unwrap_or(from));
+                // A walk from a vertex near the point that ends outside found the mesh's
+                // boundary next to it; from anywhere else it may have stopped at a gap.
+                if near.is_none() && outside(mesh, l, p) {
+                    if let Some(index) = vertices.get_or_init(|| VertexIndex::new(mesh)) {
+                        let again = index.locate(mesh, p);
+                        if gap(mesh, &again, p) < gap(mesh, l, p) {
+                            *l = again;
+                        }
+                    }
+                }
+                from = l.tri;
+            }
+        });
+    out
+}
+
 /// A kd-tree over a mesh's vertices, to start each walk at the triangle of the vertex
 /// nearest the point: on a mesh with gaps (a scan's band) a walk from anywhere else can
 /// stop at a boundary between it and the point.

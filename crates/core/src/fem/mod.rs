@@ -74,20 +74,14 @@ impl P1Space {
                 ball_tris[r].iter().map(|&t| area_v[t as usize]).sum()
             })
             .collect();
-        let rings: Vec<Vec<u32>> = (0..nv as u32)
-            .into_par_iter()
-            .map_init(
-                || (Vec::new(), Vec::new()),
-                |(b, r), v| {
-                    mesh.ring(v, b, r);
-                    r.clone()
-                },
-            )
-            .collect();
+        // Straight into the flat arrays, in one pass: a vector per vertex, gathered in
+        // parallel, cost more in allocation than the walks themselves.
         let mut ring_offsets = Vec::with_capacity(nv + 1);
         ring_offsets.push(0u32);
-        let mut ring_verts = Vec::new();
-        for r in rings {
+        let mut ring_verts = Vec::with_capacity(ball_tris.len() + nv);
+        let (mut b, mut r) = (Vec::new(), Vec::new());
+        for v in 0..nv as u32 {
+            mesh.ring(v, &mut b, &mut r);
             ring_verts.extend_from_slice(&r);
             ring_offsets.push(ring_verts.len() as u32);
         }

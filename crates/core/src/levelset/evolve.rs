@@ -3,7 +3,7 @@
 
 use std::time::Instant;
 
-use crate::fem::locate::locate_all;
+use crate::fem::locate::Location;
 use crate::fem::P1Space;
 use crate::field::{AdaptedMesh, MetricField};
 use crate::geom::Placement;
@@ -12,7 +12,7 @@ use crate::levelset::params::{Settle, SolverParams};
 use crate::levelset::settle::center_on_data;
 use crate::levelset::solver::{spread, SolveReport, Solver, SolverSettings, StopReason};
 use crate::levelset::warm::{warm_start, Previous, WarmCriteria};
-use crate::mesh::Mesh;
+use crate::mesh::{Mesh, INVALID};
 use crate::redistance::Redistancer;
 use crate::scan::FreeSpace;
 
@@ -36,8 +36,13 @@ pub struct Solved {
     /// from the box around them, whose loop then explains nothing.
     pub(crate) enclosed: bool,
     /// Whether `u` is already the signed distance to its zero isoline over the whole mesh
-    /// (the median settle's last accepted round leaves it so).
+    /// (the median settle's last accepted round leaves it so), or, from a scan's free
+    /// space, out to the settle's width (nothing reads a scan's level set farther out:
+    /// the export takes its zero isoline and refinement its values within the
+    /// tolerance).
     pub(crate) renormalized: bool,
+    /// The field's points, located in the mesh (as the solve used them).
+    pub(crate) located: Vec<Location>,
     /// Milliseconds: distances at the vertices and locating the data.
     pub(crate) ms_distance: f64,
     /// Milliseconds: the whole solve stage.
@@ -50,6 +55,24 @@ impl Solved {
     /// Whether the level set started from the previous frame.
     pub fn warm_start(&self) -> bool {
         self.warm_start
+    }
+
+    /// Locates `points` in `mesh` (the solve's), each walk starting from where the
+    /// field's (`field`'s) sample nearest it was found: a few steps for points near the
+    /// data, whatever their order.
+    pub(crate) fn locate(
+        &self,
+        field: &crate::distance::DistanceField,
+        mesh: &Mesh,
+        points: &[crate::geom::Point],
+    ) -> Vec<Location> {
+        if self.located.len() != field.points().len() || field.points().is_empty() {
+            return crate::fem::locate::locate_all(mesh, points);
+        }
+        crate::fem::locate::locate_from(mesh, points, |i| {
+            let j = field.nearest(points[i]).index as usize;
+            Some(mesh.tris[self.located[j].tri as usize][0])
+        })
     }
 
     /// What the next frame of the stream starts from: this level set with its mesh
@@ -175,6 +198,7 @@ pub fn solve(
             _ => crate::levelset::Start::Cold,
         },
         renormalized: attempt.renormalized,
+        located: frame.data,
         ms_distance,
         ms: t0.elapsed().as_secs_f64() * 1e3,
         ms_renormalize: attempt.ms_renormalize,
@@ -194,7 +218,7 @@ struct Frame<'a> {
     nearest: Vec<u32>,
     /// The field's points (the data with exact duplicates merged, so that the stopping
     /// test and the median settle weigh each sample once), located in the mesh.
-    data: Vec<crate::fem::locate::Location>,
+    data: Vec<Location>,
     settings: SolverSettings,
     warm_patience: usize,
     tube_radius: f64,
@@ -237,6 +261,29 @@ impl<'a> Frame<'a> {
                 .map(|n| (n.dist, n.index))
                 .unzip()
         };
+        // Each sample's walk starts at the vertex nearest it among those it is nearest
+        // to (the field's points are in x order, so the previous sample's triangle can be
+        // across the mesh); a sample nearest to no vertex starts at one of its
+        // neighbours'.
+        let mut closest = vec![(f64::INFINITY, INVALID); pts.len()];
+        for (v, (&j, &d)) in nearest.iter().zip(&dist).enumerate() {
+            let c = &mut closest[j as usize];
+            if d < c.0 {
+                *c = (d, v as u32);
+            }
+        }
+        let start = |j: usize| -> Option<u32> {
+            let v = closest[j].1;
+            if v != INVALID {
+                return Some(v);
+            }
+            let mut near = Vec::with_capacity(8);
+            kd.nearest_k(pts[j], 8, &mut near);
+            near.iter()
+                .map(|&k| closest[k as usize].1)
+                .find(|&v| v != INVALID)
+        };
+        let data = crate::fem::locate::locate_from(mesh, pts, start);
         let settings = params.resolve(diag, hmin);
         let tube_radius = params
             .tube
@@ -249,7 +296,7 @@ impl<'a> Frame<'a> {
             space: P1Space::new(mesh),
             dist,
             nearest,
-            data: locate_all(mesh, pts),
+            data,
             warm_patience: params
                 .warm_patience
                 .unwrap_or((settings.patience / 2).max(1)),
@@ -298,8 +345,12 @@ impl<'a> Frame<'a> {
         } else {
             Solver::new().solve(mesh, &self.space, &self.dist, &self.data, &mut u, &settings)
         };
-        let renormalized =
+        let settled =
             self.params.settle == Settle::Median && self.settle(&mut u, &settings, &mut report);
+        // The free-space start is the fast-marched distance to its own zero isoline (the
+        // free space's boundary), as a settle that moves it leaves it: a final
+        // renormalization would march it again for nothing.
+        let renormalized = settled || matches!(start, Start::FreeSpace(_));
         (report.spread, report.near) = spread(mesh, &self.data, &u, self.criteria.settle_width);
         Attempt {
             u,
@@ -337,7 +388,12 @@ impl<'a> Frame<'a> {
         }
         let t = Instant::now();
         let (u, enclosed) = match start {
-            Start::FreeSpace(free) => (init::free_space(mesh, &self.space, free, fm), true),
+            // The settle and the export look no farther from the curve than the
+            // settle's width, and refinement than its tolerance, within it.
+            Start::FreeSpace(free) => (
+                init::free_space(mesh, &self.space, free, fm, self.criteria.settle_width),
+                true,
+            ),
             _ => self.cold_start(&mut settings, fm),
         };
         Started {
@@ -447,7 +503,7 @@ struct Attempt {
 /// The renormalize stage: `u` becomes the signed distance to its zero isoline over the
 /// whole mesh (the solver's own passes stop at twice its narrow band), which is what the
 /// next frame's warm start interpolates. Nothing to do when the median settle already
-/// left it so.
+/// left it so, or the frame is a scan's (see `Solved::renormalized`).
 pub fn renormalize(mesh: &Mesh, solved: &mut Solved) {
     if solved.renormalized {
         return;

@@ -661,32 +661,46 @@ pub fn medial(
 /// [`FreeSpace`]), positive behind the returns and outside the field of view; a signed
 /// distance to the free space's boundary. The vertices next to a change of sign get
 /// their exact distance to the boundary polygon, which places the P1 zero isoline; fast
-/// marching fills in the rest.
+/// marching fills in the rest up to `limit` from it (vertices beyond keep their sign at
+/// `limit`; pass `f64::INFINITY` for the distance everywhere).
 pub fn free_space(
     mesh: &Mesh,
     space: &P1Space,
     free: &FreeSpace,
     fm: &mut Redistancer,
+    limit: f64,
 ) -> Vec<f64> {
-    let inside: Vec<bool> = mesh.coords.par_iter().map(|&p| free.contains(p)).collect();
+    let tips = free.tips();
+    let inside: Vec<bool> = mesh
+        .coords
+        .par_iter()
+        .map(|&p| free.contains_with(p, &tips))
+        .collect();
     let boundary = SegmentIndex::new(&[free.polygon()]);
+    let seeded: Vec<bool> = (0..mesh.coords.len())
+        .into_par_iter()
+        .map(|v| {
+            space
+                .ring(v)
+                .iter()
+                .any(|&w| inside[w as usize] != inside[v])
+        })
+        .collect();
     let mut u: Vec<f64> = (0..mesh.coords.len())
         .into_par_iter()
         .map(|v| {
             let sign = if inside[v] { -1.0 } else { 1.0 };
-            if space
-                .ring(v)
-                .iter()
-                .any(|&w| inside[w as usize] != inside[v])
-            {
+            if seeded[v] {
                 sign * boundary.distance(mesh.coords[v])
             } else {
-                sign * f64::INFINITY
+                // The marching's `limit` for the vertices beyond it; infinite (a
+                // vertex no seed reaches) when it marches everywhere.
+                sign * limit
             }
         })
         .collect();
-    if u.iter().any(|x| x.is_finite()) {
-        fm.run(mesh, space, &mut u, f64::INFINITY);
+    if seeded.iter().any(|&s| s) {
+        fm.run(mesh, space, &mut u, limit);
     }
     // No change of sign (free space thinner than the mesh, or none in the domain): the
     // distance itself, everywhere.

@@ -90,27 +90,44 @@ impl Mesh {
     /// vertex is a corner when its two boundary edges are not collinear).
     pub(crate) fn from_triangles(coords: Vec<Point>, tris: Vec<[u32; 3]>) -> Mesh {
         let n = coords.len();
-        // Each edge once per triangle, keyed by its sorted ends: the two triangles of an
-        // interior edge sort next to each other.
-        let mut edges: Vec<(u32, u32, u32, u8)> = Vec::with_capacity(tris.len() * 3);
+        // Each edge once per triangle, bucketed by its lower end (a counting sort: a
+        // vertex has a handful of edges) and each bucket sorted by the higher end: the
+        // two triangles of an interior edge then lie next to each other.
+        let mut start = vec![0u32; n + 1];
+        for tri in &tris {
+            for i in 0..3 {
+                let (a, b) = (tri[(i + 1) % 3], tri[(i + 2) % 3]);
+                start[a.min(b) as usize + 1] += 1;
+            }
+        }
+        for v in 0..n {
+            start[v + 1] += start[v];
+        }
+        let mut fill = start.clone();
+        let mut edges: Vec<(u32, u32, u8)> = vec![(0, 0, 0); tris.len() * 3];
         for (t, tri) in tris.iter().enumerate() {
             for i in 0..3 {
                 let (a, b) = (tri[(i + 1) % 3], tri[(i + 2) % 3]);
-                edges.push((a.min(b), a.max(b), t as u32, i as u8));
+                let slot = &mut fill[a.min(b) as usize];
+                edges[*slot as usize] = (a.max(b), t as u32, i as u8);
+                *slot += 1;
             }
         }
-        edges.sort_unstable();
         let mut adj = vec![[INVALID; 3]; tris.len()];
-        let mut k = 0;
-        while k < edges.len() {
-            let (a, b, t, i) = edges[k];
-            match edges.get(k + 1) {
-                Some(&(a2, b2, t2, i2)) if (a2, b2) == (a, b) => {
-                    adj[t as usize][i as usize] = t2;
-                    adj[t2 as usize][i2 as usize] = t;
-                    k += 2;
+        for v in 0..n {
+            let bucket = &mut edges[start[v] as usize..start[v + 1] as usize];
+            bucket.sort_unstable();
+            let mut k = 0;
+            while k < bucket.len() {
+                let (b, t, i) = bucket[k];
+                match bucket.get(k + 1) {
+                    Some(&(b2, t2, i2)) if b2 == b => {
+                        adj[t as usize][i as usize] = t2;
+                        adj[t2 as usize][i2 as usize] = t;
+                        k += 2;
+                    }
+                    _ => k += 1,
                 }
-                _ => k += 1,
             }
         }
         let mut vert_tri = vec![INVALID; n];

@@ -773,6 +773,23 @@ impl FreeSpace {
     /// Whether `p` lies in the free space: between two neighbouring beams (of bearings
     /// around `p`'s), on the origin's side of the segment joining their reaches.
     pub fn contains(&self, p: Point) -> bool {
+        self.contains_by(p, |i| self.point(i, self.reach[i]))
+    }
+
+    /// Each beam's reach as a point: [`contains_with`](Self::contains_with) takes them
+    /// to test many points without their sines and cosines.
+    pub(crate) fn tips(&self) -> Vec<Point> {
+        (0..self.angles.len())
+            .map(|i| self.point(i, self.reach[i]))
+            .collect()
+    }
+
+    /// [`contains`](Self::contains) with the beams' [`tips`](Self::tips).
+    pub(crate) fn contains_with(&self, p: Point, tips: &[Point]) -> bool {
+        self.contains_by(p, |i| tips[i])
+    }
+
+    fn contains_by(&self, p: Point, tip: impl Fn(usize) -> Point) -> bool {
         let n = self.angles.len();
         if n == 0 {
             return false;
@@ -804,8 +821,7 @@ impl FreeSpace {
         if ri <= 0.0 || rj <= 0.0 {
             return false;
         }
-        let a = self.point(i, ri);
-        let b = self.point(j, rj);
+        let (a, b) = (tip(i), tip(j));
         // The origin's side of a -> b (the triangle origin, a, b is counter-clockwise).
         crate::geom::orient(a, b, p) > 0.0
     }
