@@ -105,6 +105,25 @@ pub struct RunSummary {
     /// Frames the live view did not show because it was behind (its viewers lose
     /// frames, the output none).
     pub live_dropped: u64,
+    /// Median milliseconds a reconstructed frame spent in the compute stages (its
+    /// record's `stats.ms.total`).
+    pub stage_ms_p50: Option<f64>,
+    /// Mean milliseconds a reconstructed frame spent in each stage: distance, adapt,
+    /// solve, renormalize, export (they add up to the mean total).
+    pub stage_ms_mean: Option<[f64; 5]>,
+    /// CPU seconds the process used over the run, all threads (where the platform
+    /// tells).
+    pub cpu_seconds: Option<f64>,
+}
+
+impl RunSummary {
+    /// CPU milliseconds per record: the process's CPU time over the run (reading,
+    /// every stage, writing), over the records written.
+    pub fn cpu_ms_per_frame(&self) -> Option<f64> {
+        self.cpu_seconds
+            .filter(|_| self.records > 0)
+            .map(|s| 1e3 * s / self.records as f64)
+    }
 }
 
 impl std::fmt::Display for RunSummary {
@@ -135,6 +154,16 @@ impl std::fmt::Display for RunSummary {
             its(self.iterations_cold),
             self.state_bytes_max as f64 / 1024.0
         )?;
+        if let Some(cpu) = self.cpu_ms_per_frame() {
+            write!(f, "; CPU {cpu:.2} ms a frame")?;
+        }
+        if let (Some(p50), Some([d, a, s, r, e])) = (self.stage_ms_p50, self.stage_ms_mean) {
+            write!(
+                f,
+                "; stages {p50:.2} ms a frame (median; mean distance {d:.2}, adapt {a:.2}, \
+                 solve {s:.2}, renormalize {r:.2}, export {e:.2})"
+            )?;
+        }
         if self.live_dropped > 0 {
             write!(f, "; live view behind for {} frames", self.live_dropped)?;
         }
@@ -307,6 +336,8 @@ pub struct Daemon {
     pub metrics: Arc<metrics::Metrics>,
     /// The live view, kept past the run with `[live] linger`.
     lingering: Option<Arc<live::LiveView>>,
+    /// The process's CPU time when the run started, where the platform tells.
+    cpu_start: Option<cpu_time::ProcessTime>,
 }
 
 /// A live view that serves on after its run has ended: viewers keep connecting and see
@@ -331,6 +362,7 @@ impl Daemon {
     /// Starts sources and stages. It runs until the input ends or `stop` is set; then
     /// ingest stops, frames in flight finish and the sinks flush.
     pub fn start(cfg: &DaemonConfig, stop: Arc<AtomicBool>) -> Result<Daemon> {
+        let cpu_start = cpu_time::ProcessTime::try_now().ok();
         cfg.check_paths()?;
         let q = cfg.queue;
         let metrics = Arc::new(metrics::Metrics::new(q));
@@ -394,6 +426,7 @@ impl Daemon {
             metrics_server,
             metrics,
             lingering,
+            cpu_start,
         })
     }
 
@@ -434,7 +467,11 @@ impl Daemon {
         }
         // Scrapes see the final counts until every stage has ended.
         drop(self.metrics_server);
-        let summary = summary?;
+        let mut summary = summary?;
+        summary.cpu_seconds = self
+            .cpu_start
+            .and_then(|c| c.try_elapsed().ok())
+            .map(|d| d.as_secs_f64());
         match failure {
             Some(e) => {
                 tracing::error!(records = summary.records, "run ended by: {e}");

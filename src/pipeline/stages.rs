@@ -819,6 +819,7 @@ impl Exporter {
             summary.state_bytes_max = summary.state_bytes_max.max(state);
         }
         self.tally.iterations(stats.warm_start, stats.iterations);
+        self.tally.stages(&stats.ms);
         summary.reconstructed += 1;
     }
 
@@ -860,6 +861,10 @@ struct Tally {
     latency_us: Histogram<u64>,
     warm_its: Histogram<u64>,
     cold_its: Histogram<u64>,
+    /// Microseconds in the compute stages, per frame.
+    stages_us: Histogram<u64>,
+    /// Milliseconds per stage, summed over the frames.
+    stage_sums: [f64; 5],
 }
 
 impl Tally {
@@ -869,6 +874,17 @@ impl Tally {
             latency_us: h(3_600_000_000),
             warm_its: h(isoline_core::stages::MAX_STEPS as u64),
             cold_its: h(isoline_core::stages::MAX_STEPS as u64),
+            stages_us: h(3_600_000_000),
+            stage_sums: [0.0; 5],
+        }
+    }
+
+    fn stages(&mut self, ms: &isoline_io::format::StageMs) {
+        self.stages_us
+            .saturating_record((ms.total.max(0.0) * 1e3).round() as u64);
+        let parts = [ms.distance, ms.adapt, ms.solve, ms.renormalize, ms.export];
+        for (sum, x) in self.stage_sums.iter_mut().zip(parts) {
+            *sum += x;
         }
     }
 
@@ -892,6 +908,9 @@ impl Tally {
         s.latency_p99 = q(&self.latency_us, 0.99).map_or(0.0, |us| us as f64 / 1e3);
         s.iterations_warm = q(&self.warm_its, 0.5).map(|n| n as f64);
         s.iterations_cold = q(&self.cold_its, 0.5).map(|n| n as f64);
+        s.stage_ms_p50 = q(&self.stages_us, 0.5).map(|us| us as f64 / 1e3);
+        let frames = self.stages_us.len();
+        s.stage_ms_mean = (frames > 0).then(|| self.stage_sums.map(|sum| sum / frames as f64));
     }
 }
 
@@ -1063,7 +1082,27 @@ mod tests {
         );
         assert_eq!(s.iterations_warm, Some(3.0));
         assert!(s.iterations_cold.is_some());
-        let bytes = [&t.latency_us, &t.warm_its, &t.cold_its]
+        // No frame, no stage times; then three frames whose stages add up.
+        assert_eq!((s.stage_ms_p50, s.stage_ms_mean), (None, None));
+        for k in 1..=3 {
+            let k = k as f64;
+            t.stages(&isoline_io::format::StageMs {
+                distance: k,
+                adapt: 2.0 * k,
+                solve: 0.5,
+                renormalize: 0.0,
+                export: 1.5,
+                total: 3.0 * k + 2.0,
+                latency: None,
+            });
+        }
+        t.summarize(&mut s);
+        let p50 = s.stage_ms_p50.expect("three frames");
+        assert!((p50 - 8.0).abs() <= 0.001 * 8.0, "{p50}");
+        let mean = s.stage_ms_mean.expect("three frames");
+        assert_eq!(mean, [2.0, 4.0, 0.5, 0.0, 1.5]);
+        assert_eq!(mean.iter().sum::<f64>(), 8.0);
+        let bytes = [&t.latency_us, &t.warm_its, &t.cold_its, &t.stages_us]
             .iter()
             .map(|h| h.distinct_values() * 8)
             .sum::<usize>();
