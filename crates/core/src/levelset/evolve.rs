@@ -391,7 +391,7 @@ impl<'a> Frame<'a> {
             // The settle and the export look no farther from the curve than the
             // settle's width, and refinement than its tolerance, within it.
             Start::FreeSpace(free) => (
-                init::free_space(mesh, &self.space, free, fm, self.criteria.settle_width),
+                init::free_space(mesh, free, self.criteria.settle_width),
                 true,
             ),
             _ => self.cold_start(&mut settings, fm),

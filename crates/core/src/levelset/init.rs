@@ -6,7 +6,6 @@ use rayon::prelude::*;
 use crate::distance::DistanceField;
 use crate::fem::P1Space;
 use crate::geom::{dist, sub, BBox, Point};
-use crate::index::SegmentIndex;
 use crate::mesh::{Mesh, VertexTag};
 use crate::redistance::Redistancer;
 use crate::scan::FreeSpace;
@@ -659,56 +658,32 @@ pub fn medial(
 
 /// The free-space start of a scan frame: negative in the space the rays swept (see
 /// [`FreeSpace`]), positive behind the returns and outside the field of view; a signed
-/// distance to the free space's boundary. The vertices next to a change of sign get
-/// their exact distance to the boundary polygon, which places the P1 zero isoline; fast
-/// marching fills in the rest up to `limit` from it (vertices beyond keep their sign at
-/// `limit`; pass `f64::INFINITY` for the distance everywhere).
-pub fn free_space(
-    mesh: &Mesh,
-    space: &P1Space,
-    free: &FreeSpace,
-    fm: &mut Redistancer,
-    limit: f64,
-) -> Vec<f64> {
+/// distance to the free space's boundary, exact at every vertex up to `limit` from it
+/// (vertices beyond keep their sign at `limit`; pass `f64::INFINITY` for the distance
+/// everywhere).
+pub fn free_space(mesh: &Mesh, free: &FreeSpace, limit: f64) -> Vec<f64> {
     let tips = free.tips();
     let inside: Vec<bool> = mesh
         .coords
         .par_iter()
         .map(|&p| free.contains_with(p, &tips))
         .collect();
-    let boundary = SegmentIndex::new(&[free.polygon()]);
-    let seeded: Vec<bool> = (0..mesh.coords.len())
-        .into_par_iter()
-        .map(|v| {
-            space
-                .ring(v)
-                .iter()
-                .any(|&w| inside[w as usize] != inside[v])
-        })
-        .collect();
-    let mut u: Vec<f64> = (0..mesh.coords.len())
-        .into_par_iter()
-        .map(|v| {
-            let sign = if inside[v] { -1.0 } else { 1.0 };
-            if seeded[v] {
-                sign * boundary.distance(mesh.coords[v])
+    // The exact distance at every vertex, not only at those by a change of sign with
+    // fast marching from them: the boundary's segments near a point are found by its
+    // bearing, and measuring them costs less than a march does.
+    let boundary = free.boundary();
+    mesh.coords
+        .par_iter()
+        .zip(inside.par_iter())
+        .map(|(&p, &inside)| {
+            let d = boundary.distance_within(p, limit);
+            if inside {
+                -d
             } else {
-                // The marching's `limit` for the vertices beyond it; infinite (a
-                // vertex no seed reaches) when it marches everywhere.
-                sign * limit
+                d
             }
         })
-        .collect();
-    if seeded.iter().any(|&s| s) {
-        fm.run(mesh, space, &mut u, limit);
-    }
-    // No change of sign (free space thinner than the mesh, or none in the domain): the
-    // distance itself, everywhere.
-    u.par_iter_mut()
-        .zip(mesh.coords.par_iter())
-        .filter(|(x, _)| !x.is_finite())
-        .for_each(|(x, &p)| *x = x.signum() * boundary.distance(p));
-    u
+        .collect()
 }
 
 /// Signed distance to the circle of centre `c` and radius `r`.
@@ -743,7 +718,7 @@ mod tests {
     /// Signed distance to a set of polylines: the distance to the nearest segment, negative
     /// inside by the even-odd rule over the closed polylines (open ones only attract).
     fn polylines(curves: &[Polyline], coords: &[Point]) -> Vec<f64> {
-        let index = SegmentIndex::new(curves);
+        let index = crate::index::SegmentIndex::new(curves);
         let closed: Vec<&Polyline> = curves.iter().filter(|c| c.closed).collect();
         coords
             .par_iter()

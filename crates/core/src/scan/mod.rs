@@ -834,12 +834,22 @@ impl FreeSpace {
     /// The boundary of the free space as a closed polygon (counter-clockwise): the origin,
     /// then each beam's reach; an unseen stretch goes back through the origin.
     pub fn polygon(&self) -> Polyline {
+        self.polygon_by_beam().0
+    }
+
+    /// [`polygon`](Self::polygon), and for each beam the index of its first point in it
+    /// (the origin that an unseen gap before it goes back through, else its reach).
+    fn polygon_by_beam(&self) -> (Polyline, Vec<usize>) {
         let n = self.angles.len();
         let mut pts = Vec::with_capacity(n + 2);
+        let mut first = Vec::with_capacity(n);
         if !self.full_turn {
             pts.push(self.origin);
         }
         for i in 0..n {
+            // A field of view's first beam starts at the origin before it: past its
+            // edges the polygon goes through the origin.
+            first.push(if i == 0 { 0 } else { pts.len() });
             if i > 0 {
                 let gap = self.angles[i] - self.angles[i - 1];
                 if gap > self.max_gap && pts.last() != Some(&self.origin) {
@@ -852,9 +862,130 @@ impl FreeSpace {
                 pts.push(self.origin);
             }
         }
-        Polyline {
-            closed: true,
-            points: pts,
+        (
+            Polyline {
+                closed: true,
+                points: pts,
+            },
+            first,
+        )
+    }
+
+    /// Distances to the boundary of the free space, for many points.
+    pub(crate) fn boundary(&self) -> Boundary<'_> {
+        let (polygon, first) = self.polygon_by_beam();
+        // A segment between neighbouring beams sweeps the bearings between them, unless
+        // they are half a turn or more apart (then it crosses other beams' wedges).
+        let n = self.angles.len();
+        let pairs = if self.full_turn {
+            n
+        } else {
+            n.saturating_sub(1)
+        };
+        // The polygon goes through the origin across a wide gap, but not across a full
+        // turn's wrap.
+        let local = (0..pairs).all(|i| {
+            let gap = (self.angles[(i + 1) % n] - self.angles[i]).rem_euclid(TAU);
+            gap < std::f64::consts::PI || (i + 1 < n && gap > self.max_gap)
+        });
+        Boundary {
+            free: self,
+            polygon,
+            first,
+            local,
+            index: std::sync::OnceLock::new(),
+        }
+    }
+}
+
+/// Exact distances to a free space's boundary polygon ([`FreeSpace::polygon`]), for
+/// points near it: the polygon runs round the sensor in bearing order, so the segments
+/// of the few beams either side of a point's bearing hold its nearest one, and which
+/// they hold is certain when the nearest of them is nearer than the sides of their
+/// wedge (everything else lies beyond those). Where it is not certain (far from the
+/// boundary, near the sensor, at the edges of a field of view) the polygon's segment
+/// index answers.
+pub(crate) struct Boundary<'a> {
+    free: &'a FreeSpace,
+    polygon: Polyline,
+    /// Each beam's first point in the polygon.
+    first: Vec<usize>,
+    /// Whether each segment keeps to its beams' bearings, so that the beams round a
+    /// point hold its nearest segments.
+    local: bool,
+    index: std::sync::OnceLock<crate::index::SegmentIndex>,
+}
+
+impl Boundary<'_> {
+    /// Beams either side of a point's bearing searched first.
+    const BEAMS: usize = 4;
+    /// Beams either side searched at most before the segment index is asked.
+    const MAX_BEAMS: usize = 64;
+
+    /// The distance from `p` to the boundary, or `limit` when that is less.
+    pub(crate) fn distance_within(&self, p: Point, limit: f64) -> f64 {
+        match self.local(p, limit) {
+            Some(d) => d,
+            None => self
+                .index
+                .get_or_init(|| {
+                    crate::index::SegmentIndex::new(std::slice::from_ref(&self.polygon))
+                })
+                .distance(p)
+                .min(limit),
+        }
+    }
+
+    /// The distance (at most `limit`) to the segments of the beams round `p`'s
+    /// bearing, widened until every other segment is certainly farther; `None` where
+    /// that would take a wide wedge (near the sensor, far from the boundary, on a
+    /// coarse scan).
+    fn local(&self, p: Point, limit: f64) -> Option<f64> {
+        let free = self.free;
+        let n = free.angles.len();
+        let pts = &self.polygon.points;
+        let d = sub(p, free.origin);
+        let rho = crate::geom::norm(d);
+        if !self.local || n < 2 * Self::BEAMS + 2 || pts.len() < 2 || rho == 0.0 {
+            return None;
+        }
+        let a0 = free.angles[0];
+        let phi = a0 + (d[1].atan2(d[0]) - a0).rem_euclid(TAU);
+        let step = (free.angles[n - 1] - a0) / (n - 1) as f64;
+        // The beam at or before the bearing.
+        let i = free.angles.partition_point(|&a| a <= phi) as isize - 1;
+        let wrap = |b: isize| b.rem_euclid(n as isize) as usize;
+        let mut k = Self::BEAMS;
+        loop {
+            // The wedge from `k` beams before the bearing's to `k` after the next one.
+            // Past a field of view's edge it runs on through the unseen bearings, where
+            // the polygon only goes to the origin and back.
+            if 2 * k + 2 > n || k > Self::MAX_BEAMS {
+                return None;
+            }
+            let (lo, hi) = (wrap(i - k as isize), wrap(i + 1 + k as isize));
+            let below = (phi - free.angles[lo]).rem_euclid(TAU);
+            let above = (free.angles[hi] - phi).rem_euclid(TAU);
+            if below + above >= std::f64::consts::PI {
+                return None;
+            }
+            // Beyond the wedge's sides (rays from the origin), every point is at least
+            // the distance to the nearer side away.
+            let certain = rho * below.min(above).sin();
+            let (from, to) = (self.first[lo], self.first[hi]);
+            let count = (to + pts.len() - from) % pts.len();
+            let mut best = f64::INFINITY;
+            for s in 0..count {
+                let m = (from + s) % pts.len();
+                best = best.min(point_segment_dist2(p, pts[m], pts[(m + 1) % pts.len()]).0);
+            }
+            let best = best.sqrt();
+            if best <= certain || best.min(certain) >= limit {
+                return Some(best.min(limit));
+            }
+            // Wide enough for the nearest so far (or the limit) to be certain.
+            let need = (best.min(limit) / rho).min(1.0).asin();
+            k = ((need / step).ceil() as usize + 1).max(2 * k);
         }
     }
 }

@@ -147,3 +147,71 @@ fn a_full_turn_wraps_round_and_a_closed_room_closes() {
     assert!(a.free.contains([1.9, 0.0]) && a.free.contains([-1.9, -1.9]));
     assert!(!a.free.contains([2.1, 0.0]));
 }
+
+/// The boundary's distances by bearing equal the polygon's segment index everywhere:
+/// near the returns, far from them, near the sensor, behind it, past the field of
+/// view's edges, across dropouts and depth jumps, for a half turn, a full turn and a
+/// scan made from points (free rays off), noisy, with and without a limit.
+#[test]
+fn boundary_distances_by_bearing_are_exact() {
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
+    let noise = Normal::new(0.0, 0.01).unwrap();
+    let mut uniform = {
+        let mut r = rand_chacha::ChaCha8Rng::seed_from_u64(6);
+        move || rand::Rng::random::<f64>(&mut r)
+    };
+    let half = scan(361, |a| {
+        wall_with_doorway(a).filter(|_| (a * 40.0).sin() < 0.9)
+    });
+    let n = 720;
+    let inc = std::f64::consts::TAU / n as f64;
+    let ranges: Vec<Option<f64>> = (0..n)
+        .map(|i| {
+            let a = i as f64 * inc;
+            let r = 2.0 / a.cos().abs().max(a.sin().abs());
+            (i % 97 > 3).then_some(r + noise.sample(&mut rng))
+        })
+        .collect();
+    let full = Scan::from_laser(&LaserScan {
+        origin: [0.3, -0.2],
+        angle_min: 0.0,
+        angle_increment: inc,
+        ranges: &ranges,
+        range_min: 0.05,
+        range_max: 20.0,
+    })
+    .unwrap();
+    let from_points = Scan::from_points(&half.returns(), [0.0, 0.0]);
+    let p = ScanParams::default();
+    let mut checked = 0;
+    let mut by_bearing = 0;
+    for s in [&half, &full, &from_points] {
+        let runs = s.runs(0.01, &p);
+        let free = s.free_space(&runs, 2, &s.ranges);
+        let index = crate::index::SegmentIndex::new(&[free.polygon()]);
+        let boundary = free.boundary();
+        for k in 0..4000 {
+            // Half the points within 0.3 m of a return, the rest anywhere within 6 m.
+            let q = if k % 2 == 0 {
+                let r = s.returns();
+                let c = r[(uniform() * r.len() as f64) as usize];
+                [c[0] + 0.6 * uniform() - 0.3, c[1] + 0.6 * uniform() - 0.3]
+            } else {
+                [12.0 * uniform() - 6.0, 12.0 * uniform() - 6.0]
+            };
+            let exact = index.distance(q);
+            for limit in [f64::INFINITY, 0.05] {
+                let d = boundary.distance_within(q, limit);
+                by_bearing += usize::from(boundary.local(q, limit).is_some());
+                assert!(
+                    (d - exact.min(limit)).abs() <= 1e-12,
+                    "{q:?}: {d} against {exact} (limit {limit})"
+                );
+                checked += 1;
+            }
+        }
+    }
+    assert_eq!(checked, 3 * 4000 * 2);
+    // Most answers came from the beams round the bearing, not the index.
+    assert!(by_bearing * 2 > checked, "{by_bearing} of {checked}");
+}
