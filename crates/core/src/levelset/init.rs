@@ -662,27 +662,13 @@ pub fn medial(
 /// (vertices beyond keep their sign at `limit`; pass `f64::INFINITY` for the distance
 /// everywhere).
 pub fn free_space(mesh: &Mesh, free: &FreeSpace, limit: f64) -> Vec<f64> {
-    let tips = free.tips();
-    let inside: Vec<bool> = mesh
-        .coords
-        .par_iter()
-        .map(|&p| free.contains_with(p, &tips))
-        .collect();
     // The exact distance at every vertex, not only at those by a change of sign with
     // fast marching from them: the boundary's segments near a point are found by its
     // bearing, and measuring them costs less than a march does.
     let boundary = free.boundary();
     mesh.coords
         .par_iter()
-        .zip(inside.par_iter())
-        .map(|(&p, &inside)| {
-            let d = boundary.distance_within(p, limit);
-            if inside {
-                -d
-            } else {
-                d
-            }
-        })
+        .map(|&p| boundary.signed_within(p, limit))
         .collect()
 }
 

@@ -776,33 +776,42 @@ impl FreeSpace {
         self.contains_by(p, |i| self.point(i, self.reach[i]))
     }
 
-    /// Each beam's reach as a point: [`contains_with`](Self::contains_with) takes them
-    /// to test many points without their sines and cosines.
-    pub(crate) fn tips(&self) -> Vec<Point> {
+    /// Each beam's reach as a point, to test many points without their sines and
+    /// cosines.
+    fn tips(&self) -> Vec<Point> {
         (0..self.angles.len())
             .map(|i| self.point(i, self.reach[i]))
             .collect()
     }
 
-    /// [`contains`](Self::contains) with the beams' [`tips`](Self::tips).
-    pub(crate) fn contains_with(&self, p: Point, tips: &[Point]) -> bool {
-        self.contains_by(p, |i| tips[i])
+    fn contains_by(&self, p: Point, tip: impl Fn(usize) -> Point) -> bool {
+        match self.bearing(p) {
+            None => !self.angles.is_empty() && self.reach.iter().any(|&r| r > 0.0),
+            Some(b) => self.contains_at(p, &b, tip),
+        }
     }
 
-    fn contains_by(&self, p: Point, tip: impl Fn(usize) -> Point) -> bool {
+    /// Where `p` lies as seen from the origin; `None` at the origin or without beams.
+    fn bearing(&self, p: Point) -> Option<Bearing> {
         let n = self.angles.len();
-        if n == 0 {
-            return false;
-        }
         let d = sub(p, self.origin);
-        if d == [0.0, 0.0] {
-            return self.reach.iter().any(|&r| r > 0.0);
+        if n == 0 || d == [0.0, 0.0] {
+            return None;
         }
-        let mut phi = d[1].atan2(d[0]);
         let a0 = self.angles[0];
         // Bring phi into [a0, a0 + 2 pi).
-        phi = a0 + (phi - a0).rem_euclid(TAU);
-        let k = self.angles.partition_point(|&a| a <= phi);
+        let phi = a0 + (d[1].atan2(d[0]) - a0).rem_euclid(TAU);
+        Some(Bearing {
+            rho: crate::geom::norm(d),
+            phi,
+            next: self.angles.partition_point(|&a| a <= phi),
+        })
+    }
+
+    /// [`contains`](Self::contains) for `p` at bearing `b`.
+    fn contains_at(&self, p: Point, b: &Bearing, tip: impl Fn(usize) -> Point) -> bool {
+        let n = self.angles.len();
+        let (phi, k) = (b.phi, b.next);
         let (i, j) = if k == 0 {
             return false;
         } else if k < n {
@@ -811,7 +820,7 @@ impl FreeSpace {
             (n - 1, 0)
         } else {
             // Past the last beam: inside only on it (within rounding).
-            return phi - self.angles[n - 1] <= 1e-12 && crate::geom::norm(d) < self.reach[n - 1];
+            return phi - self.angles[n - 1] <= 1e-12 && b.rho < self.reach[n - 1];
         };
         let gap = (self.angles[j] - self.angles[i]).rem_euclid(TAU);
         if gap > self.max_gap {
@@ -871,7 +880,8 @@ impl FreeSpace {
         )
     }
 
-    /// Distances to the boundary of the free space, for many points.
+    /// Signed distances to the boundary of the free space (negative in it), for many
+    /// points.
     pub(crate) fn boundary(&self) -> Boundary<'_> {
         let (polygon, first) = self.polygon_by_beam();
         // A segment between neighbouring beams sweeps the bearings between them, unless
@@ -890,6 +900,7 @@ impl FreeSpace {
         });
         Boundary {
             free: self,
+            tips: self.tips(),
             polygon,
             first,
             local,
@@ -907,6 +918,8 @@ impl FreeSpace {
 /// index answers.
 pub(crate) struct Boundary<'a> {
     free: &'a FreeSpace,
+    /// The beams' reaches, as points.
+    tips: Vec<Point>,
     polygon: Polyline,
     /// Each beam's first point in the polygon.
     first: Vec<usize>,
@@ -916,76 +929,110 @@ pub(crate) struct Boundary<'a> {
     index: std::sync::OnceLock<crate::index::SegmentIndex>,
 }
 
+/// A point's place round a free space's origin.
+struct Bearing {
+    /// Its distance from the origin.
+    rho: f64,
+    /// Its bearing, in `[a0, a0 + 2 pi)` for the first beam's `a0`.
+    phi: f64,
+    /// The first beam past the bearing.
+    next: usize,
+}
+
 impl Boundary<'_> {
     /// Beams either side of a point's bearing searched first.
     const BEAMS: usize = 4;
     /// Beams either side searched at most before the segment index is asked.
     const MAX_BEAMS: usize = 64;
 
-    /// The distance from `p` to the boundary, or `limit` when that is less.
-    pub(crate) fn distance_within(&self, p: Point, limit: f64) -> f64 {
-        match self.local(p, limit) {
-            Some(d) => d,
-            None => self
-                .index
-                .get_or_init(|| {
-                    crate::index::SegmentIndex::new(std::slice::from_ref(&self.polygon))
-                })
-                .distance(p)
-                .min(limit),
+    /// The signed distance from `p` to the boundary (negative in the free space), or
+    /// `limit` with its sign when the distance is more.
+    pub(crate) fn signed_within(&self, p: Point, limit: f64) -> f64 {
+        let bearing = self.free.bearing(p);
+        let inside = match &bearing {
+            None => self.free.contains(p),
+            Some(b) => self.free.contains_at(p, b, |i| self.tips[i]),
+        };
+        let d = bearing
+            .and_then(|b| self.local(p, &b, limit))
+            .unwrap_or_else(|| self.indexed(p).min(limit));
+        if inside {
+            -d
+        } else {
+            d
         }
     }
 
-    /// The distance (at most `limit`) to the segments of the beams round `p`'s
-    /// bearing, widened until every other segment is certainly farther; `None` where
+    /// The distance from `p` to the boundary, or `limit` when that is less.
+    #[cfg(test)]
+    pub(crate) fn distance_within(&self, p: Point, limit: f64) -> f64 {
+        self.signed_within(p, limit).abs()
+    }
+
+    fn indexed(&self, p: Point) -> f64 {
+        self.index
+            .get_or_init(|| crate::index::SegmentIndex::new(std::slice::from_ref(&self.polygon)))
+            .distance(p)
+    }
+
+    /// The distance (at most `limit`) to the segments of the beams round bearing `b`,
+    /// the wedge widened until every other segment is certainly farther; `None` where
     /// that would take a wide wedge (near the sensor, far from the boundary, on a
     /// coarse scan).
-    fn local(&self, p: Point, limit: f64) -> Option<f64> {
+    fn local(&self, p: Point, b: &Bearing, limit: f64) -> Option<f64> {
         let free = self.free;
         let n = free.angles.len();
         let pts = &self.polygon.points;
-        let d = sub(p, free.origin);
-        let rho = crate::geom::norm(d);
-        if !self.local || n < 2 * Self::BEAMS + 2 || pts.len() < 2 || rho == 0.0 {
+        let len = pts.len();
+        if !self.local || n < 2 * Self::BEAMS + 2 || len < 2 || b.rho == 0.0 {
             return None;
         }
-        let a0 = free.angles[0];
-        let phi = a0 + (d[1].atan2(d[0]) - a0).rem_euclid(TAU);
-        let step = (free.angles[n - 1] - a0) / (n - 1) as f64;
+        let step = (free.angles[n - 1] - free.angles[0]) / (n - 1) as f64;
         // The beam at or before the bearing.
-        let i = free.angles.partition_point(|&a| a <= phi) as isize - 1;
-        let wrap = |b: isize| b.rem_euclid(n as isize) as usize;
-        let mut k = Self::BEAMS;
+        let i = b.next as isize - 1;
+        let wrap = |k: isize| k.rem_euclid(n as isize) as usize;
+        // The nearest of the segments from the first point of beam `from` to that of
+        // beam `to`.
+        let nearest = |from: isize, to: isize| {
+            let (from, to) = (self.first[wrap(from)], self.first[wrap(to)]);
+            (0..(to + len - from) % len)
+                .map(|s| {
+                    let m = (from + s) % len;
+                    point_segment_dist2(p, pts[m], pts[(m + 1) % len]).0
+                })
+                .fold(f64::INFINITY, f64::min)
+        };
+        let mut k = Self::BEAMS as isize;
+        let mut best2 = nearest(i - k, i + 1 + k);
         loop {
             // The wedge from `k` beams before the bearing's to `k` after the next one.
             // Past a field of view's edge it runs on through the unseen bearings, where
             // the polygon only goes to the origin and back.
-            if 2 * k + 2 > n || k > Self::MAX_BEAMS {
-                return None;
-            }
-            let (lo, hi) = (wrap(i - k as isize), wrap(i + 1 + k as isize));
-            let below = (phi - free.angles[lo]).rem_euclid(TAU);
-            let above = (free.angles[hi] - phi).rem_euclid(TAU);
+            let (lo, hi) = (wrap(i - k), wrap(i + 1 + k));
+            let below = (b.phi - free.angles[lo]).rem_euclid(TAU);
+            let above = (free.angles[hi] - b.phi).rem_euclid(TAU);
             if below + above >= std::f64::consts::PI {
                 return None;
             }
-            // Beyond the wedge's sides (rays from the origin), every point is at least
-            // the distance to the nearer side away.
-            let certain = rho * below.min(above).sin();
-            let (from, to) = (self.first[lo], self.first[hi]);
-            let count = (to + pts.len() - from) % pts.len();
-            let mut best = f64::INFINITY;
-            for s in 0..count {
-                let m = (from + s) % pts.len();
-                best = best.min(point_segment_dist2(p, pts[m], pts[(m + 1) % pts.len()]).0);
-            }
-            let best = best.sqrt();
+            // Beyond the wedge's sides (rays from the origin) every point is at least the
+            // distance to the nearer side away: `rho sin(side)`, and `x - x^3 / 6` is
+            // below the sine.
+            let side = below.min(above);
+            let certain = b.rho * side * (1.0 - side * side / 6.0);
+            let best = best2.sqrt();
             if best <= certain || best.min(certain) >= limit {
                 return Some(best.min(limit));
             }
             // Wide enough for the nearest so far (or the limit) to be certain.
-            let need = (best.min(limit) / rho).min(1.0).asin();
-            k = ((need / step).ceil() as usize + 1).max(2 * k);
+            let need = (best.min(limit) / b.rho).min(1.0).asin();
+            let wider = ((need / step).ceil() as isize + 1).max(2 * k);
+            if 2 * wider + 2 > n as isize || wider > Self::MAX_BEAMS as isize {
+                return None;
+            }
+            best2 = best2
+                .min(nearest(i - wider, i - k))
+                .min(nearest(i + 1 + k, i + 1 + wider));
+            k = wider;
         }
     }
 }

@@ -202,7 +202,13 @@ fn boundary_distances_by_bearing_are_exact() {
             let exact = index.distance(q);
             for limit in [f64::INFINITY, 0.05] {
                 let d = boundary.distance_within(q, limit);
-                by_bearing += usize::from(boundary.local(q, limit).is_some());
+                by_bearing += usize::from(
+                    free.bearing(q)
+                        .and_then(|b| boundary.local(q, &b, limit))
+                        .is_some(),
+                );
+                let signed = boundary.signed_within(q, limit);
+                assert_eq!(signed < 0.0, free.contains(q), "{q:?}: {signed}");
                 assert!(
                     (d - exact.min(limit)).abs() <= 1e-12,
                     "{q:?}: {d} against {exact} (limit {limit})"
