@@ -8,7 +8,8 @@
 # --frames` (no truth: returns within 5 cm of a curve, curve within 10 cm of a return,
 # curve in the free space the beams swept, mean distance from explained returns to the
 # curve, closed curves, phantom pieces within 1 m of the sensor), and against the cold
-# run frame by frame (frames 5+ points worse). Medians over frames.
+# run frame by frame (frames 5+ points worse). Medians over frames. Then, from the
+# daemon's summaries: frames/s, the process's CPU per frame and the stages' split.
 # Usage: ISOLINE_REAL=DIR scripts/real-logs.sh
 set -euo pipefail
 . "$(dirname "$0")/lib.sh"
@@ -67,5 +68,14 @@ for r in ["cold", "warm", "refined", "sam"]:
     print(f"  {r:8s} {e['returns_explained']:6.3f} {e['curve_on_data']:6.3f} {e['free_space_share']:7.4f} "
           f"{100 * e['mean_distance']:8.2f} {worse:6d} {e['frames_with_closed_curves']:6d} {e['frames_with_phantoms']:7d} "
           f"{(ms if ms is not None else float('nan')):6.2f} {fps(r) if r != 'sam' else '-':>7s}")
+for r in ["cold", "refined"]:
+    line = open(f"{d}/{name}.{r}.log").read()
+    cpu = re.findall(r"CPU ([0-9.]+) ms a frame", line)
+    st = re.findall(r"stages ([0-9.]+) ms a frame \(median; mean distance ([0-9.]+), adapt ([0-9.]+), "
+                    r"solve ([0-9.]+), renormalize ([0-9.]+), export ([0-9.]+)\)", line)
+    if cpu and st:
+        print(f"  daemon {r}: {fps(r)} frames/s, CPU {cpu[-1]} ms a frame; stages {st[-1][0]} ms "
+              f"(distance {st[-1][1]}, adapt {st[-1][2]}, solve {st[-1][3]}, "
+              f"renormalize {st[-1][4]}, export {st[-1][5]})")
 PY
 done
