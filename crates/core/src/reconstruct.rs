@@ -442,20 +442,6 @@ pub fn export(prepared: &Prepared, adapted: AdaptedMesh, solved: Solved) -> Reco
 pub fn export_refined(
     prepared: &Prepared,
     adapted: AdaptedMesh,
-    solved: Solved,
-    frame: u64,
-    t: Option<f64>,
-    pose: crate::geom::Pose,
-    window: &mut crate::fusion::Window,
-    limits: &crate::fusion::WindowLimits,
-) -> Reconstruction {
-    on_pool(|| export_refined_here(prepared, adapted, solved, frame, t, pose, window, limits))
-}
-
-#[allow(clippy::too_many_arguments)]
-fn export_refined_here(
-    prepared: &Prepared,
-    adapted: AdaptedMesh,
     mut solved: Solved,
     frame: u64,
     t: Option<f64>,
@@ -463,88 +449,92 @@ fn export_refined_here(
     window: &mut crate::fusion::Window,
     limits: &crate::fusion::WindowLimits,
 ) -> Reconstruction {
-    use crate::geom::to_world;
-    let Some(scan) = &prepared.scan else {
-        return export_with(prepared, None, adapted, solved, None);
-    };
-    let t0 = Instant::now();
-    let at = prepared.placement;
-    let world = |p: Point| to_world(pose, at.to_data(p));
-    let mut mesh = adapted.mesh.clone();
-    mesh.coords.iter_mut().for_each(|c| *c = world(*c));
-    let mut u: Vec<f64> = solved.u.iter().map(|&x| at.len_to_data(x)).collect();
-    let analysis = scan.transformed(&world, pose[2], &|x| at.len_to_data(x));
-    let tol = at.len_to_data(2.0 * scan.scales.noise + adapted.params.hmin);
-    window.push(
-        crate::fusion::View::new(frame, t, mesh, u.clone(), analysis, tol),
-        limits,
-    );
-    let newest = window.views().last().expect("the frame just pushed");
-    let own_u = solved.u.clone();
-    let evidence = window.fuse(&newest.mesh.coords, &mut u);
-    solved.u = u.iter().map(|&x| at.len_to_local(x)).collect();
-    // The invariant: a refined frame explains every return its own level set explains
-    // (within the accuracy bound `3 sigma + 2 hmin`), and fits the window's returns
-    // (its own and the older frames', as the alignment placed them) at least as well
-    // as its own level set does: the mean of their distances to it, capped at the
-    // bound so that returns no curve explains weigh alike. Where the window fails
-    // either (a pose error the alignment did not catch, a scene that changed) the
-    // frame keeps its own level set.
-    let bound = 3.0 * scan.scales.noise + 2.0 * adapted.params.hmin;
-    let own_returns: Vec<Point> = scan.run_points().into_iter().flatten().collect();
-    let to_local = |p: Point| at.to_local(crate::geom::to_sensor(pose, p));
-    let window_returns: Vec<Point> = evidence.into_iter().map(to_local).collect();
-    // One location pass for both sets: a band's walks that stop at a gap retry from a
-    // vertex index, built once.
-    let all: Vec<Point> = own_returns.iter().chain(&window_returns).copied().collect();
-    let located = crate::fem::locate::locate_all(&adapted.mesh, &all);
-    let (own_at, window_at) = located.split_at(own_returns.len());
-    let inside: Vec<&crate::fem::locate::Location> = window_at
-        .iter()
-        .zip(&window_returns)
-        .filter(|(l, &p)| crate::fem::locate::gap(&adapted.mesh, l, p) <= 1e-3 * bound)
-        .map(|(l, _)| l)
-        .collect();
-    let fit = |u: &[f64]| {
-        let d = |l: &crate::fem::locate::Location| l.interpolate(&adapted.mesh, u).abs().min(bound);
-        let explained = own_at.iter().filter(|l| d(l) < bound).count();
-        let sum: f64 = own_at.iter().chain(inside.iter().copied()).map(d).sum();
-        (explained, sum)
-    };
-    let ((fused_explained, fused_sum), (own_explained, own_sum)) = (fit(&solved.u), fit(&own_u));
-    let fused = fused_explained >= own_explained && fused_sum <= own_sum;
-    if !fused {
-        solved.u = own_u;
-    }
-    solved.start = if fused {
-        crate::levelset::Start::Fused
-    } else {
-        crate::levelset::Start::Fallback
-    };
-    // A curve ends where its run's last return is; each frame's is off by its own
-    // noise, and the median over the window much less (a frame that keeps its own level
-    // set keeps its own ends too).
-    let mut own = scan.clone();
-    let local = |p: Point| at.to_local(crate::geom::to_sensor(pose, p));
-    for pl in own.support.iter_mut().filter(|pl| fused && !pl.closed) {
-        let n = pl.points.len();
-        for i in [0, n.saturating_sub(1)] {
-            if let Some(m) = window.median_end(world(pl.points[i]), 2.0 * tol) {
-                pl.points[i] = local(m);
+    on_pool(move || {
+        use crate::geom::to_world;
+        let Some(scan) = &prepared.scan else {
+            return export_with(prepared, None, adapted, solved, None);
+        };
+        let t0 = Instant::now();
+        let at = prepared.placement;
+        let world = |p: Point| to_world(pose, at.to_data(p));
+        let mut mesh = adapted.mesh.clone();
+        mesh.coords.iter_mut().for_each(|c| *c = world(*c));
+        let mut u: Vec<f64> = solved.u.iter().map(|&x| at.len_to_data(x)).collect();
+        let analysis = scan.transformed(&world, pose[2], &|x| at.len_to_data(x));
+        let tol = at.len_to_data(2.0 * scan.scales.noise + adapted.params.hmin);
+        window.push(
+            crate::fusion::View::new(frame, t, mesh, u.clone(), analysis, tol),
+            limits,
+        );
+        let newest = window.views().last().expect("the frame just pushed");
+        let own_u = solved.u.clone();
+        let evidence = window.fuse(&newest.mesh.coords, &mut u);
+        solved.u = u.iter().map(|&x| at.len_to_local(x)).collect();
+        // The invariant: a refined frame explains every return its own level set explains
+        // (within the accuracy bound `3 sigma + 2 hmin`), and fits the window's returns
+        // (its own and the older frames', as the alignment placed them) at least as well
+        // as its own level set does: the mean of their distances to it, capped at the
+        // bound so that returns no curve explains weigh alike. Where the window fails
+        // either (a pose error the alignment did not catch, a scene that changed) the
+        // frame keeps its own level set.
+        let bound = 3.0 * scan.scales.noise + 2.0 * adapted.params.hmin;
+        let own_returns: Vec<Point> = scan.run_points().into_iter().flatten().collect();
+        let to_local = |p: Point| at.to_local(crate::geom::to_sensor(pose, p));
+        let window_returns: Vec<Point> = evidence.into_iter().map(to_local).collect();
+        // One location pass for both sets: a band's walks that stop at a gap retry from a
+        // vertex index, built once.
+        let all: Vec<Point> = own_returns.iter().chain(&window_returns).copied().collect();
+        let located = crate::fem::locate::locate_all(&adapted.mesh, &all);
+        let (own_at, window_at) = located.split_at(own_returns.len());
+        let inside: Vec<&crate::fem::locate::Location> = window_at
+            .iter()
+            .zip(&window_returns)
+            .filter(|(l, &p)| crate::fem::locate::gap(&adapted.mesh, l, p) <= 1e-3 * bound)
+            .map(|(l, _)| l)
+            .collect();
+        let fit = |u: &[f64]| {
+            let d =
+                |l: &crate::fem::locate::Location| l.interpolate(&adapted.mesh, u).abs().min(bound);
+            let explained = own_at.iter().filter(|l| d(l) < bound).count();
+            let sum: f64 = own_at.iter().chain(inside.iter().copied()).map(d).sum();
+            (explained, sum)
+        };
+        let ((fused_explained, fused_sum), (own_explained, own_sum)) =
+            (fit(&solved.u), fit(&own_u));
+        let fused = fused_explained >= own_explained && fused_sum <= own_sum;
+        if !fused {
+            solved.u = own_u;
+        }
+        solved.start = if fused {
+            crate::levelset::Start::Fused
+        } else {
+            crate::levelset::Start::Fallback
+        };
+        // A curve ends where its run's last return is; each frame's is off by its own
+        // noise, and the median over the window much less (a frame that keeps its own level
+        // set keeps its own ends too).
+        let mut own = scan.clone();
+        let local = |p: Point| at.to_local(crate::geom::to_sensor(pose, p));
+        for pl in own.support.iter_mut().filter(|pl| fused && !pl.closed) {
+            let n = pl.points.len();
+            for i in [0, n.saturating_sub(1)] {
+                if let Some(m) = window.median_end(world(pl.points[i]), 2.0 * tol) {
+                    pl.points[i] = local(m);
+                }
             }
         }
-    }
-    let stats = WindowStats {
-        frames: window.len(),
-        points: window.points(),
-        bytes: window.bytes(),
-    };
-    // The fusion is part of the export stage's time.
-    let mut r = export_with(prepared, Some(&own), adapted, solved, Some(stats));
-    let fusion = t0.elapsed().as_secs_f64() * 1e3 - r.stats.ms.export;
-    r.stats.ms.export += fusion.max(0.0);
-    r.stats.ms.total += fusion.max(0.0);
-    r
+        let stats = WindowStats {
+            frames: window.len(),
+            points: window.points(),
+            bytes: window.bytes(),
+        };
+        // The fusion is part of the export stage's time.
+        let mut r = export_with(prepared, Some(&own), adapted, solved, Some(stats));
+        let fusion = t0.elapsed().as_secs_f64() * 1e3 - r.stats.ms.export;
+        r.stats.ms.export += fusion.max(0.0);
+        r.stats.ms.total += fusion.max(0.0);
+        r
+    })
 }
 
 /// [`export`] with the scan analysis `scan_analysis` (the prepared one, or one with the

@@ -153,36 +153,7 @@ pub fn covers(mesh: &Mesh, points: &[Point]) -> bool {
 /// holes or several parts, as a scan's band) is tried again from the triangle of the
 /// point's nearest vertex, and the nearer of the two answers is kept.
 pub fn locate_all(mesh: &Mesh, points: &[Point]) -> Vec<Location> {
-    const CHUNK: usize = 256;
-    let start = first_live(mesh) as u32;
-    let mut out = vec![
-        Location {
-            tri: start,
-            bary: [1.0, 0.0, 0.0]
-        };
-        points.len()
-    ];
-    // Built on the first walk that needs it: a convex mesh with its points inside never
-    // does.
-    let vertices = std::sync::OnceLock::new();
-    out.par_chunks_mut(CHUNK)
-        .zip(points.par_chunks(CHUNK))
-        .for_each(|(locs, pts)| {
-            let mut from = start;
-            for (l, &p) in locs.iter_mut().zip(pts) {
-                *l = locate(mesh, p, from);
-                if outside(mesh, l, p) {
-                    if let Some(index) = vertices.get_or_init(|| VertexIndex::new(mesh)) {
-                        let again = index.locate(mesh, p);
-                        if gap(mesh, &again, p) < gap(mesh, l, p) {
-                            *l = again;
-                        }
-                    }
-                }
-                from = l.tri;
-            }
-        });
-    out
+    locate_from(mesh, points, |_| None)
 }
 
 /// Locates every point of `points`, each walk starting at the triangle of the vertex
