@@ -525,13 +525,14 @@ fn reading_with(dir: &Path, session_ms: u32) -> (Broker, Daemon, PathBuf) {
     (broker, daemon, out)
 }
 
+/// The shipped stream of 20 ellipse frames.
+fn ellipse_stream() -> std::path::PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/ellipse-stream-20.ndjson")
+}
+
 /// Publishes the first `n` frames of the ellipse stream to `frames`.
 fn publish(dir: &Path, broker: &str, n: usize, stream: &str) {
-    let text = std::fs::read_to_string(format!(
-        "{}/fixtures/ellipse-stream-20.ndjson",
-        env!("CARGO_MANIFEST_DIR")
-    ))
-    .unwrap();
+    let text = std::fs::read_to_string(ellipse_stream()).unwrap();
     let frames: String = text
         .lines()
         .take(n)
@@ -702,14 +703,7 @@ fn a_sink_whose_broker_dies_is_seen_within_the_stall_time() {
     let mut broker = Broker::start();
     let addr = broker.addr();
     let input = d.join("in.ndjson");
-    std::fs::copy(
-        format!(
-            "{}/fixtures/ellipse-stream-20.ndjson",
-            env!("CARGO_MANIFEST_DIR")
-        ),
-        &input,
-    )
-    .unwrap();
+    std::fs::copy(ellipse_stream(), &input).unwrap();
     let mut daemon = Daemon::with(
         d,
         "w",
@@ -947,14 +941,7 @@ mod tls {
         );
 
         let frames = d.join("frames.ndjson");
-        std::fs::copy(
-            format!(
-                "{}/fixtures/ellipse-stream-20.ndjson",
-                env!("CARGO_MANIFEST_DIR")
-            ),
-            &frames,
-        )
-        .unwrap();
+        std::fs::copy(ellipse_stream(), &frames).unwrap();
         let mut args = vec!["publish", p(&frames), "--brokers", &addr, "--to", "frames"];
         let flags: Vec<String> = settings.iter().map(|(k, v)| format!("{k}={v}")).collect();
         for f in &flags {
