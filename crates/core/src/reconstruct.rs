@@ -589,6 +589,7 @@ fn export_with(
             },
         ),
     };
+    let polylines = crate::export::well_formed(polylines, 1e-9 * at.len_to_data(prepared.diag));
     let fit = crate::export::fit::fit(&data, &polylines, tolerance);
     let supported = match &scan_analysis {
         Some(a) => a
