@@ -113,19 +113,6 @@ impl Redistancer {
         if report.seeded == 0 {
             return report;
         }
-        self.march(mesh, space, u, limit, report)
-    }
-
-    /// The marching from the accepted seeds, and `u` written back with its signs.
-    fn march(
-        &mut self,
-        mesh: &Mesh,
-        space: &P1Space,
-        u: &mut [f64],
-        limit: f64,
-        mut report: RedistanceReport,
-    ) -> RedistanceReport {
-        let nv = u.len();
         for v in 0..nv {
             if self.state[v] == ACCEPTED {
                 self.update_neighbours(mesh, space, v);
