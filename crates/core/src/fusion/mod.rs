@@ -20,6 +20,10 @@ use std::collections::VecDeque;
 
 use rayon::prelude::*;
 
+mod align;
+
+use align::{Rigid, Surface};
+
 use crate::fem::locate::VertexIndex;
 use crate::geom::Point;
 use crate::index::SegmentIndex;
@@ -58,6 +62,10 @@ pub(crate) struct View {
     /// Its mesh's vertices, to start a walk from the vertex nearest a point: a band
     /// mesh has gaps that a walk from anywhere else cannot cross.
     vertices: Option<VertexIndex>,
+    /// Its runs' returns, with normals, as the target of the next view's alignment.
+    surface: Surface,
+    /// Its runs' returns, as the source of its alignment onto the next view.
+    returns: Vec<Point>,
     /// The motion that lays it onto the window's newest view.
     to_newest: Rigid,
 }
@@ -82,6 +90,11 @@ impl View {
             .copied()
             .collect();
         let vertices = VertexIndex::new(&mesh);
+        let runs = analysis.run_points();
+        // Normals fitted over a stretch of four tolerances: several noise widths and
+        // several returns, short enough to follow a wall round a bend.
+        let surface = Surface::new(&runs, 2.0 * tol, analysis.scales.noise);
+        let returns = runs.concat();
         View {
             frame,
             t,
@@ -92,6 +105,8 @@ impl View {
             index,
             ends,
             vertices,
+            surface,
+            returns,
             to_newest: Rigid::IDENTITY,
         }
     }
@@ -147,6 +162,8 @@ impl View {
             + self.index.bytes()
             + self.vertices.as_ref().map_or(0, VertexIndex::bytes)
             + self.ends.len() * point
+            + self.surface.bytes()
+            + self.returns.len() * point
     }
 }
 
@@ -180,7 +197,12 @@ impl Window {
         // alignments: one ICP a frame (each older view aligned afresh cost 4 ms a frame
         // of ten on a 180-beam scan), the chain's error growing only with the window.
         if let Some(last) = self.views.back() {
-            let step = align(last, &view);
+            let step = align::align(
+                &last.returns,
+                &view.surface,
+                view.analysis.scales.noise,
+                8.0 * view.tol,
+            );
             for v in &mut self.views {
                 v.to_newest = v.to_newest.followed_by(&step);
             }
@@ -322,140 +344,10 @@ impl Window {
     }
 }
 
-/// A rigid motion of the plane: `p -> R p + t`.
-#[derive(Clone, Copy, Debug, PartialEq)]
-struct Rigid {
-    cos: f64,
-    sin: f64,
-    t: Point,
-}
-
-impl Rigid {
-    const IDENTITY: Rigid = Rigid {
-        cos: 1.0,
-        sin: 0.0,
-        t: [0.0, 0.0],
-    };
-
-    fn apply(&self, p: Point) -> Point {
-        [
-            self.cos * p[0] - self.sin * p[1] + self.t[0],
-            self.sin * p[0] + self.cos * p[1] + self.t[1],
-        ]
-    }
-
-    /// `self`, then `next`.
-    fn followed_by(&self, next: &Rigid) -> Rigid {
-        Rigid {
-            cos: next.cos * self.cos - next.sin * self.sin,
-            sin: next.sin * self.cos + next.cos * self.sin,
-            t: next.apply(self.t),
-        }
-    }
-
-    fn inverse(&self, p: Point) -> Point {
-        let (x, y) = (p[0] - self.t[0], p[1] - self.t[1]);
-        [self.cos * x + self.sin * y, -self.sin * x + self.cos * y]
-    }
-
-    /// `self` followed by the small motion turning by `angle` about `c` and moving by
-    /// `d`.
-    fn then(&self, angle: f64, c: Point, d: Point) -> Rigid {
-        let (s, co) = angle.sin_cos();
-        let step = Rigid {
-            cos: co,
-            sin: s,
-            t: [
-                c[0] - (co * c[0] - s * c[1]) + d[0],
-                c[1] - (s * c[0] + co * c[1]) + d[1],
-            ],
-        };
-        let t = step.apply(self.t);
-        Rigid {
-            cos: co * self.cos - s * self.sin,
-            sin: s * self.cos + co * self.sin,
-            t,
-        }
-    }
-}
-
-/// The rigid motion that lays `view`'s support onto `newest`'s (point-to-line ICP, a
-/// few Gauss-Newton steps): each return of the older view pairs with the nearest point
-/// of the newest view's runs, if within `8 tol` (a pose error larger than that is not
-/// corrected), and the motion minimises their distances along the runs' normals. A
-/// direction the pairs do not constrain (along a straight corridor) is held still by a
-/// damping term, and the identity is kept when too few returns pair or the motion
-/// would reach past the gate.
-fn align(view: &View, newest: &View) -> Rigid {
-    use nalgebra::{Matrix3, Vector3};
-    const STEPS: usize = 6;
-    let gate = 8.0 * newest.tol;
-    let source: Vec<Point> = view
-        .analysis
-        .support
-        .iter()
-        .flat_map(|s| s.points.iter().copied())
-        .collect();
-    if source.len() < 8 || newest.index.is_empty() {
-        return Rigid::IDENTITY;
-    }
-    let segments = newest.index.segments();
-    let mut m = Rigid::IDENTITY;
-    for _ in 0..STEPS {
-        let (mut a, mut b) = (Matrix3::<f64>::zeros(), Vector3::<f64>::zeros());
-        let mut pairs = 0usize;
-        let moved: Vec<Point> = source.iter().map(|&q| m.apply(q)).collect();
-        let c = moved
-            .iter()
-            .fold([0.0, 0.0], |s, p| [s[0] + p[0], s[1] + p[1]]);
-        let c = [c[0] / moved.len() as f64, c[1] / moved.len() as f64];
-        for &q in &moved {
-            let Some((d, k, t)) = newest.index.nearest(q) else {
-                continue;
-            };
-            if d > gate {
-                continue;
-            }
-            let (s0, s1) = segments[k];
-            let dir = [s1[0] - s0[0], s1[1] - s0[1]];
-            let len = dir[0].hypot(dir[1]);
-            if len == 0.0 {
-                continue;
-            }
-            let n = [-dir[1] / len, dir[0] / len];
-            let on = [s0[0] + t * dir[0], s0[1] + t * dir[1]];
-            let r = n[0] * (q[0] - on[0]) + n[1] * (q[1] - on[1]);
-            let arm = [-(q[1] - c[1]), q[0] - c[0]];
-            let j = Vector3::new(n[0], n[1], n[0] * arm[0] + n[1] * arm[1]);
-            a += j * j.transpose();
-            b -= j * r;
-            pairs += 1;
-        }
-        if pairs < 8 {
-            return Rigid::IDENTITY;
-        }
-        // Damping: a thousandth of the constraint's strength, in each direction's
-        // own units (the angle's scaled by the spread of the returns).
-        let damp = 1e-3 * a.trace() / 3.0;
-        let x = match (a + Matrix3::identity() * damp).lu().solve(&b) {
-            Some(x) if x.iter().all(|v| v.is_finite()) => x,
-            _ => return Rigid::IDENTITY,
-        };
-        m = m.then(x[2], c, [x[0], x[1]]);
-        if x[0].hypot(x[1]) < 1e-3 * newest.tol && x[2].abs() < 1e-6 {
-            break;
-        }
-    }
-    if m.t[0].hypot(m.t[1]) > gate && m.sin.abs() > 0.1 {
-        return Rigid::IDENTITY;
-    }
-    m
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::geom::{BBox, Polyline};
+    use crate::geom::BBox;
 
     /// A view of a straight wall `y = wall` seen from below, its level set the signed
     /// distance `y - wall`, meshed over `[-2, 2]^2`.
@@ -525,37 +417,6 @@ mod tests {
             u[0]
         );
         assert_eq!(u[1], -1.5 - 1.0);
-    }
-
-    /// Point-to-line alignment recovers a small pose error of a view that sees two
-    /// walls meeting at a corner (either wall alone leaves a direction free).
-    #[test]
-    fn alignment_recovers_a_small_pose_error() {
-        let corner = |m: Rigid| {
-            let pts: Vec<Point> = (0..60)
-                .map(|i| [-1.0 + i as f64 * 0.05, 1.0])
-                .chain((0..60).map(|i| [2.0, 1.0 - i as f64 * 0.05]))
-                .map(|p| m.apply(p))
-                .collect();
-            pts
-        };
-        let mut newest = wall(1, 1.0, 1.0);
-        let mut older = wall(0, 0.0, 1.0);
-        let error = Rigid::IDENTITY.then(0.01, [0.5, 0.5], [0.03, -0.02]);
-        newest.analysis.support = vec![Polyline {
-            closed: false,
-            points: corner(Rigid::IDENTITY),
-        }];
-        newest.index = SegmentIndex::new(&newest.analysis.support);
-        older.analysis.support = vec![Polyline {
-            closed: false,
-            points: corner(error),
-        }];
-        let m = align(&older, &newest);
-        for p in [[0.0, 1.0], [2.0, 0.0], [-1.0, 1.0]] {
-            let back = m.apply(error.apply(p));
-            assert!(crate::geom::dist(back, p) < 1e-3, "{p:?} -> {back:?}");
-        }
     }
 
     /// Frames leave by count and by age, and a restart empties the window.
