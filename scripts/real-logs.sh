@@ -2,12 +2,14 @@
 # The real-recording table of docs/benchmarks.md: each CARMEN log (*.log.gz, converted
 # as published) and NDJSON beam stream (*.ndjson.gz) in $ISOLINE_REAL is unpacked into
 # target/real-logs/ and
-# replayed through the daemon as fast as it goes, single-frame (cold, and warm: the same
-# frames with warm starts on) and refined over 10 frames (`accumulate = 10`), with
-# scripts/split_and_merge.py on the same frames; each run is scored by `isoline eval
-# --frames` (no truth: returns within 5 cm of a curve, curve within 10 cm of a return,
-# curve in the free space the beams swept, mean distance from explained returns to the
-# curve, closed curves, phantom pieces within 1 m of the sensor), and against the cold
+# replayed through the daemon as fast as it goes, single-frame (cold; warm: the same
+# frames with warm starts on and their poses removed; posed: warm with the poses) and
+# refined over 10 frames (`accumulate = 10`), with scripts/split_and_merge.py on the
+# same frames; each run is scored by `isoline eval --frames` (no truth: returns within
+# 5 cm of a curve, curve within 10 cm of a return, curve in the free space the beams
+# swept, mean distance from explained returns to the curve and from the next scan's
+# returns ("next cm", held out), closed curves, phantom pieces within 1 m of the
+# sensor), and against the cold
 # run frame by frame (frames 5+ points worse). Medians over frames. Then, from the
 # daemon's summaries: frames/s, the process's CPU per frame and the stages' split.
 # Usage: ISOLINE_REAL=DIR scripts/real-logs.sh
@@ -32,14 +34,21 @@ for gz in "$real"/*.gz; do
   esac
   frames=$dir/$name.ndjson
   [ "$quick" = 1 ] && { head -n 20 "$frames" > "$frames.quick"; mv "$frames.quick" "$frames"; }
-  for run in cold warm refined; do
+  # The same frames without their poses, for warm starts that cannot move the last
+  # frame's level set by the sensor's motion.
+  python3 -c 'import json,sys
+for l in open(sys.argv[1]):
+    v = json.loads(l); v.pop("pose", None); print(json.dumps(v))' "$frames" > "$dir/$name.nopose.ndjson"
+  for run in cold warm posed refined; do
+    input=$name.ndjson
     case $run in
       cold) pipeline='warm_start = false' ;;
-      warm) pipeline='warm_start = true' ;;
+      warm) pipeline='warm_start = true'; input=$name.nopose.ndjson ;;
+      posed) pipeline='warm_start = true' ;;
       refined) pipeline='accumulate = 10' ;;
     esac
     printf '[input]\npath = "%s"\nreplay = "fast"\n[output]\npath = "%s"\n[pipeline]\n%s\n' \
-      "$name.ndjson" "$name.$run.out.ndjson" "$pipeline" > "$dir/$name.$run.toml"
+      "$input" "$name.$run.out.ndjson" "$pipeline" > "$dir/$name.$run.toml"
     (cd "$dir" && "$OLDPWD/$bin" run -c "$name.$run.toml" 2> "$name.$run.log")
     "$bin" eval "$dir/$name.$run.out.ndjson" --frames "$frames" > "$dir/$name.$run.eval.json"
   done
@@ -60,13 +69,13 @@ def fps(r):
     except FileNotFoundError:
         return "-"
 print(f"{name}: {len(cold)} frames")
-print(f"  {'run':8s} {'5cm':>6s} {'10cm':>6s} {'free':>7s} {'mean cm':>8s} {'worse':>6s} {'closed':>6s} {'phantom':>7s} {'ms':>6s} {'fps':>7s}")
-for r in ["cold", "warm", "refined", "sam"]:
+print(f"  {'run':8s} {'5cm':>6s} {'10cm':>6s} {'free':>7s} {'mean cm':>8s} {'next cm':>8s} {'worse':>6s} {'closed':>6s} {'phantom':>7s} {'ms':>6s} {'fps':>7s}")
+for r in ["cold", "warm", "posed", "refined", "sam"]:
     e = ev(r)
     worse = sum(1 for f in e["frames"] if f["frame"] in cold and f["returns_explained"] < cold[f["frame"]]["returns_explained"] - 0.05)
     ms = sam_ms() if r == "sam" else e.get("ms")
     print(f"  {r:8s} {e['returns_explained']:6.3f} {e['curve_on_data']:6.3f} {e['free_space_share']:7.4f} "
-          f"{100 * e['mean_distance']:8.2f} {worse:6d} {e['frames_with_closed_curves']:6d} {e['frames_with_phantoms']:7d} "
+          f"{100 * e['mean_distance']:8.2f} {100 * (e['held_out_distance'] or float('nan')):8.3f} {worse:6d} {e['frames_with_closed_curves']:6d} {e['frames_with_phantoms']:7d} "
           f"{(ms if ms is not None else float('nan')):6.2f} {fps(r) if r != 'sam' else '-':>7s}")
 for r in ["cold", "refined"]:
     line = open(f"{d}/{name}.{r}.log").read()

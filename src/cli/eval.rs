@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 use anyhow::{bail, Context, Result};
 use serde_json::json;
 
-use isoline_core::geom::Polyline;
+use isoline_core::geom::{Point, Polyline, Pose};
 use isoline_io::format::{PolylineJson, TruthFile};
 use isoline_sim as eval;
 
@@ -133,6 +133,15 @@ fn run_without_truth(a: &Args) -> Result<()> {
         .flatten()
         .filter_map(|f| Some(((f.stream.clone(), f.frame), f.scan.as_ref()?)))
         .collect();
+    // Each stream's scans with poses, in frame order: the next one's returns are the
+    // held-out evidence of a frame's curves.
+    let mut posed: std::collections::BTreeMap<(Option<String>, u64), (&isoline_core::Scan, Pose)> =
+        Default::default();
+    for f in frames.iter().flatten() {
+        if let (Some(scan), Some(pose)) = (&f.scan, f.pose) {
+            posed.insert((f.stream.clone(), f.frame), (scan, pose));
+        }
+    }
     let records = read_records(&a.recon)?;
     let mut rows = Vec::new();
     let mut errors = 0;
@@ -147,10 +156,12 @@ fn run_without_truth(a: &Args) -> Result<()> {
             .with_context(|| format!("no scan for stream {:?} frame {}", key.0, key.1))?;
         let pls: Vec<Polyline> = pls.iter().cloned().map(Into::into).collect();
         let s = eval::data_scores(&pls, scan, tol);
+        let held_out = held_out(&posed, &key, &pls, tol);
         let ms = r.stats.as_ref().map(|st| st.ms.total);
         rows.push(json!({
             "stream": r.stream, "frame": r.frame, "returns": s.returns,
             "returns_explained": s.returns_explained, "mean_distance": s.mean_distance,
+            "held_out_distance": held_out,
             "curve_on_data": s.curve_on_data, "free_space_share": s.free_space_share,
             "length": s.length, "closed": s.closed, "phantoms": s.phantoms, "ms": ms,
         }));
@@ -172,6 +183,7 @@ fn run_without_truth(a: &Args) -> Result<()> {
         "errors": errors,
         "returns_explained": median("returns_explained"),
         "mean_distance": median("mean_distance"),
+        "held_out_distance": median("held_out_distance"),
         "curve_on_data": median("curve_on_data"),
         "free_space_share": median("free_space_share"),
         "ms": median("ms"),
@@ -180,6 +192,42 @@ fn run_without_truth(a: &Args) -> Result<()> {
         "frames": rows,
     });
     super::print(&format!("{out}\n"))
+}
+
+/// The mean distance to `curves` (frame `key`'s) of the next scan's returns in the
+/// same stream within `tol` of them: the next scan placed in this frame by the two
+/// poses, then laid onto this frame's returns by the alignment refinement uses
+/// ([`isoline_core::align_returns`]; poses are off by more than the noise). Returns
+/// the curves never saw, so a curve fitted to its own frame's noise gains nothing
+/// here: the score falls as the curves come nearer the walls. `None` without a next
+/// scan, poses, or returns within `tol`.
+fn held_out(
+    posed: &std::collections::BTreeMap<(Option<String>, u64), (&isoline_core::Scan, Pose)>,
+    key: &(Option<String>, u64),
+    curves: &[Polyline],
+    tol: f64,
+) -> Option<f64> {
+    use isoline_core::geom::{to_sensor, to_world};
+    let &(scan, pose) = posed.get(key)?;
+    let next_key = (key.0.clone(), key.1.checked_add(1)?);
+    let ((stream, _), &(next, next_pose)) = posed.range(next_key..).next()?;
+    if *stream != key.0 {
+        return None;
+    }
+    let placed: Vec<Point> = next
+        .returns()
+        .into_iter()
+        .map(|p| to_sensor(pose, to_world(next_pose, p)))
+        .collect();
+    let [x, y, theta] = isoline_core::align_returns(&placed, scan, &Default::default());
+    let (s, c) = theta.sin_cos();
+    let index = isoline_core::SegmentIndex::new(curves);
+    let near: Vec<f64> = placed
+        .iter()
+        .map(|p| index.distance([c * p[0] - s * p[1] + x, s * p[0] + c * p[1] + y]))
+        .filter(|&d| d <= tol)
+        .collect();
+    (!near.is_empty()).then(|| near.iter().sum::<f64>() / near.len() as f64)
 }
 
 /// Every record of an NDJSON result file, error records included.

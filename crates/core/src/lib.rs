@@ -83,7 +83,7 @@ pub use error::{Error, Result};
 pub use export::support::Feature;
 pub use export::ExportParams;
 pub use field::MeshParams;
-pub use fusion::{Window, WindowLimits};
+pub use fusion::{align_returns, Window, WindowLimits};
 pub use geom::{BBox, Point, Polyline, Pose};
 pub use index::SegmentIndex;
 pub use levelset::{Init, LinearSolver, Scheme, Settle, SolverParams, Start, StopReason};

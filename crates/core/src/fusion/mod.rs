@@ -344,6 +344,44 @@ impl Window {
     }
 }
 
+/// The rigid motion `[x, y, theta]` (`p -> R(theta) p + (x, y)`) that lays `source`,
+/// returns of another scan placed in `target`'s coordinates (by the two scans' poses),
+/// onto `target`'s runs: the alignment refinement lays each frame onto the next with
+/// (docs/method.md, "Refinement over frames"), with the target's own noise estimate,
+/// its normals fitted over `2 (2 sigma + spacing)` and pose errors up to four times that
+/// corrected. `[0, 0, 0]` when too few returns pair.
+///
+/// ```
+/// use isoline_core::{align_returns, LaserScan, Scan, ScanParams};
+/// // A corner seen from the origin, and the same corner's returns moved by 2 cm.
+/// let ranges: Vec<Option<f64>> = (0..90)
+///     .map(|i| {
+///         let a = (i as f64).to_radians();
+///         Some((1.0 / a.cos()).min(1.5 / a.sin()))
+///     })
+///     .collect();
+/// let laser = LaserScan {
+///     origin: [0.0, 0.0], angle_min: 0.0, angle_increment: 1f64.to_radians(),
+///     ranges: &ranges, range_min: 0.1, range_max: 10.0,
+/// };
+/// let target = Scan::from_laser(&laser).unwrap();
+/// let source: Vec<[f64; 2]> = target.returns().iter().map(|p| [p[0] + 0.02, p[1]]).collect();
+/// let [x, y, theta] = align_returns(&source, &target, &ScanParams::default());
+/// assert!((x + 0.02).abs() < 1e-3 && y.abs() < 1e-3 && theta.abs() < 1e-3);
+/// ```
+pub fn align_returns(
+    source: &[Point],
+    target: &crate::scan::Scan,
+    params: &crate::scan::ScanParams,
+) -> crate::geom::Pose {
+    let analysis = Analysis::new(target.clone(), params);
+    let sigma = analysis.scales.noise;
+    let tol = 2.0 * sigma + analysis.scales.spacing;
+    let surface = Surface::new(&analysis.run_points(), 2.0 * tol, sigma);
+    let m = align::align(source, &surface, sigma, 8.0 * tol);
+    [m.t[0], m.t[1], m.sin.atan2(m.cos)]
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
