@@ -54,9 +54,9 @@ pub fn run(a: Args) -> Result<()> {
     let results: Vec<serde_json::Value> = records
         .iter()
         .map(|(frame, pls)| -> Result<serde_json::Value> {
-            let (truth, openings, pose) = truth_file.frame(*frame);
+            let (truth, openings, _) = truth_file.frame(*frame);
             let truth: Vec<Polyline> = truth.iter().cloned().map(Into::into).collect();
-            let surfaces = truth_file.surfaces(pose);
+            let surfaces = truth_file.surfaces(*frame);
             let acc = eval::compare_surfaces(pls, &truth, &surfaces, None);
             let mut v = accuracy_json(&acc);
             if let Some(f) = frame {

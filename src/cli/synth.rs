@@ -54,6 +54,11 @@ pub struct Args {
     /// scene's path between frames.
     #[arg(long, default_value_t = 0.0)]
     motion: f64,
+    /// Scenes: a person (a post 0.4 m across) walking back and forth across the scene
+    /// at this speed, metres per second: in the scans and each frame's truth, not in the
+    /// static scene.
+    #[arg(long)]
+    walker: Option<f64>,
     /// Random seed.
     #[arg(long, default_value_t = 1)]
     seed: u64,
@@ -179,6 +184,7 @@ fn scan(a: Args, scene: SceneKind) -> Result<()> {
     p.frames = a.frames;
     p.motion = a.motion;
     p.pose = a.pose;
+    p.walker = a.walker;
     p.seed = a.seed;
     let frames = lidar::simulate(&p).map_err(anyhow::Error::msg)?;
     let r7 = |x: f64| (x * 1e7).round() / 1e7;
@@ -226,6 +232,7 @@ fn scan(a: Args, scene: SceneKind) -> Result<()> {
                         polylines: truth_of(f),
                         openings: Some(openings(f)),
                         pose: Some(f.pose.map(r7)),
+                        walker: f.walker.map(|w| [r7(w[0]), r7(w[1]), lidar::WALKER_RADIUS]),
                     })
                     .collect()
             }),

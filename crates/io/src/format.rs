@@ -109,6 +109,10 @@ pub struct TruthFrame {
     /// Scans: the sensor's pose in the scene.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub pose: Option<[f64; 3]>,
+    /// Scans with a walking person: where it is, `[x, y, radius]` in the scene's
+    /// coordinates (its visible side is in `polylines`, not in the file's `scene`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub walker: Option<[f64; 3]>,
 }
 
 /// A truth file: `{"polylines":[..]}` (frame 0, or the only frame), plus `"frames"` with
@@ -163,14 +167,32 @@ impl TruthFile {
         }
     }
 
-    /// Every surface of the scene in the frame of a sensor at `pose`; empty without a
-    /// scene or a pose.
-    pub fn surfaces(&self, pose: Option<[f64; 3]>) -> Vec<Polyline> {
+    /// Every surface of the scene in frame `frame`'s sensor coordinates, with the
+    /// walking person where the frame has one (a 64-gon); empty without a scene or a
+    /// pose.
+    pub fn surfaces(&self, frame: Option<u64>) -> Vec<Polyline> {
+        let (_, _, pose) = self.frame(frame);
         let (Some(scene), Some(pose)) = (&self.scene, pose) else {
             return Vec::new();
         };
+        let walker = frame.and_then(|f| {
+            self.frames
+                .as_ref()
+                .and_then(|fs| fs.iter().find(|x| x.frame == f))
+                .and_then(|x| x.walker)
+        });
+        let person = walker.map(|[x, y, r]| PolylineJson {
+            closed: true,
+            points: (0..64)
+                .map(|i| {
+                    let a = std::f64::consts::TAU * i as f64 / 64.0;
+                    [x + r * a.cos(), y + r * a.sin()]
+                })
+                .collect(),
+        });
         scene
             .iter()
+            .chain(person.as_ref())
             .map(|pl| Polyline {
                 closed: pl.closed,
                 points: pl

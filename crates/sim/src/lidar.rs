@@ -258,6 +258,27 @@ pub struct Scene {
     pub home: Pose,
     /// The trajectory.
     pub path: Path,
+    /// The line a walking person paces back and forth ([`LidarParams::walker`]).
+    pub walk: (Point, Point),
+}
+
+/// A walking person's radius at a scanner's height, metres: a torso 0.4 m across.
+pub const WALKER_RADIUS: f64 = 0.2;
+
+impl Scene {
+    /// Where a person walking at `speed` (m/s) from the start of [`Scene::walk`], back
+    /// and forth along it, is at time `t` (seconds).
+    pub fn walker_at(&self, speed: f64, t: f64) -> Point {
+        let (a, b) = self.walk;
+        let len = dist(a, b);
+        if len == 0.0 {
+            return a;
+        }
+        // Distance along the walk, folded into one back-and-forth lap.
+        let s = (speed * t).rem_euclid(2.0 * len);
+        let f = if s <= len { s / len } else { 2.0 - s / len };
+        add(a, scale(sub(b, a), f))
+    }
 }
 
 /// A wall from `a` to `b` with doorways: each `(from, to)` is cut out, as fractions of
@@ -329,6 +350,9 @@ impl Scene {
                     openings,
                     home: [4.0, 2.6, 0.3],
                     path: Path::Ellipse([4.0, 3.0], 2.0, 1.4),
+                    // Across the room 1.4 m in front of the sensor's home, clear of
+                    // the clutter's posts.
+                    walk: ([1.0, 4.0], [7.0, 4.0]),
                 }
             }
             SceneKind::Corridor => {
@@ -358,6 +382,8 @@ impl Scene {
                     surfaces,
                     openings,
                     home: [6.0, 1.4, 0.0],
+                    // Along the corridor, 0.8 m from the upper wall.
+                    walk: ([2.0, 2.2], [18.0, 2.2]),
                     path: Path::Stadium {
                         x0: 2.0,
                         x1: 18.0,
@@ -457,6 +483,11 @@ pub struct LidarParams {
     pub motion: f64,
     /// The static pose (or the trajectory's start), instead of the scene's.
     pub pose: Option<Pose>,
+    /// A person walking back and forth along the scene's walk at this speed, m/s
+    /// (a post of [`WALKER_RADIUS`]): seen in the scans and in each frame's truth, not
+    /// in the scene's static surfaces. The person walks through the sensor's path as if
+    /// it were not there.
+    pub walker: Option<f64>,
     /// Seed.
     pub seed: u64,
 }
@@ -473,6 +504,7 @@ impl LidarParams {
             frames: 1,
             motion: 0.0,
             pose: None,
+            walker: None,
             seed: 1,
         }
     }
@@ -494,6 +526,11 @@ impl LidarParams {
                 "--motion {} must be in [0, 1] metres per frame",
                 self.motion
             ));
+        }
+        if let Some(v) = self.walker {
+            if !(v.is_finite() && v > 0.0 && v <= 10.0) {
+                return Err(format!("--walker {v} must be in (0, 10] metres per second"));
+            }
         }
         if self.frames == 0 || self.frames > 1_000_000 {
             return Err("--frames must be in 1..=1000000".into());
@@ -530,6 +567,8 @@ pub struct ScanFrame {
     pub truth: Vec<Polyline>,
     /// The scene's openings, in the sensor frame.
     pub openings: Vec<(Point, Point)>,
+    /// Where the walking person is, in the scene's (world) coordinates.
+    pub walker: Option<Point>,
 }
 
 pub use isoline_core::geom::{to_sensor, to_world};
@@ -537,7 +576,8 @@ pub use isoline_core::geom::{to_sensor, to_world};
 /// Simulates the scans.
 pub fn simulate(params: &LidarParams) -> Result<Vec<ScanFrame>, String> {
     params.validate()?;
-    let scene = Scene::new(params.scene);
+    let mut scene = Scene::new(params.scene);
+    let statics = scene.surfaces.len();
     let sensor = &params.sensor;
     let sigma = params.noise.unwrap_or(sensor.noise);
     let normal = Normal::new(0.0, sigma.max(f64::MIN_POSITIVE)).expect("valid sigma");
@@ -568,6 +608,13 @@ pub fn simulate(params: &LidarParams) -> Result<Vec<ScanFrame>, String> {
             start
         };
         let pos = [pose[0], pose[1]];
+        let walker = params
+            .walker
+            .map(|v| scene.walker_at(v, k as f64 / sensor.rate_hz));
+        scene.surfaces.truncate(statics);
+        scene
+            .surfaces
+            .extend(walker.map(|w| Surface::Post(w, WALKER_RADIUS)));
         let mut hits: Vec<Option<(usize, f64, f64)>> = Vec::with_capacity(n);
         let mut seen = Vec::with_capacity(n);
         let mut ranges = Vec::with_capacity(n);
@@ -621,6 +668,7 @@ pub fn simulate(params: &LidarParams) -> Result<Vec<ScanFrame>, String> {
                 .iter()
                 .map(|&(a, b)| (to_sensor(pose, a), to_sensor(pose, b)))
                 .collect(),
+            walker,
         });
     }
     Ok(frames)
@@ -716,6 +764,39 @@ fn visible(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The walker paces its line back and forth at its speed, and the scans see it:
+    /// the beam towards it returns its near side.
+    #[test]
+    fn the_walker_paces_its_line_and_is_seen() {
+        let scene = Scene::new(SceneKind::Room);
+        let (a, b) = scene.walk;
+        let len = dist(a, b);
+        assert!(dist(scene.walker_at(1.0, 0.0), a) < 1e-12);
+        assert!(dist(scene.walker_at(1.0, len), b) < 1e-12);
+        assert!(dist(scene.walker_at(2.0, len), a) < 1e-12);
+        let mid = scene.walker_at(1.0, 0.5 * len);
+        assert!(dist(mid, add(a, scale(sub(b, a), 0.5))) < 1e-12);
+        let mut p = LidarParams::new(SceneKind::Room);
+        p.noise = Some(0.0);
+        p.walker = Some(1.0);
+        p.frames = 2;
+        // Facing the walk's start.
+        p.pose = Some([4.0, 2.6, 2.4]);
+        let frames = simulate(&p).unwrap();
+        let w = frames[1].walker.unwrap();
+        assert!(dist(w, scene.walker_at(1.0, frames[1].t)) < 1e-12);
+        // The beam from the sensor towards the walker's centre returns the distance to
+        // its near side.
+        let pose = frames[1].pose;
+        let to = to_sensor(pose, w);
+        let bearing = to[1].atan2(to[0]);
+        let i = ((bearing - frames[1].angle_min) / frames[1].angle_increment).round() as usize;
+        let r = frames[1].ranges[i].unwrap();
+        assert!((r - (norm(to) - WALKER_RADIUS)).abs() < 1e-3, "{r}");
+        p.walker = Some(f64::NAN);
+        assert!(p.validate().is_err());
+    }
 
     #[test]
     fn presets_and_poses() {
