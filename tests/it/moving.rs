@@ -296,7 +296,7 @@ fn refinement_over_frames_averages_the_noise_down() {
     assert!(hr <= 1.1 * hs, "Hausdorff {hr} refined, {hs} one frame");
 }
 
-/// Refinement over frames on the moving scanner (150 frames round the room, 0.1 m and
+/// Refinement over frames on the moving scanner (60 frames round the room, 0.1 m and
 /// up to 0.1 rad a frame): every frame has curves, the last frame's, taken into the
 /// world by its pose, lie within 3 sigma + 2 hmin (5 cm) of the scene's walls, and the
 /// curves stray from the walls at most 0.7 as far as a single frame's (the static
@@ -307,7 +307,7 @@ fn refinement_over_frames_averages_the_noise_down() {
 #[test]
 fn refinement_on_a_moving_scanner_stays_on_the_walls() {
     let dir = tempfile::tempdir().unwrap();
-    let (frames, truth) = scans(dir.path(), "room", 150, 0.1, &["--outliers", "0.01"]);
+    let (frames, truth) = scans(dir.path(), "room", 60, 0.1, &["--outliers", "0.01"]);
     replay_with(dir.path(), &frames, "single", "warm_start = true");
     let refined = replay_with(dir.path(), &frames, "refined", "accumulate = 10");
     let (ms, mr) = (
@@ -373,7 +373,7 @@ fn refinement_on_a_moving_scanner_stays_on_the_walls() {
 #[test]
 fn a_person_walking_through_is_not_fused_into_the_walls() {
     let dir = tempfile::tempdir().unwrap();
-    let (frames, truth) = scans(dir.path(), "room", 100, 0.0, &["--walker", "2"]);
+    let (frames, truth) = scans(dir.path(), "room", 60, 0.0, &["--walker", "2"]);
     let refined = replay_with(dir.path(), &frames, "refined", "accumulate = 10");
     let scored = evaluate(dir.path(), "refined", &frames, &truth);
     for (r, s) in refined.iter().zip(&scored) {
