@@ -557,7 +557,7 @@ fn export_with(
         // noise (refinement over frames meshes at half of it) keeps the tolerance of
         // one at the noise, or returns in the band's tails would count as unexplained.
         let sigma = a.scales.noise;
-        (a, 2.0 * sigma + hmin.max(sigma))
+        (a, 2.0 * sigma + hmin.max(sigma), 3.0 * sigma + 2.0 * hmin)
     });
     let (polylines, features) =
         crate::export::curves(&mesh, &solved.u, &at, prepared.diag, hmin, scan, params);
@@ -569,7 +569,7 @@ fn export_with(
     for p in &mut mesh.coords {
         *p = at.to_data(*p);
     }
-    let sigma = scan.map_or(adapted.noise_estimate, |(a, _)| a.scales.noise);
+    let sigma = scan.map_or(adapted.noise_estimate, |(a, _, _)| a.scales.noise);
     let tolerance = at.len_to_data(3.0 * sigma + 2.0 * hmin);
     let data: Vec<Point> = prepared.local.iter().map(|&q| at.to_data(q)).collect();
     let (polylines, junctions) = match scan {

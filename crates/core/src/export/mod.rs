@@ -67,16 +67,18 @@ pub fn well_formed(polylines: Vec<Polyline>, eps: f64) -> Vec<Polyline> {
 /// `params.min_area` dropped and optionally simplified. `diag` (the data's diagonal)
 /// scales the merging of repeated crossings; `hmin` the default smallest loop.
 ///
-/// For a scan frame (`scan`, with the tolerance of its support), only the pieces within
-/// the tolerance of a run of returns are kept ([`support::cut_to_support`]), and the
-/// returns farther than it from every kept piece come back as features.
+/// For a scan frame (`scan`, with the tolerance of its support and the distance within
+/// which a curve explains a return), only the pieces within the support's tolerance of
+/// a run of returns are kept ([`support::cut_to_support`]), and the returns no kept
+/// piece explains come back as features: the same distance as `stats.explained`, so
+/// that a return is a feature exactly when the result's fit does not count it.
 pub fn curves(
     mesh: &Mesh,
     u: &[f64],
     at: &Placement,
     diag: f64,
     hmin: f64,
-    scan: Option<(&Analysis, f64)>,
+    scan: Option<(&Analysis, f64, f64)>,
     params: &ExportParams,
 ) -> (Vec<Polyline>, Vec<Feature>) {
     let mut polylines = zero_isoline(mesh, u, 1e-9 * diag);
@@ -94,7 +96,7 @@ pub fn curves(
             .retain(|p| !p.closed || 2.0 * p.signed_area().abs() >= 0.5 * hmin * p.length()),
     }
     let mut features = Vec::new();
-    if let Some((a, tol)) = scan {
+    if let Some((a, tol, explained)) = scan {
         polylines = support::visible_from(polylines, &a.scan);
         polylines = support::cut_to_support(&polylines, &a.support, tol, hmin, 0.5 * tol, hmin);
 
@@ -102,7 +104,7 @@ pub fn curves(
         if a.refine {
             crate::repair::corners::sharpen(&mut polylines, tol);
         }
-        features = support::unexplained(&a.run_points(), &polylines, tol);
+        features = support::unexplained(&a.run_points(), &polylines, explained);
         for f in &mut features {
             f.center = at.to_data(f.center);
         }
