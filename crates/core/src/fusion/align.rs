@@ -78,12 +78,25 @@ impl Rigid {
 /// line's normal is no wall's).
 pub(crate) struct Surface {
     points: Vec<Point>,
+    /// The runs' range noise.
+    sigma: f64,
+    /// The tolerance of their support, `2 sigma` plus the mesh or sampling scale.
+    tol: f64,
     normals: Vec<Point>,
     inner: Vec<bool>,
     tree: Option<ImmutableKdTree<f64, 2>>,
 }
 
 impl Surface {
+    /// The surface of a scan's runs whose support's tolerance is `tol`: normals fitted
+    /// over a stretch of four tolerances (two each side), several noise widths and
+    /// several returns, short enough to follow a wall round a bend.
+    pub fn of(analysis: &crate::scan::Analysis, tol: f64) -> Surface {
+        let mut s = Surface::new(&analysis.run_points(), 2.0 * tol, analysis.scales.noise);
+        s.tol = tol;
+        s
+    }
+
     /// The surface of `runs` (each a run's returns in bearing order, range noise
     /// `sigma`), normals fitted over `half` each side.
     pub fn new(runs: &[Vec<Point>], half: f64, sigma: f64) -> Surface {
@@ -118,10 +131,17 @@ impl Surface {
         let tree = ImmutableKdTree::new_from_slice(&points).ok();
         Surface {
             points,
+            sigma,
+            tol: half / 2.0,
             normals,
             inner,
             tree,
         }
+    }
+
+    /// Its returns, run after run in bearing order.
+    pub fn points(&self) -> &[Point] {
+        &self.points
     }
 
     /// Bytes it holds, roughly.
@@ -183,14 +203,16 @@ fn fitted_normal(pts: &[Point], sigma: f64) -> Option<Point> {
 }
 
 /// The rigid motion that lays `source` (an older frame's returns) onto `target` (a
-/// newer frame's surface), both of range noise about `sigma`: point-to-plane
-/// Gauss-Newton steps, pairs within `gate` at first, the biweight's cutoff shrinking
-/// from `gate` to three standard deviations of the difference of two returns
-/// (`3 sqrt 2 sigma`). A direction the pairs do not constrain (along a straight
+/// newer frame's surface), both of range noise about the target's `sigma`:
+/// point-to-plane Gauss-Newton steps, pairs within the gate (eight of the target's
+/// support tolerances: a pose error larger than that is not corrected) at first, the
+/// biweight's cutoff shrinking from the gate to three standard deviations of the
+/// difference of two returns (`3 sqrt 2 sigma`). A direction the pairs do not constrain (along a straight
 /// corridor) is held still by a damping term. The identity when fewer than 8 returns
 /// pair, the system is singular, or the motion reaches past the gate.
-pub(crate) fn align(source: &[Point], target: &Surface, sigma: f64, gate: f64) -> Rigid {
+pub(crate) fn align(source: &[Point], target: &Surface) -> Rigid {
     const STEPS: usize = 12;
+    let (sigma, gate) = (target.sigma, 8.0 * target.tol);
     if source.len() < 8 || target.tree.is_none() {
         return Rigid::IDENTITY;
     }
@@ -296,7 +318,7 @@ mod tests {
                     .into_iter()
                     .map(|p| error.apply(p))
                     .collect();
-                let m = align(&source, &target, sigma, 0.3);
+                let m = align(&source, &target);
                 for (p, acc) in probes.iter().zip(&mut mean) {
                     let back = m.apply(error.apply(*p));
                     let d = crate::geom::dist(back, *p);

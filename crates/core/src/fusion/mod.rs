@@ -64,8 +64,6 @@ pub(crate) struct View {
     vertices: Option<VertexIndex>,
     /// Its runs' returns, with normals, as the target of the next view's alignment.
     surface: Surface,
-    /// Its runs' returns, as the source of its alignment onto the next view.
-    returns: Vec<Point>,
     /// The motion that lays it onto the window's newest view.
     to_newest: Rigid,
 }
@@ -90,11 +88,7 @@ impl View {
             .copied()
             .collect();
         let vertices = VertexIndex::new(&mesh);
-        let runs = analysis.run_points();
-        // Normals fitted over a stretch of four tolerances: several noise widths and
-        // several returns, short enough to follow a wall round a bend.
-        let surface = Surface::new(&runs, 2.0 * tol, analysis.scales.noise);
-        let returns = runs.concat();
+        let surface = Surface::of(&analysis, tol);
         View {
             frame,
             t,
@@ -106,7 +100,6 @@ impl View {
             ends,
             vertices,
             surface,
-            returns,
             to_newest: Rigid::IDENTITY,
         }
     }
@@ -163,7 +156,6 @@ impl View {
             + self.vertices.as_ref().map_or(0, VertexIndex::bytes)
             + self.ends.len() * point
             + self.surface.bytes()
-            + self.returns.len() * point
     }
 }
 
@@ -197,12 +189,7 @@ impl Window {
         // alignments: one ICP a frame (each older view aligned afresh cost 4 ms a frame
         // of ten on a 180-beam scan), the chain's error growing only with the window.
         if let Some(last) = self.views.back() {
-            let step = align::align(
-                &last.returns,
-                &view.surface,
-                view.analysis.scales.noise,
-                8.0 * view.tol,
-            );
+            let step = align::align(last.surface.points(), &view.surface);
             for v in &mut self.views {
                 v.to_newest = v.to_newest.followed_by(&step);
             }
@@ -375,10 +362,8 @@ pub fn align_returns(
     params: &crate::scan::ScanParams,
 ) -> crate::geom::Pose {
     let analysis = Analysis::new(target.clone(), params);
-    let sigma = analysis.scales.noise;
-    let tol = 2.0 * sigma + analysis.scales.spacing;
-    let surface = Surface::new(&analysis.run_points(), 2.0 * tol, sigma);
-    let m = align::align(source, &surface, sigma, 8.0 * tol);
+    let tol = 2.0 * analysis.scales.noise + analysis.scales.spacing;
+    let m = align::align(source, &Surface::of(&analysis, tol));
     [m.t[0], m.t[1], m.sin.atan2(m.cos)]
 }
 
