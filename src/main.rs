@@ -35,6 +35,9 @@ enum Command {
     /// The streaming daemon: frames from a file, stdin, TCP or Kafka through the staged
     /// pipeline, each warm-started from the previous frame of its stream.
     Run(cli::run::Args),
+    /// Fuse every scan of a recording, placed by its pose, into one world-frame curve
+    /// map.
+    Map(cli::map::Args),
     /// Adapt an anisotropic mesh to a point set and draw it.
     Mesh(cli::mesh::Args),
 }
@@ -51,6 +54,7 @@ fn main() {
             Command::Batch(a) => cli::batch::run(a),
             Command::Convert(a) => cli::convert::run(a),
             Command::Mesh(a) => cli::mesh::run(a),
+            Command::Map(a) => cli::map::run(a),
             #[cfg(feature = "kafka")]
             Command::Publish(a) => cli::publish::run(a),
             Command::Run(_) => unreachable!("matched above"),

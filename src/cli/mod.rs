@@ -3,6 +3,7 @@
 pub mod batch;
 pub mod convert;
 pub mod eval;
+pub mod map;
 pub mod mesh;
 #[cfg(feature = "kafka")]
 pub mod publish;

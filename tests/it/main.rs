@@ -13,6 +13,7 @@ mod fuzz_regressions;
 mod kafka;
 #[cfg(feature = "live")]
 mod listeners;
+mod map;
 mod moving;
 mod reconstruct;
 mod robotics;

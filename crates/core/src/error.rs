@@ -62,6 +62,10 @@ pub enum Error {
         /// Every problem found, each naming its key path.
         problems: Vec<String>,
     },
+    /// A map's tile store could not keep or give back a tile (a full disk, a removed
+    /// spill directory).
+    #[error("map tile store: {0}")]
+    TileStore(String),
     /// An internal invariant failed: a bug in isoline, not in the input.
     #[error("internal error: {0}")]
     Internal(String),

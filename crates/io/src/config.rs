@@ -1,4 +1,4 @@
-//! The method's TOML configuration (`[mesh]`, `[solver]`, `[export]`, `[scan]`; see
+//! The method's TOML configuration (`[mesh]`, `[solver]`, `[export]`, `[scan]`, `[map]`; see
 //! docs/config.md): raw structs that reject unknown keys, then a validation that reports
 //! every problem at once with its key path. The `isoline` crate reads the daemon's and
 //! batch jobs' tables around these.
@@ -38,6 +38,49 @@ pub struct Config {
     /// `[scan]`: how frames seen from a sensor are read.
     #[serde(default)]
     pub scan: ScanConfig,
+    /// `[map]`: `isoline map`'s world lattice.
+    #[serde(default)]
+    pub map: MapConfig,
+}
+
+/// `[map]`: how `isoline map` fuses scans (docs/method.md, "A map of the whole run").
+#[derive(Clone, Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MapConfig {
+    /// Spacing of the lattice's samples, metres. Default 0.03.
+    pub cell: Option<f64>,
+    /// Samples along a tile's side. Default 128.
+    pub tile: Option<usize>,
+    /// Scans whose curves must support a stretch before it enters the map. Default 2.
+    pub min_scans: Option<u16>,
+    /// Cap of the running average, in scans. Default 64.
+    pub max_weight: Option<u16>,
+    /// A beam's return within this of a sample hits it, metres. Default 0.05.
+    pub hit_tolerance: Option<f64>,
+    /// Beams count up to this range, metres. Default 20.
+    pub max_range: Option<f64>,
+    /// Tiles held in memory at most. Default 512.
+    pub max_tiles: Option<usize>,
+    /// Lay each scan onto the map before fusing it. Default true.
+    pub align: Option<bool>,
+}
+
+impl MapConfig {
+    /// The map parameters, validated; every problem is listed.
+    pub fn to_params(&self) -> std::result::Result<isoline_core::MapParams, Vec<String>> {
+        let d = isoline_core::MapParams::default();
+        let p = isoline_core::MapParams {
+            cell: self.cell.unwrap_or(d.cell),
+            tile: self.tile.unwrap_or(d.tile),
+            min_scans: self.min_scans.unwrap_or(d.min_scans),
+            max_weight: self.max_weight.unwrap_or(d.max_weight),
+            hit_tolerance: self.hit_tolerance.unwrap_or(d.hit_tolerance),
+            max_range: self.max_range.unwrap_or(d.max_range),
+            max_tiles: self.max_tiles.unwrap_or(d.max_tiles),
+            align: self.align.unwrap_or(d.align),
+        };
+        p.validate().map(|()| p)
+    }
 }
 
 /// `[scan]`: frames with beams, or points with a sensor `origin`.
@@ -295,6 +338,9 @@ impl Config {
         if let Err(p) = cfg.scan.to_params() {
             problems.extend(p);
         }
+        if let Err(p) = cfg.map.to_params() {
+            problems.extend(p);
+        }
         if !problems.is_empty() {
             return Err(invalid(
                 name,
@@ -316,6 +362,11 @@ impl Config {
     /// The validated mesh parameters.
     pub fn mesh_params(&self) -> MeshParams {
         self.mesh.to_params().expect("validated when loaded")
+    }
+
+    /// The validated map parameters.
+    pub fn map_params(&self) -> isoline_core::MapParams {
+        self.map.to_params().expect("validated when loaded")
     }
 
     /// All reconstruction parameters, validated when loaded.

@@ -277,9 +277,18 @@ pub(crate) fn bounded_lines(
 /// Every line of an NDJSON file as a frame, or as the [`BadFrame`] it could not become
 /// (its stream and frame number when the line names them); blank lines are skipped.
 fn read_frame_items(path: &Path) -> Result<Vec<Item>> {
+    let mut out = Vec::new();
+    each_frame_item(path, |item| {
+        out.push(item);
+        true
+    })?;
+    Ok(out)
+}
+
+/// [`read_frame_items`] one at a time, until `each` says stop.
+fn each_frame_item(path: &Path, mut each: impl FnMut(Item) -> bool) -> Result<()> {
     let f = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
     let name = path.display().to_string();
-    let mut out = Vec::new();
     bounded_lines(
         std::io::BufReader::new(f),
         path,
@@ -304,11 +313,33 @@ fn read_frame_items(path: &Path) -> Result<Vec<Item>> {
                     message: format!("{name}, line {i}: {why}"),
                 }),
             };
-            out.push(item);
-            true
+            each(item)
         },
     )?;
-    Ok(out)
+    Ok(())
+}
+
+/// Reads a recording (bag, CARMEN log) or NDJSON frame stream one frame at a time, as
+/// [`read_items`] does but holding one frame at once, until `each` returns false.
+pub fn for_each_item(
+    path: &Path,
+    bag: &bag::BagOptions,
+    mut each: impl FnMut(Item) -> bool,
+) -> Result<()> {
+    if is_bag(path) {
+        bag::read_bag(path, bag, each)?;
+    } else if carmen::is_carmen(path) {
+        carmen::read_carmen(path, each)?;
+    } else if is_frame_stream(path) {
+        each_frame_item(path, each)?;
+    } else {
+        for f in read_input(path)? {
+            if !each(Ok(f)) {
+                break;
+            }
+        }
+    }
+    Ok(())
 }
 
 /// Reads every frame of an NDJSON file; the first bad line is an error naming it.

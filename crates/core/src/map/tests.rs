@@ -1,0 +1,261 @@
+use rand::SeedableRng;
+use rand_distr::{Distribution, Normal};
+
+use super::*;
+use crate::{reconstruct_scan, LaserScan, Params};
+
+/// A room 6 m by 4 m with a pillar, and maybe a post of radius 0.2 m (a person).
+struct Scene {
+    walls: Vec<(Point, Point)>,
+    post: Option<(Point, f64)>,
+}
+
+impl Scene {
+    fn room() -> Scene {
+        let c = [[0.0, 0.0], [6.0, 0.0], [6.0, 4.0], [0.0, 4.0]];
+        let mut walls: Vec<(Point, Point)> = (0..4).map(|k| (c[k], c[(k + 1) % 4])).collect();
+        // A square pillar 0.4 m wide.
+        let p = [[3.8, 1.6], [4.2, 1.6], [4.2, 2.0], [3.8, 2.0]];
+        walls.extend((0..4).map(|k| (p[k], p[(k + 1) % 4])));
+        Scene { walls, post: None }
+    }
+
+    fn distance(&self, q: Point) -> f64 {
+        self.walls
+            .iter()
+            .map(|&(a, b)| extract_distance(q, a, b))
+            .fold(f64::INFINITY, f64::min)
+    }
+
+    /// A 270-degree scan with 0.5-degree beams from `pose`, range noise `sigma`.
+    fn scan(&self, pose: Pose, sigma: f64, rng: &mut rand_chacha::ChaCha8Rng) -> Scan {
+        let noise = Normal::new(0.0, sigma).unwrap();
+        let (start, step) = (-135f64.to_radians(), 0.5f64.to_radians());
+        let o = [pose[0], pose[1]];
+        let ranges: Vec<Option<f64>> = (0..541)
+            .map(|k| {
+                let a = pose[2] + start + k as f64 * step;
+                let d = [a.cos(), a.sin()];
+                let mut best = f64::INFINITY;
+                for &(p, q) in &self.walls {
+                    if let Some(t) = ray_segment(o, d, p, q) {
+                        best = best.min(t);
+                    }
+                }
+                if let Some((c, r)) = self.post {
+                    let w = [c[0] - o[0], c[1] - o[1]];
+                    let along = w[0] * d[0] + w[1] * d[1];
+                    let off2 = w[0] * w[0] + w[1] * w[1] - along * along;
+                    if off2 < r * r && along > 0.0 {
+                        best = best.min(along - (r * r - off2).sqrt());
+                    }
+                }
+                best.is_finite().then(|| best + noise.sample(rng))
+            })
+            .collect();
+        Scan::from_laser(&LaserScan {
+            origin: [0.0, 0.0],
+            angle_min: start,
+            angle_increment: step,
+            ranges: &ranges,
+            range_min: 0.05,
+            range_max: 10.0,
+        })
+        .unwrap()
+    }
+}
+
+fn extract_distance(q: Point, a: Point, b: Point) -> f64 {
+    let d = [b[0] - a[0], b[1] - a[1]];
+    let t = (((q[0] - a[0]) * d[0] + (q[1] - a[1]) * d[1]) / (d[0] * d[0] + d[1] * d[1]))
+        .clamp(0.0, 1.0);
+    (q[0] - a[0] - t * d[0]).hypot(q[1] - a[1] - t * d[1])
+}
+
+fn ray_segment(o: Point, d: Point, p: Point, q: Point) -> Option<f64> {
+    let e = [q[0] - p[0], q[1] - p[1]];
+    let den = d[0] * e[1] - d[1] * e[0];
+    if den.abs() < 1e-12 {
+        return None;
+    }
+    let w = [p[0] - o[0], p[1] - o[1]];
+    let t = (w[0] * e[1] - w[1] * e[0]) / den;
+    let s = (w[0] * d[1] - w[1] * d[0]) / den;
+    (t > 0.0 && (0.0..=1.0).contains(&s)).then_some(t)
+}
+
+/// A drive round the room's free middle: `n` poses on an ellipse, facing along it.
+fn drive(n: usize) -> Vec<Pose> {
+    (0..n)
+        .map(|k| {
+            let a = k as f64 * std::f64::consts::TAU / n as f64;
+            [
+                3.0 - 2.0 * a.cos(),
+                2.0 - 1.2 * a.sin(),
+                a - std::f64::consts::FRAC_PI_2,
+            ]
+        })
+        .collect()
+}
+
+fn build(scene: &Scene, poses: &[Pose], params: MapParams, seed: u64) -> Map {
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+    let mut map = Map::new(params, Box::new(MemoryStore::default())).unwrap();
+    for &pose in poses {
+        let scan = scene.scan(pose, 0.01, &mut rng);
+        let r = reconstruct_scan(&scan, &Params::default()).unwrap();
+        map.insert(&scan, pose, &r.polylines, r.noise_estimate)
+            .unwrap();
+    }
+    map
+}
+
+#[test]
+fn a_room_driven_round_is_mapped_near_its_walls_and_nowhere_else() {
+    let scene = Scene::room();
+    let params = MapParams::default();
+    let mut map = build(&scene, &drive(24), params, 1);
+    let (curves, scores) = map.finish().unwrap();
+    // Each scan's curves lie within 3 sigma + 2 hmin of the walls (the single-frame
+    // bound); their average lies closer, and the lattice adds at most half a cell's
+    // interpolation error at corners.
+    let bound = 3.0 * 0.01 + 0.5 * params.cell;
+    let worst = curves
+        .iter()
+        .flat_map(|c| c.points.iter())
+        .map(|&p| scene.distance(p))
+        .fold(0.0, f64::max);
+    assert!(worst <= bound, "worst {worst} > {bound}");
+    // Every wall is there: the room's 20 m and the pillar's 1.6 m, less what the
+    // pillar hides and corners' rounding.
+    assert!(scores.length > 0.9 * 21.6, "{scores:?}");
+    assert!(scores.static_within >= 0.95, "{scores:?}");
+    assert!(scores.seen_through <= 0.01, "{scores:?}");
+    // A compact map: the room's walls one closed loop; the rest is the pillar, whose
+    // sides the scans see one or two at a time (a scan's curve ends at the pillar's
+    // silhouette, and an end carries no signed distance), so its corners may part.
+    let lengths: Vec<(f64, bool)> = curves.iter().map(|c| (c.length(), c.closed)).collect();
+    let rooms: Vec<&Polyline> = curves
+        .iter()
+        .filter(|c| c.closed && (c.length() - 20.0).abs() < 0.5)
+        .collect();
+    assert_eq!(rooms.len(), 1, "{lengths:?}");
+    assert!(curves.len() <= 5, "{lengths:?}");
+    for c in curves.iter().filter(|c| !(c.closed && c.length() > 19.0)) {
+        assert!(
+            c.points
+                .iter()
+                .all(|p| (p[0] - 4.0).abs() < 0.3 && (p[1] - 1.8).abs() < 0.3),
+            "{c:?}"
+        );
+    }
+    assert!(scores.union_length > 10.0 * scores.length, "{scores:?}");
+    // The free side is on the left: a point a few centimetres to a curve's left is
+    // farther from the walls' inside than the curve (inside the room, off the pillar).
+    for c in &curves {
+        for w in c.points.windows(2) {
+            let (a, b) = (w[0], w[1]);
+            let l = crate::geom::dist(a, b);
+            if l < 0.05 {
+                continue;
+            }
+            let m = [(a[0] + b[0]) / 2.0, (a[1] + b[1]) / 2.0];
+            let left = [
+                m[0] - 0.05 * (b[1] - a[1]) / l,
+                m[1] + 0.05 * (b[0] - a[0]) / l,
+            ];
+            let inside_room = left[0] > 0.0 && left[0] < 6.0 && left[1] > 0.0 && left[1] < 4.0;
+            let in_pillar = left[0] > 3.8 && left[0] < 4.2 && left[1] > 1.6 && left[1] < 2.0;
+            assert!(inside_room && !in_pillar, "{left:?} left of {a:?}-{b:?}");
+        }
+    }
+}
+
+#[test]
+fn a_person_who_walked_away_leaves_the_map() {
+    // A person stands in the room for the first third of the drive, then is gone: the
+    // beams of the later scans sweep where they stood.
+    let poses = drive(24);
+    let mut scene = Scene::room();
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(2);
+    let mut map = Map::new(MapParams::default(), Box::new(MemoryStore::default())).unwrap();
+    let person = [2.0, 2.0];
+    for (k, &pose) in poses.iter().enumerate() {
+        scene.post = (k < 8).then_some((person, 0.2));
+        let scan = scene.scan(pose, 0.01, &mut rng);
+        let r = reconstruct_scan(&scan, &Params::default()).unwrap();
+        map.insert(&scan, pose, &r.polylines, r.noise_estimate)
+            .unwrap();
+        if k == 7 {
+            // While they stand there, they are in the map.
+            let near = map
+                .curves()
+                .unwrap()
+                .iter()
+                .flat_map(|c| c.points.clone())
+                .filter(|&p| crate::geom::dist(p, person) < 0.3)
+                .count();
+            assert!(near > 0, "the person was never mapped");
+        }
+    }
+    let (curves, _) = map.finish().unwrap();
+    let near: Vec<Point> = curves
+        .iter()
+        .flat_map(|c| c.points.iter().copied())
+        .filter(|&p| crate::geom::dist(p, person) < 0.5)
+        .collect();
+    assert!(near.is_empty(), "still mapped: {near:?}");
+}
+
+#[test]
+fn tiles_that_leave_memory_come_back_and_the_map_stays_the_same() {
+    let scene = Scene::room();
+    let poses = drive(16);
+    // Tiles of 0.24 m and beams of 2 m: one scan touches at most 19 x 19 tiles, the
+    // room's walls lie in about 440.
+    let roomy = MapParams {
+        tile: 8,
+        max_range: 2.0,
+        max_tiles: 100_000,
+        ..MapParams::default()
+    };
+    let tight = MapParams {
+        max_tiles: roomy.tiles_per_scan(),
+        ..roomy
+    };
+    let mut a = build(&scene, &poses, roomy, 3);
+    let mut b = build(&scene, &poses, tight, 3);
+    assert!(b.stats().spills > 0, "{:?}", b.stats());
+    assert!(b.stats().tiles_resident <= tight.max_tiles);
+    let (ca, sa) = a.finish().unwrap();
+    let (cb, sb) = b.finish().unwrap();
+    assert!(b.stats().tiles_resident <= tight.max_tiles);
+    assert_eq!(ca, cb);
+    assert_eq!(sa, sb);
+}
+
+#[test]
+fn parameters_that_cannot_hold_a_scan_are_refused() {
+    let p = MapParams {
+        max_tiles: 3,
+        ..MapParams::default()
+    };
+    let e = Map::new(p, Box::new(MemoryStore::default())).unwrap_err();
+    assert!(e.to_string().contains("map.max_tiles"), "{e}");
+    for bad in [
+        MapParams {
+            cell: 0.0,
+            ..MapParams::default()
+        },
+        MapParams {
+            min_scans: 0,
+            ..MapParams::default()
+        },
+        MapParams {
+            hit_tolerance: f64::NAN,
+            ..MapParams::default()
+        },
+    ] {
+        assert!(bad.validate().is_err(), "{bad:?}");
+    }
+}

@@ -1,0 +1,411 @@
+//! `isoline map`: every scan of a recording, placed by its pose, fused into one
+//! world-frame curve map (docs/method.md, "A map of the whole run").
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use anyhow::{bail, Context, Result};
+use rayon::prelude::*;
+use serde_json::json;
+
+use isoline_core::geom::{Point, Polyline, Pose};
+use isoline_core::{Map, MapScores, MapStats, Params, Scan};
+use isoline_io::format::{PolylineJson, ResultRecord};
+use isoline_io::{BadFrame, Frame};
+
+/// `isoline map` options.
+#[derive(clap::Args)]
+pub struct Args {
+    /// A ROS 2 bag (.mcap, with --odometry or --world-frame for the poses), a CARMEN log
+    /// (its lines' poses) or NDJSON frames with `pose`.
+    input: PathBuf,
+    /// The map; the extension picks the format: .geojson .svg .ndjson .json .mcap
+    /// (a scene update in the world frame). Repeat for several.
+    #[arg(short, long, required = true)]
+    output: Vec<PathBuf>,
+    /// TOML configuration: [map] for the lattice, [scan] [mesh] [solver] [export] for
+    /// each scan's curves.
+    #[arg(short, long)]
+    config: Option<PathBuf>,
+    /// The run's summary (scans, times, memory, tiles, scores) as JSON.
+    #[arg(long)]
+    stats: Option<PathBuf>,
+    /// Also write the outputs every this many scans while the map grows (0: at the end).
+    #[arg(long, default_value_t = 0)]
+    every: u64,
+    /// Where tiles beyond [map] max_tiles go (default: the system's temporary directory).
+    #[arg(long)]
+    spill: Option<PathBuf>,
+    /// No progress bar.
+    #[arg(long, short)]
+    quiet: bool,
+    #[command(flatten)]
+    bag: super::BagArgs,
+}
+
+/// Scans reconstructed at once, on all cores, before they are fused in order.
+const BATCH: usize = 64;
+
+/// What the run skipped, by reason.
+#[derive(Default, Debug, serde::Serialize)]
+struct Skipped {
+    /// Frames without a pose: they cannot be placed.
+    no_pose: u64,
+    /// Frames of points without beams: no free space to vote with.
+    no_beams: u64,
+    /// Messages that could not be read as frames.
+    unreadable: u64,
+    /// Scans whose reconstruction failed.
+    failed: u64,
+}
+
+struct Run<'a> {
+    map: Map,
+    params: Params,
+    skipped: Skipped,
+    first_errors: Vec<String>,
+    poses: Vec<Point>,
+    reconstruct_s: f64,
+    fuse_s: f64,
+    outputs: &'a [PathBuf],
+    every: u64,
+    since_write: u64,
+}
+
+/// Builds the map and writes it; fails when no scan could be placed.
+pub fn run(a: Args) -> Result<()> {
+    let bag = a.bag.options(&a.input)?;
+    let outputs: Vec<Option<&Path>> = a
+        .output
+        .iter()
+        .map(|p| Some(p.as_path()))
+        .chain(std::iter::once(a.stats.as_deref()))
+        .collect();
+    super::refuse_overwrite(&a.input, &outputs)?;
+    for o in &a.output {
+        if format_of(o).is_none() {
+            bail!(
+                "{}: the map is written as .geojson, .svg, .ndjson, .json or .mcap",
+                o.display()
+            );
+        }
+    }
+    let cfg = super::load_config(a.config.as_deref())?;
+    let store = isoline_io::DiskTiles::new(a.spill.as_deref())
+        .context("creating the directory for tiles that leave memory")?;
+    let map_params = cfg.map_params();
+    let map = Map::new(map_params, Box::new(store))?;
+    let bar = progress(a.quiet);
+    let start = Instant::now();
+    let cpu = cpu_time::ProcessTime::try_now().ok();
+    let mut run = Run {
+        map,
+        params: cfg.params(),
+        skipped: Skipped::default(),
+        first_errors: Vec::new(),
+        poses: Vec::new(),
+        reconstruct_s: 0.0,
+        fuse_s: 0.0,
+        outputs: &a.output,
+        every: a.every,
+        since_write: 0,
+    };
+    let mut batch: Vec<(Scan, Pose)> = Vec::with_capacity(BATCH);
+    let mut failure: Option<anyhow::Error> = None;
+    isoline_io::for_each_item(&a.input, &bag, |item| {
+        if let Some(scan) = run.accept(item) {
+            batch.push(scan);
+        }
+        if batch.len() == BATCH {
+            if let Err(e) = run.fuse(&mut batch) {
+                failure = Some(e);
+                return false;
+            }
+            show(&bar, &run, start);
+        }
+        true
+    })
+    .with_context(|| format!("reading {}", a.input.display()))?;
+    if let Some(e) = failure {
+        return Err(e);
+    }
+    run.fuse(&mut batch)?;
+    show(&bar, &run, start);
+    let stats = run.map.stats();
+    if stats.scans == 0 {
+        bail!(
+            "{}: no scan with a pose to place ({} without a pose, {} without beams, {} unreadable{})",
+            a.input.display(),
+            run.skipped.no_pose,
+            run.skipped.no_beams,
+            run.skipped.unreadable,
+            run.first_errors
+                .first()
+                .map(|e| format!("; first: {e}"))
+                .unwrap_or_default()
+        );
+    }
+    let t = Instant::now();
+    let (curves, scores) = run.map.finish()?;
+    let finish_s = t.elapsed().as_secs_f64();
+    bar.finish_and_clear();
+    let stats = run.map.stats();
+    write_all(&a.output, &curves, &run.poses, stats.scans)?;
+    let wall = start.elapsed().as_secs_f64();
+    let cpu_s = cpu.map(|c| c.elapsed().as_secs_f64());
+    let summary = summary(&a.input, &run, &stats, &scores, wall, cpu_s, finish_s);
+    eprintln!(
+        "isoline map: {} scans in {:.1} s ({:.0} scans/s), {} pieces, {:.1} m; static returns within {} m: {:.1}%, map seen through: {:.2}%",
+        stats.scans,
+        wall,
+        stats.scans as f64 / wall,
+        scores.pieces,
+        scores.length,
+        map_params.hit_tolerance,
+        100.0 * scores.static_within,
+        100.0 * scores.seen_through
+    );
+    if let Some(p) = &a.stats {
+        super::write(p, serde_json::to_string_pretty(&summary)? + "\n")?;
+    }
+    Ok(())
+}
+
+impl Run<'_> {
+    /// The frame's scan and pose, or why it is skipped (counted).
+    fn accept(&mut self, item: Result<Frame, BadFrame>) -> Option<(Scan, Pose)> {
+        match item {
+            Err(bad) => {
+                self.skipped.unreadable += 1;
+                self.note(bad.message);
+                None
+            }
+            Ok(f) => match (f.scan, f.pose) {
+                (_, None) => {
+                    self.skipped.no_pose += 1;
+                    None
+                }
+                (None, Some(_)) => {
+                    self.skipped.no_beams += 1;
+                    None
+                }
+                (Some(scan), Some(pose)) => Some((scan, pose)),
+            },
+        }
+    }
+
+    fn note(&mut self, e: String) {
+        if self.first_errors.len() < 5 {
+            self.first_errors.push(e);
+        }
+    }
+
+    /// Reconstructs the batch's scans in parallel, fuses them in order, and writes the
+    /// outputs when `every` scans have come since the last write.
+    fn fuse(&mut self, batch: &mut Vec<(Scan, Pose)>) -> Result<()> {
+        let t = Instant::now();
+        let params = &self.params;
+        let results: Vec<_> = batch
+            .par_iter()
+            .map(|(scan, _)| isoline_core::reconstruct_scan(scan, params))
+            .collect();
+        self.reconstruct_s += t.elapsed().as_secs_f64();
+        let t = Instant::now();
+        for ((scan, pose), r) in batch.drain(..).zip(results) {
+            match r {
+                Ok(r) => {
+                    self.map
+                        .insert(&scan, pose, &r.polylines, r.noise_estimate)?;
+                    self.poses.push([pose[0], pose[1]]);
+                    self.since_write += 1;
+                }
+                Err(e) => {
+                    self.skipped.failed += 1;
+                    self.note(e.to_string());
+                }
+            }
+            if self.every > 0 && self.since_write >= self.every {
+                self.since_write = 0;
+                let curves = self.map.curves()?;
+                write_all(self.outputs, &curves, &self.poses, self.map.stats().scans)?;
+            }
+        }
+        self.fuse_s += t.elapsed().as_secs_f64();
+        Ok(())
+    }
+}
+
+fn progress(quiet: bool) -> indicatif::ProgressBar {
+    if quiet {
+        return indicatif::ProgressBar::hidden();
+    }
+    let b = indicatif::ProgressBar::new_spinner();
+    b.set_style(
+        indicatif::ProgressStyle::with_template("{spinner} {elapsed} {pos} scans {msg}")
+            .expect("a valid template"),
+    );
+    b
+}
+
+fn show(bar: &indicatif::ProgressBar, run: &Run<'_>, start: Instant) {
+    let s = run.map.stats();
+    bar.set_position(s.scans);
+    bar.set_message(format!(
+        "({:.0}/s), {} tiles in memory ({:.0} MB), {} stored",
+        s.scans as f64 / start.elapsed().as_secs_f64().max(1e-9),
+        s.tiles_resident,
+        s.bytes as f64 / 1e6,
+        s.tiles_stored
+    ));
+}
+
+/// The format an output's extension asks for.
+fn format_of(p: &Path) -> Option<&'static str> {
+    match p.extension()?.to_str()? {
+        "geojson" => Some("geojson"),
+        "svg" => Some("svg"),
+        "ndjson" | "jsonl" => Some("ndjson"),
+        "json" => Some("json"),
+        "mcap" => Some("mcap"),
+        _ => None,
+    }
+}
+
+/// The map's record: stream `map`, frame the scans fused so far, the curves in the
+/// world frame.
+fn record(curves: &[Polyline], scans: u64) -> ResultRecord {
+    ResultRecord {
+        stream: Some("map".into()),
+        frame: Some(scans),
+        polylines: Some(curves.iter().map(PolylineJson::from).collect()),
+        ..Default::default()
+    }
+}
+
+/// Writes the map to every output, each atomically (a reader never sees half a map).
+fn write_all(outputs: &[PathBuf], curves: &[Polyline], poses: &[Point], scans: u64) -> Result<()> {
+    for o in outputs {
+        match format_of(o) {
+            Some("geojson") => super::write(o, geojson(curves))?,
+            Some("svg") => super::write(o, svg(curves, poses))?,
+            Some("ndjson") => {
+                super::write(o, serde_json::to_string(&record(curves, scans))? + "\n")?
+            }
+            Some("json") => super::write(
+                o,
+                serde_json::to_string_pretty(&record(curves, scans))? + "\n",
+            )?,
+            Some("mcap") => {
+                let mut out = isoline_io::foxglove::McapOut::create(o)?;
+                out.write(&isoline_io::foxglove::FrameView {
+                    record: record(curves, scans),
+                    ..Default::default()
+                })?;
+                out.finish()?;
+            }
+            _ => unreachable!("checked before the run"),
+        }
+    }
+    Ok(())
+}
+
+/// One LineString a piece, in the world frame's metres, with its length.
+fn geojson(curves: &[Polyline]) -> String {
+    let features: Vec<_> = curves
+        .iter()
+        .enumerate()
+        .map(|(k, c)| {
+            let mut coords = c.points.clone();
+            if c.closed && !coords.is_empty() {
+                coords.push(coords[0]);
+            }
+            json!({
+                "type": "Feature",
+                "geometry": {"type": "LineString", "coordinates": coords},
+                "properties": {"piece": k, "closed": c.closed, "length": c.length()},
+            })
+        })
+        .collect();
+    serde_json::to_string(&json!({"type": "FeatureCollection", "features": features}))
+        .expect("values serialise")
+        + "\n"
+}
+
+/// The map's curves over the path the sensor took (as dots).
+fn svg(curves: &[Polyline], poses: &[Point]) -> String {
+    // A dot a metre along the path is enough to show it.
+    let mut path = Vec::new();
+    for &p in poses {
+        if path
+            .last()
+            .is_none_or(|&q: &Point| isoline_core::geom::dist(p, q) >= 1.0)
+        {
+            path.push(p);
+        }
+    }
+    isoline_io::write::svg::render(
+        &isoline_io::write::svg::Drawing {
+            points: &path,
+            polylines: curves,
+            ..Default::default()
+        },
+        1600.0,
+    )
+}
+
+/// The process's peak resident memory, bytes, where the system says (Linux).
+fn peak_memory() -> Option<u64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
+    let kb: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kb * 1024)
+}
+
+fn summary(
+    input: &Path,
+    run: &Run<'_>,
+    stats: &MapStats,
+    scores: &MapScores,
+    wall: f64,
+    cpu_s: Option<f64>,
+    finish_s: f64,
+) -> serde_json::Value {
+    let n = stats.scans.max(1) as f64;
+    let p = run.map.params();
+    json!({
+        "input": input.display().to_string(),
+        "scans": stats.scans,
+        "skipped": run.skipped,
+        "errors": run.first_errors,
+        "seconds": wall,
+        "scans_per_s": stats.scans as f64 / wall,
+        "cpu_ms_per_scan": cpu_s.map(|c| 1e3 * c / n),
+        "ms_per_scan": {
+            "reconstruct": 1e3 * run.reconstruct_s / n,
+            "fuse": 1e3 * run.fuse_s / n,
+            "finish": 1e3 * finish_s / n,
+        },
+        "peak_memory_bytes": peak_memory(),
+        "tiles": {
+            "resident": stats.tiles_resident,
+            "stored": stats.tiles_stored,
+            "spills": stats.spills,
+            "bytes_bound": p.memory_bound(),
+        },
+        "map": {
+            "cell": p.cell, "tile": p.tile, "min_scans": p.min_scans,
+            "max_weight": p.max_weight, "hit_tolerance": p.hit_tolerance,
+            "max_range": p.max_range, "max_tiles": p.max_tiles,
+        },
+        "scores": {
+            "returns_scored": scores.returns_scored,
+            "static_share": scores.static_share,
+            "static_within": scores.static_within,
+            "length": scores.length,
+            "pieces": scores.pieces,
+            "seen_through": scores.seen_through,
+            "union_length": scores.union_length,
+            "union_seen_through": scores.union_seen_through,
+        },
+    })
+}

@@ -1,0 +1,154 @@
+//! `isoline map`: a simulated drive through the room, with a person walking across it,
+//! fused into one world-frame map and checked against the scene's truth.
+
+use super::common::{ok, p};
+
+/// Distance from `q` to the nearest of the truth's segments.
+fn distance(q: [f64; 2], walls: &[Vec<[f64; 2]>]) -> f64 {
+    let mut best = f64::INFINITY;
+    for w in walls {
+        for s in w.windows(2) {
+            let (a, b) = (s[0], s[1]);
+            let d = [b[0] - a[0], b[1] - a[1]];
+            let l2 = d[0] * d[0] + d[1] * d[1];
+            let t = if l2 > 0.0 {
+                (((q[0] - a[0]) * d[0] + (q[1] - a[1]) * d[1]) / l2).clamp(0.0, 1.0)
+            } else {
+                0.0
+            };
+            best = best.min((q[0] - a[0] - t * d[0]).hypot(q[1] - a[1] - t * d[1]));
+        }
+    }
+    best
+}
+
+#[test]
+fn a_drive_through_the_room_is_one_map_near_the_walls_without_the_person() {
+    let dir = tempfile::tempdir().unwrap();
+    let (frames, truth) = (dir.path().join("f.ndjson"), dir.path().join("t.json"));
+    ok(&[
+        "synth",
+        "room",
+        "--frames",
+        "100",
+        "--motion",
+        "0.1",
+        "--walker",
+        "1.0",
+        "--noise",
+        "0.01",
+        "--seed",
+        "4",
+        "-o",
+        p(&frames),
+        "--truth",
+        p(&truth),
+    ]);
+    let (geo, rec, svg, stats) = (
+        dir.path().join("m.geojson"),
+        dir.path().join("m.ndjson"),
+        dir.path().join("m.svg"),
+        dir.path().join("s.json"),
+    );
+    ok(&[
+        "map",
+        p(&frames),
+        "-o",
+        p(&geo),
+        "-o",
+        p(&rec),
+        "-o",
+        p(&svg),
+        "--stats",
+        p(&stats),
+        "-q",
+    ]);
+    let truth: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&truth).unwrap()).unwrap();
+    let walls: Vec<Vec<[f64; 2]>> = truth["scene"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|pl| serde_json::from_value(pl["points"].clone()).unwrap())
+        .collect();
+    let map: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&geo).unwrap()).unwrap();
+    let pieces: Vec<Vec<[f64; 2]>> = map["features"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|f| serde_json::from_value(f["geometry"]["coordinates"].clone()).unwrap())
+        .collect();
+    // Every stretch of the map within 3 sigma + 2 cells of a wall (a scan's bound with
+    // the lattice's spacing for hmin), the person included: were they in the map, a
+    // curve would lie a metre from every wall.
+    let bound = 3.0 * 0.01 + 2.0 * 0.03;
+    let mut length = 0.0;
+    for piece in &pieces {
+        for s in piece.windows(2) {
+            length += (s[1][0] - s[0][0]).hypot(s[1][1] - s[0][1]);
+            for k in 0..=10 {
+                let t = k as f64 / 10.0;
+                let q = [
+                    s[0][0] + t * (s[1][0] - s[0][0]),
+                    s[0][1] + t * (s[1][1] - s[0][1]),
+                ];
+                let d = distance(q, &walls);
+                assert!(d <= bound, "{q:?} is {d} m from every wall");
+            }
+        }
+    }
+    // The room's 28 m of walls, less its two doorways' 1.8 m, and walls outside seen
+    // through them.
+    assert!(length > 26.0, "{length} m");
+    let s: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&stats).unwrap()).unwrap();
+    assert_eq!(s["scans"], 100);
+    assert!(
+        s["scores"]["static_within"].as_f64().unwrap() >= 0.95,
+        "{s}"
+    );
+    assert!(s["scores"]["seen_through"].as_f64().unwrap() <= 0.01, "{s}");
+    assert!(
+        s["scores"]["union_length"].as_f64().unwrap() > 20.0 * length,
+        "{s}"
+    );
+    // The NDJSON record is the map, as `isoline eval` and the other tools read records.
+    let r: serde_json::Value =
+        serde_json::from_str(std::fs::read_to_string(&rec).unwrap().trim()).unwrap();
+    assert_eq!(r["stream"], "map");
+    assert_eq!(r["polylines"].as_array().unwrap().len(), pieces.len());
+    assert!(std::fs::read_to_string(&svg).unwrap().starts_with("<svg"));
+}
+
+#[test]
+fn frames_without_poses_make_no_map_and_say_why() {
+    let dir = tempfile::tempdir().unwrap();
+    let frames = dir.path().join("f.ndjson");
+    ok(&["synth", "room", "--frames", "2", "-o", p(&frames)]);
+    // The same frames with their poses removed.
+    let text = std::fs::read_to_string(&frames).unwrap();
+    let stripped: String = text
+        .lines()
+        .map(|l| {
+            let mut v: serde_json::Value = serde_json::from_str(l).unwrap();
+            v.as_object_mut().unwrap().remove("pose");
+            v.to_string() + "\n"
+        })
+        .collect();
+    std::fs::write(&frames, stripped).unwrap();
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_isoline"))
+        .args([
+            "map",
+            p(&frames),
+            "-o",
+            p(&dir.path().join("m.geojson")),
+            "-q",
+        ])
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("2 without a pose"), "{err}");
+    assert!(!dir.path().join("m.geojson").exists());
+}
