@@ -651,13 +651,7 @@ impl Map {
             else {
                 break;
             };
-            let pieces = extract::tile_pieces(self, key);
-            let tile = self.tiles.remove(&key).expect("chosen among them");
-            let border = Border::of(&tile, self.params.tile);
-            self.store
-                .put(key, tile.to_bytes())
-                .map_err(Error::TileStore)?;
-            self.stored.insert(key, (border, pieces));
+            self.put_away(key)?;
             self.spills += 1;
         }
         Ok(())
@@ -704,13 +698,7 @@ impl Map {
                 self.evict_one_other_than(key)?;
             }
             self.load(key)?;
-            let pieces = extract::tile_pieces(self, key);
-            let tile = self.tiles.remove(&key).expect("loaded above");
-            let border = Border::of(&tile, self.params.tile);
-            self.store
-                .put(key, tile.to_bytes())
-                .map_err(Error::TileStore)?;
-            self.stored.insert(key, (border, pieces));
+            self.put_away(key)?;
         }
         let curves = extract::curves(self);
         let scores = score::scores(self, &curves)?;
@@ -726,14 +714,23 @@ impl Map {
         else {
             return Ok(());
         };
+        self.put_away(key)?;
+        self.spills += 1;
+        Ok(())
+    }
+
+    /// Sends the tile at `key` (in memory) to the store, keeping its first row and
+    /// column and the curve pieces it holds.
+    fn put_away(&mut self, key: Key) -> Result<()> {
         let pieces = extract::tile_pieces(self, key);
-        let tile = self.tiles.remove(&key).expect("chosen among them");
+        let Some(tile) = self.tiles.remove(&key) else {
+            return Ok(());
+        };
         let border = Border::of(&tile, self.params.tile);
         self.store
             .put(key, tile.to_bytes())
             .map_err(Error::TileStore)?;
         self.stored.insert(key, (border, pieces));
-        self.spills += 1;
         Ok(())
     }
 
@@ -774,13 +771,7 @@ impl Map {
                 f(n, tile.map(|t| t.sample(k)));
             }
             if was_stored {
-                let pieces = extract::tile_pieces(self, key);
-                let tile = self.tiles.remove(&key).expect("loaded above");
-                let border = Border::of(&tile, side);
-                self.store
-                    .put(key, tile.to_bytes())
-                    .map_err(Error::TileStore)?;
-                self.stored.insert(key, (border, pieces));
+                self.put_away(key)?;
             }
             start = end;
         }
