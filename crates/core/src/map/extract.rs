@@ -240,10 +240,10 @@ fn simplify(line: Polyline, tol: f64) -> Polyline {
         }
         let (p, q) = (pts[a], pts[b]);
         let (k, d) = (a + 1..b)
-            .map(|k| (k, segment_distance(pts[k], p, q)))
+            .map(|k| (k, crate::geom::point_segment_dist2(pts[k], p, q).0))
             .max_by(|x, y| x.1.total_cmp(&y.1))
             .expect("b > a + 1");
-        if d > tol {
+        if d > tol * tol {
             keep[k] = true;
             stack.push((a, k));
             stack.push((k, b));
@@ -258,17 +258,6 @@ fn simplify(line: Polyline, tol: f64) -> Polyline {
             .map(|(p, _)| *p)
             .collect(),
     }
-}
-
-fn segment_distance(p: Point, a: Point, b: Point) -> f64 {
-    let d = [b[0] - a[0], b[1] - a[1]];
-    let l2 = d[0] * d[0] + d[1] * d[1];
-    let t = if l2 > 0.0 {
-        (((p[0] - a[0]) * d[0] + (p[1] - a[1]) * d[1]) / l2).clamp(0.0, 1.0)
-    } else {
-        0.0
-    };
-    (p[0] - a[0] - t * d[0]).hypot(p[1] - a[1] - t * d[1])
 }
 
 #[cfg(test)]

@@ -23,7 +23,7 @@ impl Scene {
     fn distance(&self, q: Point) -> f64 {
         self.walls
             .iter()
-            .map(|&(a, b)| extract_distance(q, a, b))
+            .map(|&(a, b)| crate::geom::point_segment_dist2(q, a, b).0.sqrt())
             .fold(f64::INFINITY, f64::min)
     }
 
@@ -63,13 +63,6 @@ impl Scene {
         })
         .unwrap()
     }
-}
-
-fn extract_distance(q: Point, a: Point, b: Point) -> f64 {
-    let d = [b[0] - a[0], b[1] - a[1]];
-    let t = (((q[0] - a[0]) * d[0] + (q[1] - a[1]) * d[1]) / (d[0] * d[0] + d[1] * d[1]))
-        .clamp(0.0, 1.0);
-    (q[0] - a[0] - t * d[0]).hypot(q[1] - a[1] - t * d[1])
 }
 
 fn ray_segment(o: Point, d: Point, p: Point, q: Point) -> Option<f64> {
