@@ -10,7 +10,7 @@ use serde_json::json;
 
 use isoline_core::geom::{Point, Polyline, Pose};
 use isoline_core::{Map, MapScores, MapStats, Params, Scan};
-use isoline_io::format::{PolylineJson, ResultRecord};
+use isoline_io::write::map::{write_map, MapFormat, MAP_EXTENSIONS};
 use isoline_io::{BadFrame, Frame};
 
 /// `isoline map` options.
@@ -20,8 +20,9 @@ pub struct Args {
     /// (its lines' poses) or NDJSON frames with `pose`.
     input: PathBuf,
     /// The map; the extension picks the format: .geojson .svg .ndjson .json .mcap
-    /// (a scene update in the world frame). Repeat for several.
-    #[arg(short, long, required = true)]
+    /// (a scene update in the world frame). Repeat for several. Default: the
+    /// configuration's [map] output.
+    #[arg(short, long)]
     output: Vec<PathBuf>,
     /// TOML configuration: [map] for the lattice, [scan] [mesh] [solver] [export] for
     /// each scan's curves.
@@ -31,9 +32,11 @@ pub struct Args {
     #[arg(long)]
     stats: Option<PathBuf>,
     /// Also write the outputs every this many scans while the map grows (0: at the end).
-    #[arg(long, default_value_t = 0)]
-    every: u64,
-    /// Where tiles beyond [map] max_tiles go (default: the system's temporary directory).
+    /// Default: the configuration's [map] every, else 0.
+    #[arg(long)]
+    every: Option<u64>,
+    /// Where tiles beyond [map] max_tiles go. Default: the configuration's [map] spill,
+    /// else the system's temporary directory.
     #[arg(long)]
     spill: Option<PathBuf>,
     /// No progress bar.
@@ -73,8 +76,33 @@ struct Run<'a> {
 }
 
 /// Builds the map and writes it; fails when no scan could be placed.
-pub fn run(a: Args) -> Result<()> {
+pub fn run(mut a: Args) -> Result<()> {
     let bag = a.bag.options(&a.input)?;
+    let cfg = super::load_config(a.config.as_deref())?;
+    // The configuration's paths are taken from its folder, as the daemon takes them.
+    let base = a
+        .config
+        .as_deref()
+        .and_then(Path::parent)
+        .unwrap_or(Path::new(""))
+        .to_path_buf();
+    if a.output.is_empty() {
+        a.output = cfg
+            .map
+            .output
+            .iter()
+            .flat_map(|o| o.paths())
+            .map(|p| base.join(p))
+            .collect();
+    }
+    if a.output.is_empty() {
+        bail!("no map to write: give -o MAP (or [map] output in the configuration)");
+    }
+    let every = a.every.or(cfg.map.every).unwrap_or(0);
+    let spill = a
+        .spill
+        .clone()
+        .or(cfg.map.spill.as_ref().map(|p| base.join(p)));
     let outputs: Vec<Option<&Path>> = a
         .output
         .iter()
@@ -83,15 +111,11 @@ pub fn run(a: Args) -> Result<()> {
         .collect();
     super::refuse_overwrite(&a.input, &outputs)?;
     for o in &a.output {
-        if format_of(o).is_none() {
-            bail!(
-                "{}: the map is written as .geojson, .svg, .ndjson, .json or .mcap",
-                o.display()
-            );
+        if MapFormat::of(o).is_none() {
+            bail!("{}: the map is written as {MAP_EXTENSIONS}", o.display());
         }
     }
-    let cfg = super::load_config(a.config.as_deref())?;
-    let store = isoline_io::DiskTiles::new(a.spill.as_deref())
+    let store = isoline_io::DiskTiles::new(spill.as_deref())
         .context("creating the directory for tiles that leave memory")?;
     let map_params = cfg.map_params();
     let map = Map::new(map_params, Box::new(store))?;
@@ -107,7 +131,7 @@ pub fn run(a: Args) -> Result<()> {
         reconstruct_s: 0.0,
         fuse_s: 0.0,
         outputs: &a.output,
-        every: a.every,
+        every,
         since_write: 0,
     };
     let mut batch: Vec<(Scan, Pose)> = Vec::with_capacity(BATCH);
@@ -259,98 +283,12 @@ fn show(bar: &indicatif::ProgressBar, run: &Run<'_>, start: Instant) {
     ));
 }
 
-/// The format an output's extension asks for.
-fn format_of(p: &Path) -> Option<&'static str> {
-    match p.extension()?.to_str()? {
-        "geojson" => Some("geojson"),
-        "svg" => Some("svg"),
-        "ndjson" | "jsonl" => Some("ndjson"),
-        "json" => Some("json"),
-        "mcap" => Some("mcap"),
-        _ => None,
-    }
-}
-
-/// The map's record: stream `map`, frame the scans fused so far, the curves in the
-/// world frame.
-fn record(curves: &[Polyline], scans: u64) -> ResultRecord {
-    ResultRecord {
-        stream: Some("map".into()),
-        frame: Some(scans),
-        polylines: Some(curves.iter().map(PolylineJson::from).collect()),
-        ..Default::default()
-    }
-}
-
 /// Writes the map to every output, each atomically (a reader never sees half a map).
 fn write_all(outputs: &[PathBuf], curves: &[Polyline], poses: &[Point], scans: u64) -> Result<()> {
     for o in outputs {
-        match format_of(o) {
-            Some("geojson") => super::write(o, geojson(curves))?,
-            Some("svg") => super::write(o, svg(curves, poses))?,
-            Some("ndjson") => {
-                super::write(o, serde_json::to_string(&record(curves, scans))? + "\n")?
-            }
-            Some("json") => super::write(
-                o,
-                serde_json::to_string_pretty(&record(curves, scans))? + "\n",
-            )?,
-            Some("mcap") => {
-                let mut out = isoline_io::foxglove::McapOut::create(o)?;
-                out.write(&isoline_io::foxglove::FrameView {
-                    record: record(curves, scans),
-                    ..Default::default()
-                })?;
-                out.finish()?;
-            }
-            _ => unreachable!("checked before the run"),
-        }
+        write_map(o, curves, poses, scans).with_context(|| format!("writing {}", o.display()))?;
     }
     Ok(())
-}
-
-/// One LineString a piece, in the world frame's metres, with its length.
-fn geojson(curves: &[Polyline]) -> String {
-    let features: Vec<_> = curves
-        .iter()
-        .enumerate()
-        .map(|(k, c)| {
-            let mut coords = c.points.clone();
-            if c.closed && !coords.is_empty() {
-                coords.push(coords[0]);
-            }
-            json!({
-                "type": "Feature",
-                "geometry": {"type": "LineString", "coordinates": coords},
-                "properties": {"piece": k, "closed": c.closed, "length": c.length()},
-            })
-        })
-        .collect();
-    serde_json::to_string(&json!({"type": "FeatureCollection", "features": features}))
-        .expect("values serialise")
-        + "\n"
-}
-
-/// The map's curves over the path the sensor took (as dots).
-fn svg(curves: &[Polyline], poses: &[Point]) -> String {
-    // A dot a metre along the path is enough to show it.
-    let mut path = Vec::new();
-    for &p in poses {
-        if path
-            .last()
-            .is_none_or(|&q: &Point| isoline_core::geom::dist(p, q) >= 1.0)
-        {
-            path.push(p);
-        }
-    }
-    isoline_io::write::svg::render(
-        &isoline_io::write::svg::Drawing {
-            points: &path,
-            polylines: curves,
-            ..Default::default()
-        },
-        1600.0,
-    )
 }
 
 /// The process's peak resident memory, bytes, where the system says (Linux).

@@ -94,6 +94,9 @@ pub struct DaemonConfig {
     pub metrics: Option<SocketAddr>,
     /// Reconstruction parameters.
     pub params: Params,
+    /// The map of the run (`[map]` with `output`): every scan with a pose fused into
+    /// one world-frame map, written as it grows.
+    pub map: Option<super::map::MapOutput>,
 }
 
 /// `[input]`: one source, by `kind`.
@@ -398,6 +401,9 @@ impl DaemonConfig {
         if let Some(p) = &self.chrome_trace {
             written.push(("tracing.chrome_trace", p));
         }
+        for p in self.map.iter().flat_map(|m| &m.paths) {
+            written.push(("map.output", p));
+        }
         if let Source::File(FileSource { path: input, .. }) = &self.source {
             if input.is_dir() {
                 problems.push(format!(
@@ -450,8 +456,18 @@ impl DaemonConfig {
         let live: Option<ListenerConfig> = take(&mut t, "live", &mut problems);
         let metrics: Option<ListenerConfig> = take(&mut t, "metrics", &mut problems);
         // What is left is the shared tables, which refuse any other key.
+        let mut map = None;
         let params = match Config::from_table(t, name, "").map_err(Error::from) {
-            Ok(c) => Some(c.params()),
+            Ok(c) => {
+                map = c.map.output.as_ref().map(|o| super::map::MapOutput {
+                    params: c.map_params(),
+                    paths: o.paths().iter().map(|p| resolve(base, p)).collect(),
+                    every: c.map.every.unwrap_or(super::map::DAEMON_MAP_EVERY),
+                    every_seconds: c.map.every_seconds.map(Duration::from_secs_f64),
+                    spill: c.map.spill.as_ref().map(|p| resolve(base, p)),
+                });
+                Some(c.params())
+            }
             Err(Error::Config { problems: p, .. }) => {
                 problems.extend(p);
                 None
@@ -526,6 +542,7 @@ impl DaemonConfig {
                 live_linger,
                 metrics,
                 params,
+                map,
             }),
             _ => Err(fail(problems)),
         }
@@ -534,6 +551,7 @@ impl DaemonConfig {
 
 #[cfg(test)]
 mod tests {
+    use super::super::map::DAEMON_MAP_EVERY;
     use super::*;
 
     #[test]
@@ -592,6 +610,60 @@ mod tests {
         };
         assert!(path.exists(), "{}", path.display());
         assert_eq!(replay, Replay::Recorded);
+    }
+
+    #[test]
+    fn the_map_is_on_with_its_files_and_their_pace() {
+        let c = DaemonConfig::parse("", "d.toml", Path::new("/cfg")).unwrap();
+        assert_eq!(c.map, None);
+        let c = DaemonConfig::parse(
+            "[map]\noutput = \"map.geojson\"\ncell = 0.05\n",
+            "d.toml",
+            Path::new("/cfg"),
+        )
+        .unwrap();
+        let m = c.map.unwrap();
+        assert_eq!(m.paths, vec![PathBuf::from("/cfg/map.geojson")]);
+        assert_eq!((m.params.cell, m.every), (0.05, DAEMON_MAP_EVERY));
+        let c = DaemonConfig::parse(
+            "[map]\noutput = [\"a.svg\", \"/abs/b.mcap\"]\nevery = 0\nevery_seconds = 5.0\n",
+            "d.toml",
+            Path::new("/cfg"),
+        )
+        .unwrap();
+        let m = c.map.unwrap();
+        assert_eq!(
+            m.paths,
+            vec![PathBuf::from("/cfg/a.svg"), PathBuf::from("/abs/b.mcap")]
+        );
+        assert_eq!(
+            (m.every, m.every_seconds),
+            (0, Some(Duration::from_secs(5)))
+        );
+        let e = DaemonConfig::parse(
+            "[map]\noutput = [\"a.png\"]\nevery_seconds = 0.0\n",
+            "d.toml",
+            Path::new("."),
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(
+            e.contains("map.output = \"a.png\"") && e.contains("map.every_seconds = 0"),
+            "{e}"
+        );
+        // The map cannot be written over the records.
+        let dir = tempfile::tempdir().unwrap();
+        let c = DaemonConfig::parse(
+            "[output]\npath = \"same.ndjson\"\n[map]\noutput = \"same.ndjson\"\n",
+            "d.toml",
+            dir.path(),
+        )
+        .unwrap();
+        let e = c.check_paths().unwrap_err().to_string();
+        assert!(
+            e.contains("output.path and map.output name the same file"),
+            "{e}"
+        );
     }
 
     /// Every table's problems are reported at once, each with its key path; a table

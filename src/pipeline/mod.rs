@@ -4,7 +4,7 @@
 //! ```text
 //! sources -> ingest -> distance -> adapt -> solve -> renormalize -> export -> sinks
 //!                                    ^        ^  <- level set ----'
-//!                                 last mesh  (per stream)
+//!                                 last mesh  (per stream)             └-> map
 //! ```
 //!
 //! Each stage is one thread that calls the library's plain stage function on each frame
@@ -48,6 +48,7 @@ mod live {
         }
     }
 }
+pub mod map;
 pub mod metrics;
 mod sink;
 pub mod source;
@@ -62,6 +63,7 @@ use crossbeam_channel::bounded;
 use serde::Serialize;
 
 pub use config::{DaemonConfig, Policy, Source};
+pub use map::{MapOutput, MapReport};
 pub use source::Replay;
 
 use crate::error::{Error, Result};
@@ -114,6 +116,8 @@ pub struct RunSummary {
     /// CPU seconds the process used over the run, all threads (where the platform
     /// tells).
     pub cpu_seconds: Option<f64>,
+    /// The map of the run, when `[map] output` is set.
+    pub map: Option<MapReport>,
 }
 
 impl RunSummary {
@@ -167,6 +171,21 @@ impl std::fmt::Display for RunSummary {
         if self.live_dropped > 0 {
             write!(f, "; live view behind for {} frames", self.live_dropped)?;
         }
+        if let Some(m) = &self.map {
+            write!(
+                f,
+                "; map of {} scans ({} unplaced, {} passed by): {} pieces, {:.1} m, static \
+                 returns within tolerance {:.1}%, seen through {:.2}%, written {} times",
+                m.scans,
+                m.unplaced,
+                m.behind,
+                m.pieces,
+                m.length,
+                100.0 * m.static_within,
+                100.0 * m.seen_through,
+                m.writes
+            )?;
+        }
         Ok(())
     }
 }
@@ -209,7 +228,14 @@ fn spawn_compute(
         ),
         (
             "distance",
-            stages::spawn_distance(distance_rx, to_adapt, policy, params, metrics.clone())?,
+            stages::spawn_distance(
+                distance_rx,
+                to_adapt,
+                policy,
+                params,
+                cfg.map.is_some(),
+                metrics.clone(),
+            )?,
         ),
         (
             "adapt",
@@ -324,6 +350,8 @@ pub struct Daemon {
     drained: Arc<AtomicBool>,
     threads: Vec<StageThread>,
     export: std::thread::JoinHandle<Result<RunSummary>>,
+    /// The map stage, when the map is on.
+    map: Option<std::thread::JoinHandle<Result<MapReport>>>,
     /// The TCP address listened on, when the source is TCP.
     pub tcp_addr: Option<std::net::SocketAddr>,
     /// The live view's address, when it is on.
@@ -401,12 +429,22 @@ impl Daemon {
             Some(bind) => Some(metrics::MetricsServer::start(bind, metrics.clone())?),
             None => None,
         };
+        let (map_tx, map) = match &cfg.map {
+            Some(out) => {
+                let (tx, rx) = bounded(q);
+                let handle = map::spawn_map(rx, out.clone(), live.clone(), stop.clone())?;
+                (Some(tx), Some(handle))
+            }
+            None => (None, None),
+        };
         let export = stages::spawn_export(
             export_rx,
             stages::Outputs {
                 sink,
                 live,
                 svg_dir: cfg.svg_dir.clone(),
+                map: map_tx,
+                map_lossy: cfg.policy == Policy::Latest,
                 metrics: metrics.clone(),
             },
             stop,
@@ -420,6 +458,7 @@ impl Daemon {
             drained,
             threads,
             export,
+            map,
             tcp_addr,
             live_addr,
             metrics_addr: metrics_server.as_ref().map(|m| m.addr()),
@@ -447,6 +486,21 @@ impl Daemon {
             .and_then(|s| s);
         self.drained.store(true, Ordering::Relaxed);
         let mut failure = None;
+        // The export stage has ended, so the map's queue is closed: the map stage writes
+        // the final map and ends.
+        let map = self.map.map(|m| {
+            m.join()
+                .map_err(|_| Error::Internal("the map stage panicked".into()))
+                .and_then(|r| r)
+        });
+        let map = match map {
+            Some(Ok(r)) => Some(r),
+            Some(Err(e)) => {
+                failure.get_or_insert(e);
+                None
+            }
+            None => None,
+        };
         for (name, t) in self.threads {
             if t.join().is_err() {
                 failure.get_or_insert(Error::Internal(format!("the {name} stage panicked")));
@@ -468,6 +522,13 @@ impl Daemon {
         // Scrapes see the final counts until every stage has ended.
         drop(self.metrics_server);
         let mut summary = summary?;
+        if let (Some(counted), Some(made)) = (summary.map.as_mut(), map) {
+            *counted = MapReport {
+                unplaced: counted.unplaced,
+                behind: counted.behind,
+                ..made
+            };
+        }
         summary.cpu_seconds = self
             .cpu_start
             .and_then(|c| c.try_elapsed().ok())

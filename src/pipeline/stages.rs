@@ -44,6 +44,9 @@ pub(crate) struct Msg {
     arrived: Instant,
     /// A Kafka frame's claim on its offset, handed in once its record is written.
     receipt: Option<Receipt>,
+    /// The frame's beams, kept past the distance stage for the map (when it is on and
+    /// the frame has a pose).
+    scan: Option<Box<isoline_core::Scan>>,
     work: Work,
 }
 
@@ -391,6 +394,7 @@ fn parse_line(mut line: Line) -> Msg {
         t,
         arrived: line.arrived,
         receipt: line.receipt,
+        scan: None,
         work,
     }
 }
@@ -437,6 +441,7 @@ pub(crate) fn spawn_distance(
     tx: Sender<Msg>,
     policy: Policy,
     params: Arc<Params>,
+    keep_scans: bool,
     metrics: Arc<Metrics>,
 ) -> Result<JoinHandle<()>> {
     spawn("distance", move || {
@@ -455,6 +460,9 @@ pub(crate) fn spawn_distance(
                     Ok(p) => Work::Prepared(Box::new(p)),
                     Err(e) => Work::Failed(e.to_string()),
                 };
+                if keep_scans && m.pose.is_some() {
+                    m.scan = f.scan.map(Box::new);
+                }
             },
         )
     })
@@ -627,6 +635,11 @@ pub(crate) struct Outputs {
     pub(crate) live: Option<Arc<crate::pipeline::live::LiveView>>,
     /// A folder for one drawing per frame.
     pub(crate) svg_dir: Option<PathBuf>,
+    /// The map stage, when the map is on.
+    pub(crate) map: Option<Sender<super::map::MapItem>>,
+    /// Whether a frame that finds the map stage's queue full passes it by (counted)
+    /// rather than waiting (`pipeline.policy = "latest"`).
+    pub(crate) map_lossy: bool,
     /// The counters of what is written.
     pub(crate) metrics: Arc<Metrics>,
 }
@@ -646,6 +659,7 @@ pub(crate) fn spawn_export(
     spawn("export", move || {
         let depth = outputs.metrics.queue_depth.with_label_values(&["export"]);
         let seconds = outputs.metrics.stage_seconds.with_label_values(&["export"]);
+        let map_on = outputs.map.is_some();
         let mut ex = Exporter {
             wants_frames: outputs.sink.wants_frames() || outputs.live.is_some(),
             outputs,
@@ -653,6 +667,7 @@ pub(crate) fn spawn_export(
             accumulate,
             windows: Streams::new(&streams),
             summary: RunSummary::default(),
+            map_counts: map_on.then(Default::default),
             tally: Tally::new(),
             first: None,
         };
@@ -683,6 +698,8 @@ struct Exporter {
     accumulate: Option<WindowLimits>,
     windows: Streams<Window>,
     summary: RunSummary,
+    /// Reconstructed frames the map could not take, when the map is on.
+    map_counts: Option<super::map::MapCounts>,
     tally: Tally,
     /// When the first frame was read.
     first: Option<Instant>,
@@ -716,6 +733,7 @@ impl Exporter {
                     ..ResultRecord::of(m.stream.clone(), frame, &r)
                 };
                 self.tally_frame(&mut rec, &r, m.arrived);
+                self.send_to_map(m.scan, m.pose, &r, &m.stream, frame);
                 if self.wants_frames {
                     shown.clone_from(&points);
                 }
@@ -799,6 +817,50 @@ impl Exporter {
         .unwrap_or_else(|panic| Work::Failed(internal_error("export", panic.as_ref())))
     }
 
+    /// Hands a reconstructed frame to the map stage, when the map is on: a frame without
+    /// a pose or beams cannot be placed, and under the `latest` policy a frame that
+    /// finds the map behind passes it by; both are counted.
+    fn send_to_map(
+        &mut self,
+        scan: Option<Box<isoline_core::Scan>>,
+        pose: Option<Pose>,
+        r: &Reconstruction,
+        stream: &Option<String>,
+        frame: u64,
+    ) {
+        let (Some(tx), Some(counts)) = (&self.outputs.map, &mut self.map_counts) else {
+            return;
+        };
+        let (Some(scan), Some(pose)) = (scan, pose) else {
+            counts.unplaced += 1;
+            return;
+        };
+        let item = super::map::MapItem {
+            scan,
+            pose,
+            curves: r.polylines.clone(),
+            noise: r.noise_estimate,
+            stream: stream.clone(),
+            frame,
+        };
+        let sent = if self.outputs.map_lossy {
+            match tx.try_send(item) {
+                Ok(()) => true,
+                Err(crossbeam_channel::TrySendError::Full(_)) => {
+                    counts.behind += 1;
+                    true
+                }
+                Err(crossbeam_channel::TrySendError::Disconnected(_)) => false,
+            }
+        } else {
+            tx.send(item).is_ok()
+        };
+        if !sent {
+            // The map stage has ended on an error, which the run reports.
+            self.outputs.map = None;
+        }
+    }
+
     /// Counts a reconstructed frame in the run's summary and puts its latency in its
     /// record.
     fn tally_frame(&mut self, rec: &mut ResultRecord, r: &Reconstruction, arrived: Instant) {
@@ -830,8 +892,14 @@ impl Exporter {
             mut summary,
             tally,
             first,
+            map_counts,
             ..
         } = self;
+        summary.map = map_counts.map(|c| super::map::MapReport {
+            unplaced: c.unplaced,
+            behind: c.behind,
+            ..Default::default()
+        });
         outputs.sink.finish()?;
         summary.seconds = first.map_or(0.0, |f| f.elapsed().as_secs_f64());
         if summary.seconds > 0.0 {
@@ -927,6 +995,7 @@ mod tests {
             t: None,
             arrived: Instant::now(),
             receipt: None,
+            scan: None,
             work: if live {
                 Work::Input(Default::default())
             } else {

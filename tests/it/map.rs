@@ -152,3 +152,45 @@ fn frames_without_poses_make_no_map_and_say_why() {
     assert!(err.contains("2 without a pose"), "{err}");
     assert!(!dir.path().join("m.geojson").exists());
 }
+
+/// Without `-o`, the configuration's `[map] output` (relative to its folder) is written;
+/// with neither, the command says what it lacks and writes nothing.
+#[test]
+fn the_configuration_names_the_map_when_the_command_line_does_not() {
+    let dir = tempfile::tempdir().unwrap();
+    let frames = dir.path().join("f.ndjson");
+    ok(&[
+        "synth",
+        "room",
+        "--frames",
+        "6",
+        "--motion",
+        "0.1",
+        "-o",
+        p(&frames),
+    ]);
+    let sub = dir.path().join("cfg");
+    std::fs::create_dir(&sub).unwrap();
+    let cfg = sub.join("map.toml");
+    std::fs::write(
+        &cfg,
+        "[map]\noutput = [\"m.geojson\", \"m.ndjson\"]\nevery = 2\n",
+    )
+    .unwrap();
+    ok(&["map", p(&frames), "-c", p(&cfg), "-q"]);
+    let r: serde_json::Value = serde_json::from_str(
+        std::fs::read_to_string(sub.join("m.ndjson"))
+            .unwrap()
+            .trim(),
+    )
+    .unwrap();
+    assert_eq!(r["frame"], 6);
+    assert!(sub.join("m.geojson").exists());
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_isoline"))
+        .args(["map", p(&frames), "-q"])
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("give -o MAP"), "{err}");
+}

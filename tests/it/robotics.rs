@@ -953,3 +953,138 @@ fn a_lingering_live_view_shows_the_last_frame_after_the_recording_ends() {
     assert!(ok.success());
     assert!(child.wait().unwrap().success());
 }
+
+/// Distance from `q` to the nearest segment of `walls`.
+fn to_walls(q: [f64; 2], walls: &[Vec<[f64; 2]>]) -> f64 {
+    let mut best = f64::INFINITY;
+    for w in walls {
+        for s in w.windows(2) {
+            let (a, b) = (s[0], s[1]);
+            let d = [b[0] - a[0], b[1] - a[1]];
+            let l2 = d[0] * d[0] + d[1] * d[1];
+            let t = if l2 > 0.0 {
+                (((q[0] - a[0]) * d[0] + (q[1] - a[1]) * d[1]) / l2).clamp(0.0, 1.0)
+            } else {
+                0.0
+            };
+            best = best.min((q[0] - a[0] - t * d[0]).hypot(q[1] - a[1] - t * d[1]));
+        }
+    }
+    best
+}
+
+/// The daemon's map (`[map] output`) from a bag replayed at 40 scans a second: written
+/// whole every 15 scans while the run goes on (a reader polling the file sees it grow
+/// and never half a file), and at the end near the room's walls; the live view shows
+/// it to a viewer in frame `map`.
+#[test]
+fn the_daemon_writes_the_map_as_it_grows_and_shows_it_live() {
+    use foxglove::messages::SceneUpdate;
+    use foxglove::Decode;
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let n = 120;
+    let sim = simulate(d, n, 0.1);
+    let bag = d.join("robot.mcap");
+    write_bag(&bag, &sim, |_, b| b);
+    let cfg = d.join("map.toml");
+    std::fs::write(
+        &cfg,
+        format!(
+            "[input]\npath = {bag:?}\nodometry = \"/odom\"\nreplay = 40\n[output]\npath = \"out.ndjson\"\n\
+             [map]\noutput = [\"map.ndjson\", \"map.geojson\"]\nevery = 15\n\
+             [live]\nbind = \"127.0.0.1:0\"\nlinger = true\n"
+        ),
+    )
+    .unwrap();
+    let mut child = Command::new(env!("CARGO_BIN_EXE_isoline"))
+        .args(["run", "-c", p(&cfg)])
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let stderr = BufReader::new(child.stderr.take().unwrap());
+    let (tx, lines) = std::sync::mpsc::channel();
+    std::thread::spawn(move || {
+        for l in stderr.lines().map_while(Result::ok) {
+            let _ = tx.send(l);
+        }
+    });
+    // Poll the map while the scans come in: every read is one whole record.
+    let mut seen = BTreeSet::new();
+    let (mut addr, mut summary) = (None, String::new());
+    let deadline = Instant::now() + Duration::from_secs(120);
+    while summary.is_empty() {
+        assert!(Instant::now() < deadline, "the run did not end");
+        if let Ok(text) = std::fs::read_to_string(d.join("map.ndjson")) {
+            let r: Value = serde_json::from_str(text.trim()).expect("a whole record");
+            seen.insert(r["frame"].as_u64().unwrap());
+        }
+        for l in lines.try_iter() {
+            if let Some(rest) = l.split("live view on ws://").nth(1) {
+                addr = Some(rest.split_whitespace().next().unwrap().to_string());
+            }
+            if l.contains("map of") {
+                summary = l;
+            }
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    let last: Value = serde_json::from_str(
+        std::fs::read_to_string(d.join("map.ndjson"))
+            .unwrap()
+            .trim(),
+    )
+    .unwrap();
+    assert_eq!(last["frame"], n as u64, "{summary}");
+    assert!(
+        seen.iter().filter(|&&s| s < n as u64).count() >= 3,
+        "the map was seen growing: {seen:?}"
+    );
+    assert!(
+        summary.contains(&format!("map of {n} scans (0 unplaced, 0 passed by)")),
+        "{summary}"
+    );
+    // Near the walls: 3 sigma + 2 cells.
+    let truth: Value = serde_json::from_str(&std::fs::read_to_string(&sim.truth).unwrap()).unwrap();
+    let walls: Vec<Vec<[f64; 2]>> = truth["scene"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|pl| serde_json::from_value(pl["points"].clone()).unwrap())
+        .collect();
+    let geo: Value =
+        serde_json::from_str(&std::fs::read_to_string(d.join("map.geojson")).unwrap()).unwrap();
+    let mut length = 0.0;
+    for f in geo["features"].as_array().unwrap() {
+        let piece: Vec<[f64; 2]> =
+            serde_json::from_value(f["geometry"]["coordinates"].clone()).unwrap();
+        for q in &piece {
+            let d = to_walls(*q, &walls);
+            assert!(
+                d <= 3.0 * 0.01 + 2.0 * 0.03,
+                "{q:?} is {d} m from every wall"
+            );
+        }
+        length += f["properties"]["length"].as_f64().unwrap();
+    }
+    assert!(length > 20.0, "{length} m of map");
+    // The live view kept the map for a viewer that connects after the run.
+    let got = watch(
+        &addr.expect("the live view's address"),
+        &["/isoline/curves"],
+        Instant::now() + Duration::from_millis(1500),
+    );
+    let map = got
+        .iter()
+        .filter(|(t, _)| t == "/isoline/curves")
+        .map(|(_, b)| SceneUpdate::decode(b.as_slice()).unwrap())
+        .find(|s| s.entities.iter().any(|e| e.frame_id == "map"))
+        .expect("the map in the live view");
+    assert!(!map.entities[0].lines.is_empty());
+    let ok = Command::new("kill")
+        .args(["-TERM", &child.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(ok.success());
+    assert!(child.wait().unwrap().success());
+}

@@ -63,6 +63,40 @@ pub struct MapConfig {
     pub max_tiles: Option<usize>,
     /// Lay each scan onto the map before fusing it. Default true.
     pub align: Option<bool>,
+    /// The map's files, one path or a list (the extension picks the format: .geojson,
+    /// .svg, .ndjson, .json, .mcap), relative to the configuration file's folder. The
+    /// daemon maps the scans of its streams only when this is set; `isoline map` writes
+    /// here when it has no `-o`.
+    pub output: Option<OneOrMore>,
+    /// Write the map every this many scans as it grows, in `0..=2^32` (0: only at the
+    /// end). Default 0 for `isoline map`, 100 for the daemon.
+    pub every: Option<u64>,
+    /// Also write it when this many seconds have passed since the last write, in
+    /// `[0.001, 1e6]` (the daemon only; checked as scans come in). Default: not by time.
+    pub every_seconds: Option<f64>,
+    /// Where tiles beyond `max_tiles` go, a folder. Default: a temporary folder in the
+    /// system's.
+    pub spill: Option<std::path::PathBuf>,
+}
+
+/// One path, or a list of them.
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(untagged)]
+pub enum OneOrMore {
+    /// `key = "a.geojson"`.
+    One(std::path::PathBuf),
+    /// `key = ["a.geojson", "a.svg"]`.
+    More(Vec<std::path::PathBuf>),
+}
+
+impl OneOrMore {
+    /// The paths, in order.
+    pub fn paths(&self) -> Vec<std::path::PathBuf> {
+        match self {
+            OneOrMore::One(p) => vec![p.clone()],
+            OneOrMore::More(v) => v.clone(),
+        }
+    }
 }
 
 impl MapConfig {
@@ -79,7 +113,33 @@ impl MapConfig {
             max_tiles: self.max_tiles.unwrap_or(d.max_tiles),
             align: self.align.unwrap_or(d.align),
         };
-        p.validate().map(|()| p)
+        let mut problems = p.validate().err().unwrap_or_default();
+        for o in self.output.iter().flat_map(OneOrMore::paths) {
+            if crate::write::map::MapFormat::of(&o).is_none() {
+                problems.push(format!(
+                    "map.output = {:?}: a map is written as {}",
+                    o.display().to_string(),
+                    crate::write::map::MAP_EXTENSIONS
+                ));
+            }
+        }
+        if matches!(&self.output, Some(OneOrMore::More(v)) if v.is_empty()) {
+            problems.push("map.output = []: name at least one file, or leave it out".into());
+        }
+        if self.every.is_some_and(|n| n > 1 << 32) {
+            problems.push(format!(
+                "map.every = {}: must be in 0..=2^32 scans",
+                self.every.unwrap_or(0)
+            ));
+        }
+        if let Some(s) = self.every_seconds.filter(|s| !(0.001..=1e6).contains(s)) {
+            problems.push(format!("map.every_seconds = {s}: must be in [0.001, 1e6]"));
+        }
+        if problems.is_empty() {
+            Ok(p)
+        } else {
+            Err(problems)
+        }
     }
 }
 
