@@ -18,7 +18,8 @@ use isoline_sim::{self as synth, Shape, SynthParams};
 pub struct Args {
     /// A shape (circle, ellipse, square, star, c, two-circles, annulus, spiral, bays:
     /// points around closed curves; strokes: points along open strokes that meet) or a
-    /// scene seen by a laser scanner (room, corridor, clutter).
+    /// scene seen by a laser scanner (room, corridor, clutter; loop: a 926 m corridor
+    /// loop with rooms, for long drives).
     what: String,
     /// Shapes: points per frame.
     #[arg(long, default_value_t = 2000)]

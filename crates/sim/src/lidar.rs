@@ -225,11 +225,20 @@ pub enum SceneKind {
     Corridor,
     /// The room with two pillars, a table's four legs and a person's two legs.
     Clutter,
+    /// A building's floor for long drives: a corridor 3 m wide round a loop of 926 m
+    /// (two straights of 400 m joined by half turns), with a doorway every 50 m into a
+    /// room of 6 x 4 m.
+    Loop,
 }
 
 impl SceneKind {
     /// Every scene.
-    pub const ALL: [SceneKind; 3] = [SceneKind::Room, SceneKind::Corridor, SceneKind::Clutter];
+    pub const ALL: [SceneKind; 4] = [
+        SceneKind::Room,
+        SceneKind::Corridor,
+        SceneKind::Clutter,
+        SceneKind::Loop,
+    ];
 
     /// The command-line name.
     pub fn name(self) -> &'static str {
@@ -237,6 +246,7 @@ impl SceneKind {
             SceneKind::Room => "room",
             SceneKind::Corridor => "corridor",
             SceneKind::Clutter => "clutter",
+            SceneKind::Loop => "loop",
         }
     }
 
@@ -355,6 +365,7 @@ impl Scene {
                     walk: ([1.0, 4.0], [7.0, 4.0]),
                 }
             }
+            SceneKind::Loop => Scene::floor_loop(),
             SceneKind::Corridor => {
                 // Openings 1.0-1.2 m wide: two in the upper wall, one in the lower.
                 add_wall([0.0, 0.0], [20.0, 0.0], &[(8.5 / 20.0, 9.5 / 20.0)]);
@@ -392,6 +403,71 @@ impl Scene {
                     },
                 }
             }
+        }
+    }
+
+    /// [`SceneKind::Loop`]: the corridor's walls 1.5 m either side of the path, the
+    /// half turns' walls as 48-gons (their chords are the truth, as every wall's is).
+    fn floor_loop() -> Scene {
+        const LENGTH: f64 = 400.0;
+        const RADIUS: f64 = 20.0;
+        const HALF_WIDTH: f64 = 1.5;
+        const DOOR_EVERY: f64 = 50.0;
+        let mut surfaces = Vec::new();
+        let mut openings = Vec::new();
+        let doors: Vec<(f64, f64)> = (0..(LENGTH / DOOR_EVERY) as usize)
+            .map(|k| {
+                let x = (k as f64 + 0.5) * DOOR_EVERY;
+                ((x - 0.5) / LENGTH, (x + 0.5) / LENGTH)
+            })
+            .collect();
+        let top = 2.0 * RADIUS;
+        // The outer walls, with doorways into rooms beyond them; the inner walls whole.
+        for (y_wall, room_far) in [
+            (-HALF_WIDTH, -HALF_WIDTH - 4.0),
+            (top + HALF_WIDTH, top + HALF_WIDTH + 4.0),
+        ] {
+            let (w, o) = wall_with_doors([0.0, y_wall], [LENGTH, y_wall], &doors);
+            surfaces.extend(w);
+            openings.extend(o);
+            for &(d0, _) in &doors {
+                let x = d0 * LENGTH + 0.5;
+                surfaces.push(Surface::Wall([x - 3.0, y_wall], [x - 3.0, room_far]));
+                surfaces.push(Surface::Wall([x - 3.0, room_far], [x + 3.0, room_far]));
+                surfaces.push(Surface::Wall([x + 3.0, room_far], [x + 3.0, y_wall]));
+            }
+        }
+        surfaces.push(Surface::Wall([0.0, HALF_WIDTH], [LENGTH, HALF_WIDTH]));
+        surfaces.push(Surface::Wall(
+            [0.0, top - HALF_WIDTH],
+            [LENGTH, top - HALF_WIDTH],
+        ));
+        // The half turns: right round (LENGTH, RADIUS) from below, left round (0, RADIUS)
+        // from above.
+        const SIDES: usize = 48;
+        for (cx, from) in [(LENGTH, -PI / 2.0), (0.0, PI / 2.0)] {
+            for r in [RADIUS - HALF_WIDTH, RADIUS + HALF_WIDTH] {
+                let at = |k: usize| {
+                    let a = from + PI * k as f64 / SIDES as f64;
+                    [cx + r * a.cos(), RADIUS + r * a.sin()]
+                };
+                for k in 0..SIDES {
+                    surfaces.push(Surface::Wall(at(k), at(k + 1)));
+                }
+            }
+        }
+        Scene {
+            surfaces,
+            openings,
+            home: [10.0, 0.0, 0.0],
+            path: Path::Stadium {
+                x0: 0.0,
+                x1: LENGTH,
+                y0: 0.0,
+                y1: top,
+            },
+            // Along the lower straight, 0.8 m beside the path.
+            walk: ([100.0, 0.8], [140.0, 0.8]),
         }
     }
 

@@ -28,6 +28,8 @@ mod tile;
 
 use std::collections::HashMap;
 
+use rustc_hash::FxHashMap;
+
 use crate::error::{Error, Result};
 use crate::geom::{to_world, Point, Polyline, Pose};
 use crate::scan::Scan;
@@ -203,14 +205,14 @@ pub struct MapStats {
 /// ```
 pub struct Map {
     params: MapParams,
-    tiles: HashMap<Key, Tile>,
+    tiles: FxHashMap<Key, Tile>,
     /// Tiles in the store: their first row and column, and the curve pieces they held.
-    stored: HashMap<Key, (Border, Vec<extract::Piece>)>,
+    stored: FxHashMap<Key, (Border, Vec<extract::Piece>)>,
     store: Box<dyn TileStore>,
     scans: u64,
     spills: u64,
     /// The scan being fused: its signed distances, nearest first (reused).
-    scratch: HashMap<(i64, i64), f32>,
+    scratch: FxHashMap<(i64, i64), f32>,
     score: score::Tally,
 }
 
@@ -238,12 +240,12 @@ impl Map {
         })?;
         Ok(Map {
             params,
-            tiles: HashMap::new(),
-            stored: HashMap::new(),
+            tiles: FxHashMap::default(),
+            stored: FxHashMap::default(),
             store,
             scans: 0,
             spills: 0,
-            scratch: HashMap::new(),
+            scratch: FxHashMap::default(),
             score: score::Tally::default(),
         })
     }
@@ -518,14 +520,11 @@ impl Map {
                 next[a] = f64::INFINITY;
             }
         }
-        let mut current: Option<Key> = None;
         let mut t = t0;
         while t <= t1 {
-            let (key, k) = locate(ij[0], ij[1], side);
-            if current != Some(key) {
-                self.load(key)?;
-                current = Some(key);
-            }
+            // The tile is looked up once for the run of samples the ray crosses in it.
+            let (key, _) = locate(ij[0], ij[1], side);
+            self.load(key)?;
             let tile = self.tiles.get_mut(&key).expect("loaded above");
             tile.seen = self.scans;
             let mut view = TileView {
@@ -534,11 +533,17 @@ impl Map {
                 side,
                 cell,
             };
-            f(&mut view, k);
-            let a = if next[0] < next[1] { 0 } else { 1 };
-            t = next[a];
-            next[a] += delta[a];
-            ij[a] += steps[a];
+            while t <= t1 {
+                let (here, k) = locate(ij[0], ij[1], side);
+                if here != key {
+                    break;
+                }
+                f(&mut view, k);
+                let a = if next[0] < next[1] { 0 } else { 1 };
+                t = next[a];
+                next[a] += delta[a];
+                ij[a] += steps[a];
+            }
         }
         Ok(())
     }
