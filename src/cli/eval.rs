@@ -24,14 +24,22 @@ pub struct Args {
     #[arg(long)]
     frames: Option<PathBuf>,
     /// Tolerance of the scan-aware scores; default three times the truth's range noise
-    /// (5 cm without one).
+    /// (5 cm without one). With --map: the hit tolerance (default 5 cm).
     #[arg(long)]
     tolerance: Option<f64>,
+    /// The curves are a world-frame map (`isoline map`'s record, or any GeoJSON of
+    /// LineStrings): scored by the votes of every scan in --frames placed by its pose,
+    /// and, with --truth, against the scene's walls.
+    #[arg(long)]
+    map: bool,
 }
 
 /// Prints the accuracy as JSON: one object, or the worst Hausdorff distance and one
 /// object per frame.
 pub fn run(a: Args) -> Result<()> {
+    if a.map {
+        return run_map(&a);
+    }
     let Some(truth_path) = &a.truth else {
         return run_without_truth(&a);
     };
@@ -114,6 +122,135 @@ pub fn run(a: Args) -> Result<()> {
         v
     };
     super::print(&format!("{out}\n"))
+}
+
+/// A world-frame map scored as [`isoline_core::MapScores`] says, by the votes of the
+/// recording's scans (placed by their poses, not aligned: the map is judged where the
+/// poses put the returns); with truth, also its distance to the scene's walls and its
+/// cover of the walls the scans saw.
+fn run_map(a: &Args) -> Result<()> {
+    let Some(frames_path) = &a.frames else {
+        bail!("--map needs --frames: the recording whose scans score the map");
+    };
+    let tol = a.tolerance.unwrap_or(0.05);
+    if !(tol.is_finite() && tol > 0.0) {
+        bail!("--tolerance {tol}: must be a positive number");
+    }
+    let curves = read_map(&a.recon)?;
+    let params = isoline_core::MapParams {
+        align: false,
+        hit_tolerance: tol,
+        ..Default::default()
+    };
+    let store = isoline_io::DiskTiles::new(None)
+        .context("creating the directory for tiles that leave memory")?;
+    let mut map = isoline_core::Map::new(params.clone(), Box::new(store))?;
+    // The walls the scans saw, from their returns on a lattice of half the tolerance
+    // (memory grows with the area seen, not with the scans).
+    let q = 0.5 * tol;
+    let mut seen: std::collections::HashSet<(i64, i64)> = Default::default();
+    let (mut scans, mut unplaced) = (0u64, 0u64);
+    let mut failure = None;
+    isoline_io::for_each_item(frames_path, &Default::default(), |item| {
+        let Ok(f) = item else {
+            unplaced += 1;
+            return true;
+        };
+        let (Some(scan), Some(pose)) = (&f.scan, f.pose) else {
+            unplaced += 1;
+            return true;
+        };
+        if let Err(e) = map.insert(scan, pose, &[], 0.0) {
+            failure = Some(e);
+            return false;
+        }
+        scans += 1;
+        if a.truth.is_some() {
+            // Returns beyond the map's reach are not evidence it could have drawn from.
+            let reach = params.max_range;
+            for p in scan.returns() {
+                if isoline_core::geom::dist(p, scan.origin) > reach {
+                    continue;
+                }
+                let w = isoline_core::geom::to_world(pose, p);
+                seen.insert(((w[0] / q).round() as i64, (w[1] / q).round() as i64));
+            }
+        }
+        true
+    })
+    .with_context(|| format!("reading {}", frames_path.display()))?;
+    if let Some(e) = failure {
+        return Err(e.into());
+    }
+    if scans == 0 {
+        bail!(
+            "{}: no scan with a pose to score the map by ({unplaced} frames without)",
+            frames_path.display()
+        );
+    }
+    let s = map.score(&curves)?;
+    let mut out = json!({
+        "tolerance": tol, "scans": scans, "unplaced": unplaced,
+        "returns_scored": s.returns_scored, "static_share": s.static_share,
+        "static_within": s.static_within, "seen_through": s.seen_through,
+        "length": s.length, "pieces": s.pieces,
+    });
+    if let Some(truth_path) = &a.truth {
+        let truth: TruthFile = serde_json::from_str(&super::read(truth_path)?)
+            .with_context(|| format!("{}: not a truth file", truth_path.display()))?;
+        let Some(scene) = truth.scene else {
+            bail!(
+                "{}: no \"scene\" to score a map against",
+                truth_path.display()
+            );
+        };
+        let walls: Vec<Polyline> = scene.into_iter().map(Into::into).collect();
+        let sigma = truth.sensor.as_ref().map_or(0.01, |s| s.range_noise);
+        let cell = isoline_core::MapParams::default().cell;
+        let bound = 3.0 * sigma + 2.0 * cell;
+        let returns: Vec<Point> = seen
+            .iter()
+            .map(|&(i, j)| [i as f64 * q, j as f64 * q])
+            .collect();
+        let m = eval::map_accuracy(&curves, &walls, &returns, tol, bound, 0.5 * cell);
+        out["truth"] = json!({
+            "bound": bound,
+            "to_walls_max": m.to_walls_max, "to_walls_p95": m.to_walls_p95,
+            "to_walls_mean": m.to_walls_mean, "within_bound": m.within_bound,
+            "walls_seen": m.walls_seen, "walls_seen_covered": m.walls_seen_covered,
+        });
+    }
+    super::print(&format!("{out}\n"))
+}
+
+/// A map's curves: a GeoJSON FeatureCollection of LineStrings (or MultiLineStrings), or
+/// the one result record of `isoline map` (the last, if the file holds several).
+fn read_map(path: &Path) -> Result<Vec<Polyline>> {
+    let text = super::read(path)?;
+    let v: Option<serde_json::Value> = serde_json::from_str(&text).ok();
+    if let Some(features) = v.as_ref().and_then(|v| v["features"].as_array()) {
+        let mut out = Vec::new();
+        for f in features {
+            let g = &f["geometry"];
+            let lines: Vec<Vec<Point>> = match g["type"].as_str() {
+                Some("LineString") => vec![serde_json::from_value(g["coordinates"].clone())?],
+                Some("MultiLineString") => serde_json::from_value(g["coordinates"].clone())?,
+                _ => continue,
+            };
+            for points in lines {
+                // A ring repeats its first point.
+                let closed = points.len() > 3 && points.first() == points.last();
+                let mut points = points;
+                if closed {
+                    points.pop();
+                }
+                out.push(Polyline { closed, points });
+            }
+        }
+        return Ok(out);
+    }
+    let records = read_polyline_records(path)?;
+    Ok(records.into_iter().last().map(|r| r.1).unwrap_or_default())
 }
 
 /// Scores from the scans alone: per frame, the returns within the tolerance of a curve

@@ -119,6 +119,31 @@ fn a_drive_through_the_room_is_one_map_near_the_walls_without_the_person() {
     assert_eq!(r["stream"], "map");
     assert_eq!(r["polylines"].as_array().unwrap().len(), pieces.len());
     assert!(std::fs::read_to_string(&svg).unwrap().starts_with("<svg"));
+    // `isoline eval --map` scores the GeoJSON (as it would another tool's) by the same
+    // votes, from the poses alone, and against the scene: all of it within the bound.
+    let out = ok(&[
+        "eval",
+        p(&geo),
+        "--map",
+        "--frames",
+        p(&frames),
+        "--truth",
+        p(&dir.path().join("t.json")),
+    ]);
+    let e: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(e["scans"], 100);
+    assert!(e["static_within"].as_f64().unwrap() >= 0.95, "{e}");
+    assert!(e["seen_through"].as_f64().unwrap() <= 0.01, "{e}");
+    assert!(
+        (e["length"].as_f64().unwrap() - length).abs() < 0.01 * length,
+        "{e}"
+    );
+    let t = &e["truth"];
+    assert_eq!(t["bound"].as_f64().unwrap(), bound, "{e}");
+    assert_eq!(t["within_bound"].as_f64().unwrap(), 1.0, "{e}");
+    assert!(t["to_walls_max"].as_f64().unwrap() <= bound, "{e}");
+    // The room's walls were seen round the drive, and the map draws nearly all of them.
+    assert!(t["walls_seen_covered"].as_f64().unwrap() >= 0.9, "{e}");
 }
 
 #[test]

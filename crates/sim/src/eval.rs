@@ -429,3 +429,67 @@ mod tests {
         assert_eq!((none.hausdorff, none.components_recon), (None, 0));
     }
 }
+
+/// A world-frame map against the scene it was drawn from ([`map_accuracy`]).
+#[derive(Clone, Debug, PartialEq)]
+pub struct MapAccuracy {
+    /// Distances from the map (sampled a `step` apart) to the nearest wall: the
+    /// largest, the 95th percentile and the length-weighted mean.
+    pub to_walls_max: f64,
+    /// See [`MapAccuracy::to_walls_max`].
+    pub to_walls_p95: f64,
+    /// See [`MapAccuracy::to_walls_max`].
+    pub to_walls_mean: f64,
+    /// Share of the map's length within `bound` of a wall.
+    pub within_bound: f64,
+    /// Length of the walls the scans saw (a return within `seen` of them), metres.
+    pub walls_seen: f64,
+    /// Share of that length within `bound` of the map.
+    pub walls_seen_covered: f64,
+}
+
+/// How near a world-frame `map` lies to the scene's `walls`, and how much of the walls
+/// the scans saw it draws: `returns` are the scans' returns placed in the world (a
+/// sample does), a wall stretch is seen when one lies within `seen` of it, and a
+/// stretch is covered, or a stretch of map near, within `bound`. Walls and map are
+/// sampled `step` apart.
+pub fn map_accuracy(
+    map: &[Polyline],
+    walls: &[Polyline],
+    returns: &[Point],
+    seen: f64,
+    bound: f64,
+    step: f64,
+) -> MapAccuracy {
+    let wall_index = SegmentIndex::new(walls);
+    let map_index = SegmentIndex::new(map);
+    let mut to_walls: Vec<(f64, f64)> = samples(map, step)
+        .par_iter()
+        .map(|&(p, w)| (wall_index.distance(p), w))
+        .collect();
+    to_walls.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let length: f64 = to_walls.iter().map(|x| x.1).sum();
+    let near: f64 = to_walls.iter().filter(|x| x.0 <= bound).map(|x| x.1).sum();
+    let p95 = to_walls
+        .get((to_walls.len() as f64 * 0.95) as usize)
+        .or(to_walls.last())
+        .map_or(0.0, |x| x.0);
+    let hits = isoline_core::DistanceField::new(returns).ok();
+    let (seen_len, covered) = samples(walls, step)
+        .par_iter()
+        .filter(|&&(p, _)| hits.as_ref().is_some_and(|h| h.distance(p) <= seen))
+        .map(|&(p, w)| {
+            let c = !map_index.is_empty() && map_index.distance(p) <= bound;
+            (w, if c { w } else { 0.0 })
+        })
+        .reduce(|| (0.0, 0.0), |a, b| (a.0 + b.0, a.1 + b.1));
+    let ratio = |a: f64, b: f64| if b > 0.0 { a / b } else { 0.0 };
+    MapAccuracy {
+        to_walls_max: to_walls.last().map_or(0.0, |x| x.0),
+        to_walls_p95: p95,
+        to_walls_mean: ratio(to_walls.iter().map(|x| x.0 * x.1).sum(), length),
+        within_bound: ratio(near, length),
+        walls_seen: seen_len,
+        walls_seen_covered: ratio(covered, seen_len),
+    }
+}

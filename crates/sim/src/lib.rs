@@ -26,7 +26,7 @@ pub mod lidar;
 mod shapes;
 
 pub use eval::{
-    compare, compare_surfaces, data_scores, scan_scores, Accuracy, DataScores, ScanScores,
-    PHANTOM_REACH,
+    compare, compare_surfaces, data_scores, map_accuracy, scan_scores, Accuracy, DataScores,
+    MapAccuracy, ScanScores, PHANTOM_REACH,
 };
 pub use shapes::{generate, Shape, SynthFrame, SynthParams};

@@ -710,6 +710,14 @@ impl Map {
         Ok((curves, scores))
     }
 
+    /// The scores of [`MapScores`] for any `curves` in the world frame, by the votes
+    /// this map's scans cast: how a map drawn elsewhere (another tool, an earlier run)
+    /// fares on this run's evidence. Insert the scans with no curves to gather the
+    /// votes alone. The union's scores are those of the curves inserted.
+    pub fn score(&mut self, curves: &[Polyline]) -> Result<MapScores> {
+        score::scores(self, curves)
+    }
+
     fn evict_one_other_than(&mut self, keep: Key) -> Result<()> {
         let Some((&key, _)) = self
             .tiles
