@@ -73,6 +73,27 @@ struct Run<'a> {
     outputs: &'a [PathBuf],
     every: u64,
     since_write: u64,
+    /// Each block of [`BLOCK`] scans: what it cost and what memory held at its end.
+    blocks: Vec<Block>,
+    block: Block,
+}
+
+/// Scans a row of the summary's `blocks` covers.
+const BLOCK: u64 = 1000;
+
+/// A block of scans in the summary: whether time per scan and memory stay flat.
+#[derive(Clone, Debug, Default, serde::Serialize)]
+struct Block {
+    /// Scans fused in the block.
+    scans: u64,
+    /// Milliseconds a scan: reconstruction (its batch's share) and fusion.
+    reconstruct_ms: f64,
+    fuse_ms: f64,
+    /// At the block's end: tiles in memory and in the store, and the process's
+    /// resident memory, bytes.
+    tiles_resident: usize,
+    tiles_stored: usize,
+    resident_bytes: Option<u64>,
 }
 
 /// Builds the map and writes it; fails when no scan could be placed.
@@ -133,6 +154,8 @@ pub fn run(mut a: Args) -> Result<()> {
         outputs: &a.output,
         every,
         since_write: 0,
+        blocks: Vec::new(),
+        block: Block::default(),
     };
     let mut batch: Vec<(Scan, Pose)> = Vec::with_capacity(BATCH);
     let mut failure: Option<anyhow::Error> = None;
@@ -154,6 +177,7 @@ pub fn run(mut a: Args) -> Result<()> {
         return Err(e);
     }
     run.fuse(&mut batch)?;
+    run.close_block();
     show(&bar, &run, start);
     let stats = run.map.stats();
     if stats.scans == 0 {
@@ -233,13 +257,22 @@ impl Run<'_> {
             .par_iter()
             .map(|(scan, _)| isoline_core::reconstruct_scan(scan, params))
             .collect();
-        self.reconstruct_s += t.elapsed().as_secs_f64();
+        let reconstruct = t.elapsed().as_secs_f64();
+        self.reconstruct_s += reconstruct;
+        let each = 1e3 * reconstruct / batch.len().max(1) as f64;
         let t = Instant::now();
         for ((scan, pose), r) in batch.drain(..).zip(results) {
             match r {
                 Ok(r) => {
+                    let t = Instant::now();
                     self.map
                         .insert(&scan, pose, &r.polylines, r.noise_estimate)?;
+                    self.block.fuse_ms += 1e3 * t.elapsed().as_secs_f64();
+                    self.block.reconstruct_ms += each;
+                    self.block.scans += 1;
+                    if self.block.scans == BLOCK {
+                        self.close_block();
+                    }
                     self.poses.push([pose[0], pose[1]]);
                     self.since_write += 1;
                 }
@@ -256,6 +289,22 @@ impl Run<'_> {
         }
         self.fuse_s += t.elapsed().as_secs_f64();
         Ok(())
+    }
+}
+
+impl Run<'_> {
+    /// Ends the block of scans under way (sums become means a scan).
+    fn close_block(&mut self) {
+        let mut b = std::mem::take(&mut self.block);
+        if b.scans == 0 {
+            return;
+        }
+        b.reconstruct_ms /= b.scans as f64;
+        b.fuse_ms /= b.scans as f64;
+        let s = self.map.stats();
+        (b.tiles_resident, b.tiles_stored) = (s.tiles_resident, s.tiles_stored);
+        b.resident_bytes = memory("VmRSS:");
+        self.blocks.push(b);
     }
 }
 
@@ -293,8 +342,13 @@ fn write_all(outputs: &[PathBuf], curves: &[Polyline], poses: &[Point], scans: u
 
 /// The process's peak resident memory, bytes, where the system says (Linux).
 fn peak_memory() -> Option<u64> {
+    memory("VmHWM:")
+}
+
+/// A memory figure of `/proc/self/status` (`VmHWM:` the peak, `VmRSS:` now), bytes.
+fn memory(field: &str) -> Option<u64> {
     let status = std::fs::read_to_string("/proc/self/status").ok()?;
-    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
+    let line = status.lines().find(|l| l.starts_with(field))?;
     let kb: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
     Some(kb * 1024)
 }
@@ -324,6 +378,7 @@ fn summary(
             "finish": 1e3 * finish_s / n,
         },
         "peak_memory_bytes": peak_memory(),
+        "blocks": run.blocks,
         "tiles": {
             "resident": stats.tiles_resident,
             "stored": stats.tiles_stored,
