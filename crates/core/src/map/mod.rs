@@ -213,6 +213,8 @@ pub struct Map {
     spills: u64,
     /// The scan being fused: its signed distances, nearest first (reused).
     scratch: FxHashMap<(i64, i64), f32>,
+    /// The same, by tile (reused).
+    cells: Vec<(Key, usize, f32)>,
     score: score::Tally,
 }
 
@@ -246,6 +248,7 @@ impl Map {
             scans: 0,
             spills: 0,
             scratch: FxHashMap::default(),
+            cells: Vec::new(),
             score: score::Tally::default(),
         })
     }
@@ -446,8 +449,7 @@ impl Map {
                     dir,
                     (r - tol - cell).max(0.0),
                     r + tol + cell,
-                    |t, k| {
-                        let along = t.along(k, origin, dir);
+                    |t, k, along| {
                         if (along - r).abs() <= tol && t.stamp[k] != id {
                             t.stamp[k] = id;
                             t.occ[k] = (t.occ[k] + HIT).min(OCC_MAX);
@@ -468,8 +470,7 @@ impl Map {
             } else {
                 reach
             };
-            self.walk(origin, dir, 0.0, end, |t, k| {
-                let along = t.along(k, origin, dir);
+            self.walk(origin, dir, 0.0, end, |t, k, along| {
                 if along < end && t.stamp[k] != id {
                     t.stamp[k] = id;
                     t.occ[k] = (t.occ[k] + MISS).max(OCC_MIN);
@@ -482,14 +483,15 @@ impl Map {
     }
 
     /// Calls `f` on every sample whose square the ray `origin + t dir`, `t` in
-    /// `[t0, t1]`, crosses (Amanatides & Woo's traversal), creating or loading tiles.
+    /// `[t0, t1]`, crosses (Amanatides & Woo's traversal), with the sample's index in
+    /// its tile and its centre's distance along the ray; creates or loads tiles.
     fn walk(
         &mut self,
         origin: Point,
         dir: Point,
         t0: f64,
         t1: f64,
-        mut f: impl FnMut(&mut TileView<'_>, usize),
+        mut f: impl FnMut(&mut Tile, usize, f64),
     ) -> Result<()> {
         if t1.is_nan() || t0.is_nan() || t1 <= t0 {
             return Ok(());
@@ -520,29 +522,36 @@ impl Map {
                 next[a] = f64::INFINITY;
             }
         }
+        // A sample's centre along the ray, and what a step on each axis adds to it.
+        let along_of = |ij: [i64; 2]| {
+            (ij[0] as f64 * cell - origin[0]) * dir[0] + (ij[1] as f64 * cell - origin[1]) * dir[1]
+        };
+        let step_along = [
+            steps[0] as f64 * cell * dir[0],
+            steps[1] as f64 * cell * dir[1],
+        ];
+        let s = side as i64;
         let mut t = t0;
         while t <= t1 {
-            // The tile is looked up once for the run of samples the ray crosses in it.
+            // The tile is looked up once for the run of samples the ray crosses in it;
+            // within it the sample's place and distance along the ray are stepped.
             let (key, _) = locate(ij[0], ij[1], side);
             self.load(key)?;
             let tile = self.tiles.get_mut(&key).expect("loaded above");
             tile.seen = self.scans;
-            let mut view = TileView {
-                tile,
-                key,
-                side,
-                cell,
-            };
+            let mut local = [ij[0] - key.0 * s, ij[1] - key.1 * s];
+            let mut along = along_of(ij);
             while t <= t1 {
-                let (here, k) = locate(ij[0], ij[1], side);
-                if here != key {
-                    break;
-                }
-                f(&mut view, k);
+                f(tile, (local[1] * s + local[0]) as usize, along);
                 let a = if next[0] < next[1] { 0 } else { 1 };
                 t = next[a];
                 next[a] += delta[a];
                 ij[a] += steps[a];
+                local[a] += steps[a];
+                along += step_along[a];
+                if local[a] < 0 || local[a] >= s {
+                    break;
+                }
             }
         }
         Ok(())
@@ -592,8 +601,22 @@ impl Map {
                 let hi = [a[0].max(b[0]) + trunc, a[1].max(b[1]) + trunc];
                 let (i0, i1) = ((lo[0] / cell).ceil() as i64, (hi[0] / cell).floor() as i64);
                 let (j0, j1) = ((lo[1] / cell).ceil() as i64, (hi[1] / cell).floor() as i64);
+                // Each row only where it crosses the band within `trunc` of the segment's
+                // line (a long slanted wall's box is mostly far from it).
+                let reach = trunc * len2.sqrt();
                 for j in j0..=j1 {
-                    for i in i0..=i1 {
+                    let (mut r0, mut r1) = (i0, i1);
+                    if d[1].abs() > 1e-12 * len2.sqrt() {
+                        let y = j as f64 * cell - a[1];
+                        let (x0, x1) = (
+                            a[0] + (d[0] * y - reach) / d[1],
+                            a[0] + (d[0] * y + reach) / d[1],
+                        );
+                        let (x0, x1) = (x0.min(x1), x0.max(x1));
+                        r0 = r0.max((x0 / cell).floor() as i64);
+                        r1 = r1.min((x1 / cell).ceil() as i64);
+                    }
+                    for i in r0..=r1 {
                         let p = [i as f64 * cell, j as f64 * cell];
                         let w = [p[0] - a[0], p[1] - a[1]];
                         let t = (w[0] * d[0] + w[1] * d[1]) / len2;
@@ -602,7 +625,7 @@ impl Map {
                         }
                         let t = t.clamp(0.0, 1.0);
                         let q = [a[0] + t * d[0] - p[0], a[1] + t * d[1] - p[1]];
-                        let dist = q[0].hypot(q[1]);
+                        let dist = (q[0] * q[0] + q[1] * q[1]).sqrt();
                         if dist > trunc {
                             continue;
                         }
@@ -621,26 +644,27 @@ impl Map {
             }
         }
         let (side, cap) = (self.params.tile, self.params.max_weight);
-        let mut current: Option<Key> = None;
-        let mut cells: Vec<((i64, i64), f32)> = scratch.drain().collect();
-        // Tile by tile, so each tile is looked up once a run.
-        cells.sort_unstable_by_key(|&((i, j), _)| {
+        // Tile by tile, so each tile is looked up once.
+        let mut cells = std::mem::take(&mut self.cells);
+        cells.clear();
+        cells.extend(scratch.drain().map(|((i, j), sd)| {
             let (key, k) = locate(i, j, side);
-            (key, k)
-        });
-        for ((i, j), sd) in cells {
-            let (key, k) = locate(i, j, side);
-            if current != Some(key) {
-                self.load(key)?;
-                current = Some(key);
-            }
+            (key, k, sd)
+        }));
+        cells.sort_unstable_by_key(|c| c.0);
+        for run in cells.chunk_by(|a, b| a.0 == b.0) {
+            let key = run[0].0;
+            self.load(key)?;
             let t = self.tiles.get_mut(&key).expect("loaded above");
             t.seen = self.scans;
-            let w = t.weight[k];
-            t.sdf[k] += (sd - t.sdf[k]) / (f32::from(w.min(cap)) + 1.0);
-            t.weight[k] = w.saturating_add(1).min(cap);
+            for &(_, k, sd) in run {
+                let w = t.weight[k];
+                t.sdf[k] += (sd - t.sdf[k]) / (f32::from(w.min(cap)) + 1.0);
+                t.weight[k] = w.saturating_add(1).min(cap);
+            }
         }
         self.scratch = scratch;
+        self.cells = cells;
         Ok(())
     }
 
@@ -836,38 +860,6 @@ fn incidence_cosines(scan: &Scan) -> Vec<f64> {
             ((dir[0] * chord[1] - dir[1] * chord[0]) / len).abs()
         })
         .collect()
-}
-
-/// A tile under a ray, with what the votes need to place its samples.
-struct TileView<'a> {
-    tile: &'a mut Tile,
-    key: Key,
-    side: usize,
-    cell: f64,
-}
-
-impl TileView<'_> {
-    /// How far along the ray `origin + t dir` sample `k` lies.
-    fn along(&self, k: usize, origin: Point, dir: Point) -> f64 {
-        let s = self.side as i64;
-        let i = self.key.0 * s + (k % self.side) as i64;
-        let j = self.key.1 * s + (k / self.side) as i64;
-        let p = [i as f64 * self.cell, j as f64 * self.cell];
-        (p[0] - origin[0]) * dir[0] + (p[1] - origin[1]) * dir[1]
-    }
-}
-
-impl std::ops::Deref for TileView<'_> {
-    type Target = Tile;
-    fn deref(&self) -> &Tile {
-        self.tile
-    }
-}
-
-impl std::ops::DerefMut for TileView<'_> {
-    fn deref_mut(&mut self) -> &mut Tile {
-        self.tile
-    }
 }
 
 #[cfg(test)]
