@@ -22,8 +22,7 @@ for gz in "$real"/*.gz; do
   name=$(basename "$gz" .gz)
   case $name in
     *.log) name=${name%.log}; input=$gz; configs=("") ;;
-    *.ndjson) name=${name%.ndjson}; input=$dir/$name.ndjson; zcat "$gz" > "$input"
-      configs=("" "$dir/no-align.toml") ;;
+    *.ndjson) name=${name%.ndjson}; input=$gz; configs=("" "$dir/no-align.toml") ;;
     *) continue ;;
   esac
   for cfg in "${configs[@]}"; do

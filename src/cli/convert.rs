@@ -159,8 +159,17 @@ pub fn read_frames(
         bag::read_bag_with(input, opts, check, &mut *each)?;
     } else if carmen::is_carmen(input) {
         carmen::read_carmen_with(input, check, &mut *each)?;
-    } else if isoline_io::is_frame_stream(input) {
-        let text = super::read(input)?;
+    } else if isoline_io::is_frame_stream(input) || isoline_io::is_compressed_frame_stream(input) {
+        let text = if isoline_io::is_compressed_frame_stream(input) {
+            let mut text = String::new();
+            let f = std::fs::File::open(input)
+                .with_context(|| format!("reading {}", input.display()))?;
+            std::io::Read::read_to_string(&mut flate2::read::MultiGzDecoder::new(f), &mut text)
+                .with_context(|| format!("reading {}", input.display()))?;
+            text
+        } else {
+            super::read(input)?
+        };
         let name = input.display().to_string();
         for (i, line) in text.lines().enumerate() {
             if line.trim().is_empty() {
@@ -180,7 +189,7 @@ pub fn read_frames(
         }
     } else {
         bail!(
-            "{}: unknown input: not a bag (.mcap), NDJSON frames (.ndjson, .jsonl) or a CARMEN log (.log, .clf, .carmen, or lines that start with PARAM, FLASER, ...)",
+            "{}: unknown input: not a bag (.mcap), NDJSON frames (.ndjson, .jsonl, gzipped .ndjson.gz) or a CARMEN log (.log, .clf, .carmen, or lines that start with PARAM, FLASER, ...)",
             input.display()
         );
     }

@@ -129,7 +129,18 @@ pub type Item = std::result::Result<Frame, BadFrame>;
 
 /// Whether `path` names a recording (an MCAP bag or a CARMEN log) by its extension.
 pub fn is_recording(path: &Path) -> bool {
-    is_bag(path) || carmen::is_carmen(path)
+    is_bag(path) || is_compressed_frame_stream(path) || carmen::is_carmen(path)
+}
+
+/// Whether `path` names gzip-compressed NDJSON frames (`.ndjson.gz`, `.jsonl.gz`): read
+/// as a recording is, one frame at a time, a bad line an error in its place.
+pub fn is_compressed_frame_stream(path: &Path) -> bool {
+    let name = path
+        .file_name()
+        .and_then(|n| n.to_str())
+        .map(str::to_ascii_lowercase)
+        .unwrap_or_default();
+    name.ends_with(".ndjson.gz") || name.ends_with(".jsonl.gz")
 }
 
 /// Whether `path` names an MCAP file (`.mcap`).
@@ -144,6 +155,11 @@ pub fn read_items(path: &Path, bag: &bag::BagOptions) -> Result<Vec<Item>> {
     let mut items = Vec::new();
     if is_bag(path) {
         bag::read_bag(path, bag, |i| {
+            items.push(i);
+            true
+        })?;
+    } else if is_compressed_frame_stream(path) {
+        each_frame_item(path, |i| {
             items.push(i);
             true
         })?;
@@ -289,8 +305,13 @@ fn read_frame_items(path: &Path) -> Result<Vec<Item>> {
 fn each_frame_item(path: &Path, mut each: impl FnMut(Item) -> bool) -> Result<()> {
     let f = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
     let name = path.display().to_string();
+    let reader: Box<dyn std::io::BufRead> = if is_compressed_frame_stream(path) {
+        Box::new(std::io::BufReader::new(flate2::read::MultiGzDecoder::new(f)))
+    } else {
+        Box::new(std::io::BufReader::new(f))
+    };
     bounded_lines(
-        std::io::BufReader::new(f),
+        reader,
         path,
         MAX_FRAME_LINE_BYTES,
         |i, line| {
@@ -328,10 +349,10 @@ pub fn for_each_item(
 ) -> Result<()> {
     if is_bag(path) {
         bag::read_bag(path, bag, each)?;
+    } else if is_compressed_frame_stream(path) || is_frame_stream(path) {
+        each_frame_item(path, each)?;
     } else if carmen::is_carmen(path) {
         carmen::read_carmen(path, each)?;
-    } else if is_frame_stream(path) {
-        each_frame_item(path, each)?;
     } else {
         for f in read_input(path)? {
             if !each(Ok(f)) {
@@ -422,6 +443,34 @@ pub fn read_points(path: &Path, frame: Option<u64>) -> Result<Vec<Point>> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Gzipped NDJSON frames are read as a recording: frame by frame, a bad line an
+    /// error in its place, the others going on.
+    #[test]
+    fn compressed_frames_are_read_one_at_a_time() {
+        use std::io::Write;
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("scans.ndjson.gz");
+        let mut gz = flate2::write::GzEncoder::new(
+            std::fs::File::create(&path).unwrap(),
+            flate2::Compression::default(),
+        );
+        let beams = r#""angle_min":0,"angle_increment":0.1,"range_min":0.1,"range_max":10"#;
+        writeln!(gz, r#"{{"frame":0,"ranges":[1,1,1],{beams},"pose":[1,2,0]}}"#).unwrap();
+        writeln!(gz, "not json").unwrap();
+        writeln!(gz, r#"{{"frame":2,"ranges":[2,2,2],{beams}}}"#).unwrap();
+        gz.finish().unwrap();
+        assert!(is_recording(&path) && is_compressed_frame_stream(&path));
+        assert!(!carmen::is_carmen(&path) || is_compressed_frame_stream(&path));
+        let mut seen = Vec::new();
+        for_each_item(&path, &Default::default(), |i| {
+            seen.push(i.map(|f| (f.frame, f.pose.is_some())).map_err(|_| ()));
+            true
+        })
+        .unwrap();
+        assert_eq!(seen, vec![Ok((0, true)), Err(()), Ok((2, false))]);
+        assert_eq!(read_items(&path, &Default::default()).unwrap().len(), 3);
+    }
 
     #[test]
     fn errors_name_the_line() {
