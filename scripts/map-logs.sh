@@ -35,10 +35,10 @@ for gz in "$real"/*.gz; do
 done
 python3 - "${runs[@]}" <<'PY'
 import json, os, sys
-print("| recording | scans | static returns within 5 cm | map seen through | map length, pieces | scans' curves: length, seen through | ms a scan: reconstruct / fuse (CPU) | peak memory | tiles (bound) |")
+print("| recording | scans | static returns within 5 cm | map seen through | map length, pieces | scans' curves: length, seen through | CPU ms a scan: reconstruct / fuse (all) | peak memory | tiles (bound) |")
 print("|---|---:|---:|---:|---:|---:|---:|---:|---:|")
 for path in sys.argv[1:]:
-    s = json.load(open(path)); c = s["scores"]; t = s["tiles"]; ms = s["ms_per_scan"]
+    s = json.load(open(path)); c = s["scores"]; t = s["tiles"]; ms = s["cpu_ms_per_scan_by_phase"]
     name = os.path.basename(path)[:-5]
     print(f"| {name} | {s['scans']} | {100*c['static_within']:.1f}% | {100*c['seen_through']:.2f}% "
           f"| {c['length']:.0f} m, {c['pieces']} | {c['union_length']:.0f} m, {100*c['union_seen_through']:.0f}% "

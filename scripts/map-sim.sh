@@ -5,13 +5,13 @@
 # scene (a 926 m corridor with rooms: 2 km, past every stretch twice) for memory and
 # time per scan over a long run. Each map is scored by `isoline eval --map` against
 # its scene; the tables come from the summaries (target/map-sim/).
-# Usage: scripts/map-sim.sh      (QUICK=1: 60 and 300 scans)
+# Usage: scripts/map-sim.sh      (QUICK=1: 30 and 150 scans)
 set -euo pipefail
 . "$(dirname "$0")/lib.sh"
 dir=target/map-sim
 mkdir -p "$dir"
 poses=2000; long=20000
-[ "$quick" = 1 ] && { poses=60; long=300; }
+[ "$quick" = 1 ] && { poses=30; long=150; }
 runs=()
 for scene in room corridor clutter loop; do
   n=$poses; motion=0.05
@@ -39,11 +39,11 @@ for scene in room corridor clutter loop; do
 done
 python3 - "${runs[@]}" <<'PY'
 import json, os, sys
-print("| scene | scans | map within 3σ + 2 cells of the walls | largest distance to a wall | walls seen covered | static returns within 5 cm | map seen through | map length, pieces | ms a scan: reconstruct / fuse | peak memory | tiles (bound) |")
+print("| scene | scans | map within 3σ + 2 cells of the walls | largest distance to a wall | walls seen covered | static returns within 5 cm | map seen through | map length, pieces | CPU ms a scan: reconstruct / fuse | peak memory | tiles (bound) |")
 print("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
 for run in sys.argv[1:]:
     s = json.load(open(run + ".json")); e = json.load(open(run + "-eval.json"))
-    t = e["truth"]; c = s["scores"]; ms = s["ms_per_scan"]; tl = s["tiles"]
+    t = e["truth"]; c = s["scores"]; ms = s["cpu_ms_per_scan_by_phase"]; tl = s["tiles"]
     print(f"| {os.path.basename(run)} | {s['scans']} | {100*t['within_bound']:.1f}% | {100*t['to_walls_max']:.1f} cm "
           f"| {100*t['walls_seen_covered']:.1f}% | {100*c['static_within']:.1f}% | {100*c['seen_through']:.2f}% "
           f"| {c['length']:.0f} m, {c['pieces']} | {ms['reconstruct']:.2f} / {ms['fuse']:.2f} "

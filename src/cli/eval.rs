@@ -144,7 +144,7 @@ fn run_map(a: &Args) -> Result<()> {
     };
     let store = isoline_io::DiskTiles::new(None)
         .context("creating the directory for tiles that leave memory")?;
-    let mut map = isoline_core::Map::new(params.clone(), Box::new(store))?;
+    let mut map = isoline_core::Map::new(params, Box::new(store))?;
     // The walls the scans saw, from their returns on a lattice of half the tolerance
     // (memory grows with the area seen, not with the scans).
     let q = 0.5 * tol;

@@ -70,6 +70,9 @@ struct Run<'a> {
     poses: Vec<Point>,
     reconstruct_s: f64,
     fuse_s: f64,
+    /// CPU seconds (all threads) spent reconstructing and fusing.
+    reconstruct_cpu_s: f64,
+    fuse_cpu_s: f64,
     outputs: &'a [PathBuf],
     every: u64,
     since_write: u64,
@@ -86,7 +89,8 @@ const BLOCK: u64 = 1000;
 struct Block {
     /// Scans fused in the block.
     scans: u64,
-    /// Milliseconds a scan: reconstruction (its batch's share) and fusion.
+    /// Milliseconds a scan: reconstruction (its batch's share of the CPU) and fusion
+    /// (one thread).
     reconstruct_ms: f64,
     fuse_ms: f64,
     /// At the block's end: tiles in memory and in the store, and the process's
@@ -151,6 +155,8 @@ pub fn run(mut a: Args) -> Result<()> {
         poses: Vec::new(),
         reconstruct_s: 0.0,
         fuse_s: 0.0,
+        reconstruct_cpu_s: 0.0,
+        fuse_cpu_s: 0.0,
         outputs: &a.output,
         every,
         since_write: 0,
@@ -252,6 +258,9 @@ impl Run<'_> {
     /// outputs when `every` scans have come since the last write.
     fn fuse(&mut self, batch: &mut Vec<(Scan, Pose)>) -> Result<()> {
         let t = Instant::now();
+        // The process's CPU over each phase: the main thread waits for the batch, and
+        // fuses alone.
+        let cpu = cpu_time::ProcessTime::try_now().ok();
         let params = &self.params;
         let results: Vec<_> = batch
             .par_iter()
@@ -259,7 +268,14 @@ impl Run<'_> {
             .collect();
         let reconstruct = t.elapsed().as_secs_f64();
         self.reconstruct_s += reconstruct;
-        let each = 1e3 * reconstruct / batch.len().max(1) as f64;
+        let cpu_elapsed = |c: Option<cpu_time::ProcessTime>| {
+            c.and_then(|c| c.try_elapsed().ok())
+                .map_or(0.0, |d| d.as_secs_f64())
+        };
+        let batch_cpu = cpu_elapsed(cpu);
+        self.reconstruct_cpu_s += batch_cpu;
+        let cpu = cpu_time::ProcessTime::try_now().ok();
+        let each = 1e3 * batch_cpu / batch.len().max(1) as f64;
         let t = Instant::now();
         for ((scan, pose), r) in batch.drain(..).zip(results) {
             match r {
@@ -288,6 +304,7 @@ impl Run<'_> {
             }
         }
         self.fuse_s += t.elapsed().as_secs_f64();
+        self.fuse_cpu_s += cpu_elapsed(cpu);
         Ok(())
     }
 }
@@ -376,6 +393,10 @@ fn summary(
             "reconstruct": 1e3 * run.reconstruct_s / n,
             "fuse": 1e3 * run.fuse_s / n,
             "finish": 1e3 * finish_s / n,
+        },
+        "cpu_ms_per_scan_by_phase": {
+            "reconstruct": 1e3 * run.reconstruct_cpu_s / n,
+            "fuse": 1e3 * run.fuse_cpu_s / n,
         },
         "peak_memory_bytes": peak_memory(),
         "blocks": run.blocks,

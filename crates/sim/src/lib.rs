@@ -1,9 +1,10 @@
 //! isoline-sim makes data with known truth and scores results against it: digitized
 //! shapes sampled with noise, outliers and motion ([`generate`]), a 2D laser scanner
-//! ray-casting rooms, corridors and clutter from a trajectory ([`lidar`]), and the
-//! measures a user judges curves by: Hausdorff and mean distances ([`compare`]) and, for
-//! scans, returns explained, curve in free space, openings bridged and walls missed
-//! ([`scan_scores`]). Every simulator is deterministic in its seed.
+//! ray-casting rooms, corridors, clutter and a long corridor loop from a trajectory
+//! ([`lidar`]), and the measures a user judges curves by: Hausdorff and mean distances
+//! ([`compare`]), for scans returns explained, curve in free space, openings bridged and
+//! walls missed ([`scan_scores`]), and for a world-frame map its distance to the scene
+//! and its cover of the walls seen ([`map_accuracy`]). Every simulator is deterministic in its seed.
 //!
 //! ```
 //! use isoline_core::{reconstruct, Params};

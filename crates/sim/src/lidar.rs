@@ -841,6 +841,19 @@ fn visible(
 mod tests {
     use super::*;
 
+    /// The long drive keeps to the middle of its corridor all the way round (1.5 m from
+    /// the walls, less the half turns' chord sag), so no scan starts inside a wall.
+    #[test]
+    fn the_loop_drive_keeps_to_its_corridor() {
+        let scene = Scene::new(SceneKind::Loop);
+        let walls = isoline_core::SegmentIndex::new(&scene.polylines());
+        for k in 0..2000 {
+            let p = scene.path.pose_at(k as f64 * 0.5);
+            let d = walls.distance([p[0], p[1]]);
+            assert!((1.45..=1.5 + 1e-9).contains(&d), "{p:?}: {d} m from a wall");
+        }
+    }
+
     /// The walker paces its line back and forth at its speed, and the scans see it:
     /// the beam towards it returns its near side.
     #[test]

@@ -306,37 +306,34 @@ fn each_frame_item(path: &Path, mut each: impl FnMut(Item) -> bool) -> Result<()
     let f = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
     let name = path.display().to_string();
     let reader: Box<dyn std::io::BufRead> = if is_compressed_frame_stream(path) {
-        Box::new(std::io::BufReader::new(flate2::read::MultiGzDecoder::new(f)))
+        Box::new(std::io::BufReader::new(flate2::read::MultiGzDecoder::new(
+            f,
+        )))
     } else {
         Box::new(std::io::BufReader::new(f))
     };
-    bounded_lines(
-        reader,
-        path,
-        MAX_FRAME_LINE_BYTES,
-        |i, line| {
-            let item = match line {
-                Ok(t) if t.trim().is_empty() => return true,
-                Ok(t) => parse_frame(t, &name, i as usize).map_err(|e| {
-                    // What the line says of itself, if it is JSON at all.
-                    let v: Option<serde_json::Value> = serde_json::from_str(t).ok();
-                    BadFrame {
-                        stream: v
-                            .as_ref()
-                            .and_then(|v| v["stream"].as_str().map(Into::into)),
-                        frame: v.as_ref().and_then(|v| v["frame"].as_u64()),
-                        message: e.to_string(),
-                    }
-                }),
-                Err(why) => Err(BadFrame {
-                    stream: None,
-                    frame: None,
-                    message: format!("{name}, line {i}: {why}"),
-                }),
-            };
-            each(item)
-        },
-    )?;
+    bounded_lines(reader, path, MAX_FRAME_LINE_BYTES, |i, line| {
+        let item = match line {
+            Ok(t) if t.trim().is_empty() => return true,
+            Ok(t) => parse_frame(t, &name, i as usize).map_err(|e| {
+                // What the line says of itself, if it is JSON at all.
+                let v: Option<serde_json::Value> = serde_json::from_str(t).ok();
+                BadFrame {
+                    stream: v
+                        .as_ref()
+                        .and_then(|v| v["stream"].as_str().map(Into::into)),
+                    frame: v.as_ref().and_then(|v| v["frame"].as_u64()),
+                    message: e.to_string(),
+                }
+            }),
+            Err(why) => Err(BadFrame {
+                stream: None,
+                frame: None,
+                message: format!("{name}, line {i}: {why}"),
+            }),
+        };
+        each(item)
+    })?;
     Ok(())
 }
 
@@ -456,7 +453,11 @@ mod tests {
             flate2::Compression::default(),
         );
         let beams = r#""angle_min":0,"angle_increment":0.1,"range_min":0.1,"range_max":10"#;
-        writeln!(gz, r#"{{"frame":0,"ranges":[1,1,1],{beams},"pose":[1,2,0]}}"#).unwrap();
+        writeln!(
+            gz,
+            r#"{{"frame":0,"ranges":[1,1,1],{beams},"pose":[1,2,0]}}"#
+        )
+        .unwrap();
         writeln!(gz, "not json").unwrap();
         writeln!(gz, r#"{{"frame":2,"ranges":[2,2,2],{beams}}}"#).unwrap();
         gz.finish().unwrap();
