@@ -22,3 +22,36 @@ pub fn ok(args: &[&str]) -> Output {
 pub fn p(path: &Path) -> &str {
     path.to_str().expect("a UTF-8 path")
 }
+
+/// Distance from `q` to the nearest segment of `walls` (polylines).
+#[allow(dead_code)] // Only the map tests measure against walls.
+pub fn to_walls(q: [f64; 2], walls: &[Vec<[f64; 2]>]) -> f64 {
+    let mut best = f64::INFINITY;
+    for w in walls {
+        for s in w.windows(2) {
+            let (a, b) = (s[0], s[1]);
+            let d = [b[0] - a[0], b[1] - a[1]];
+            let l2 = d[0] * d[0] + d[1] * d[1];
+            let t = if l2 > 0.0 {
+                (((q[0] - a[0]) * d[0] + (q[1] - a[1]) * d[1]) / l2).clamp(0.0, 1.0)
+            } else {
+                0.0
+            };
+            best = best.min((q[0] - a[0] - t * d[0]).hypot(q[1] - a[1] - t * d[1]));
+        }
+    }
+    best
+}
+
+/// The static walls of a truth file's scene (`isoline synth` of a scene).
+#[allow(dead_code)] // Only the map tests measure against walls.
+pub fn scene_walls(truth: &Path) -> Vec<Vec<[f64; 2]>> {
+    let truth: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(truth).unwrap()).unwrap();
+    truth["scene"]
+        .as_array()
+        .expect("a scene's truth")
+        .iter()
+        .map(|pl| serde_json::from_value(pl["points"].clone()).unwrap())
+        .collect()
+}

@@ -1,26 +1,7 @@
 //! `isoline map`: a simulated drive through the room, with a person walking across it,
 //! fused into one world-frame map and checked against the scene's truth.
 
-use super::common::{ok, p};
-
-/// Distance from `q` to the nearest of the truth's segments.
-fn distance(q: [f64; 2], walls: &[Vec<[f64; 2]>]) -> f64 {
-    let mut best = f64::INFINITY;
-    for w in walls {
-        for s in w.windows(2) {
-            let (a, b) = (s[0], s[1]);
-            let d = [b[0] - a[0], b[1] - a[1]];
-            let l2 = d[0] * d[0] + d[1] * d[1];
-            let t = if l2 > 0.0 {
-                (((q[0] - a[0]) * d[0] + (q[1] - a[1]) * d[1]) / l2).clamp(0.0, 1.0)
-            } else {
-                0.0
-            };
-            best = best.min((q[0] - a[0] - t * d[0]).hypot(q[1] - a[1] - t * d[1]));
-        }
-    }
-    best
-}
+use super::common::{ok, p, scene_walls, to_walls};
 
 #[test]
 fn a_drive_through_the_room_is_one_map_near_the_walls_without_the_person() {
@@ -63,14 +44,7 @@ fn a_drive_through_the_room_is_one_map_near_the_walls_without_the_person() {
         p(&stats),
         "-q",
     ]);
-    let truth: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(&truth).unwrap()).unwrap();
-    let walls: Vec<Vec<[f64; 2]>> = truth["scene"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|pl| serde_json::from_value(pl["points"].clone()).unwrap())
-        .collect();
+    let walls = scene_walls(&truth);
     let map: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&geo).unwrap()).unwrap();
     let pieces: Vec<Vec<[f64; 2]>> = map["features"]
@@ -93,7 +67,7 @@ fn a_drive_through_the_room_is_one_map_near_the_walls_without_the_person() {
                     s[0][0] + t * (s[1][0] - s[0][0]),
                     s[0][1] + t * (s[1][1] - s[0][1]),
                 ];
-                let d = distance(q, &walls);
+                let d = to_walls(q, &walls);
                 assert!(d <= bound, "{q:?} is {d} m from every wall");
             }
         }
@@ -128,7 +102,7 @@ fn a_drive_through_the_room_is_one_map_near_the_walls_without_the_person() {
         "--frames",
         p(&frames),
         "--truth",
-        p(&dir.path().join("t.json")),
+        p(&truth),
     ]);
     let e: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     assert_eq!(e["scans"], 100);

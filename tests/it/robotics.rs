@@ -946,31 +946,7 @@ fn a_lingering_live_view_shows_the_last_frame_after_the_recording_ends() {
         .expect("the last frame's curves");
     let s = SceneUpdate::decode(scene.1.as_slice()).unwrap();
     assert!(!s.entities[0].lines.is_empty());
-    let ok = Command::new("kill")
-        .args(["-TERM", &child.id().to_string()])
-        .status()
-        .unwrap();
-    assert!(ok.success());
-    assert!(child.wait().unwrap().success());
-}
-
-/// Distance from `q` to the nearest segment of `walls`.
-fn to_walls(q: [f64; 2], walls: &[Vec<[f64; 2]>]) -> f64 {
-    let mut best = f64::INFINITY;
-    for w in walls {
-        for s in w.windows(2) {
-            let (a, b) = (s[0], s[1]);
-            let d = [b[0] - a[0], b[1] - a[1]];
-            let l2 = d[0] * d[0] + d[1] * d[1];
-            let t = if l2 > 0.0 {
-                (((q[0] - a[0]) * d[0] + (q[1] - a[1]) * d[1]) / l2).clamp(0.0, 1.0)
-            } else {
-                0.0
-            };
-            best = best.min((q[0] - a[0] - t * d[0]).hypot(q[1] - a[1] - t * d[1]));
-        }
-    }
-    best
+    terminate(&mut child);
 }
 
 /// The daemon's map (`[map] output`) from a bag replayed at 40 scans a second: written
@@ -1045,13 +1021,7 @@ fn the_daemon_writes_the_map_as_it_grows_and_shows_it_live() {
         "{summary}"
     );
     // Near the walls: 3 sigma + 2 cells.
-    let truth: Value = serde_json::from_str(&std::fs::read_to_string(&sim.truth).unwrap()).unwrap();
-    let walls: Vec<Vec<[f64; 2]>> = truth["scene"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|pl| serde_json::from_value(pl["points"].clone()).unwrap())
-        .collect();
+    let walls = crate::common::scene_walls(&sim.truth);
     let geo: Value =
         serde_json::from_str(&std::fs::read_to_string(d.join("map.geojson")).unwrap()).unwrap();
     let mut length = 0.0;
@@ -1059,7 +1029,7 @@ fn the_daemon_writes_the_map_as_it_grows_and_shows_it_live() {
         let piece: Vec<[f64; 2]> =
             serde_json::from_value(f["geometry"]["coordinates"].clone()).unwrap();
         for q in &piece {
-            let d = to_walls(*q, &walls);
+            let d = crate::common::to_walls(*q, &walls);
             assert!(
                 d <= 3.0 * 0.01 + 2.0 * 0.03,
                 "{q:?} is {d} m from every wall"
@@ -1081,6 +1051,11 @@ fn the_daemon_writes_the_map_as_it_grows_and_shows_it_live() {
         .find(|s| s.entities.iter().any(|e| e.frame_id == "map"))
         .expect("the map in the live view");
     assert!(!map.entities[0].lines.is_empty());
+    terminate(&mut child);
+}
+
+/// Ends a lingering daemon as its user would, with SIGTERM; it must exit cleanly.
+fn terminate(child: &mut std::process::Child) {
     let ok = Command::new("kill")
         .args(["-TERM", &child.id().to_string()])
         .status()
