@@ -10,7 +10,7 @@ use serde_json::json;
 
 use isoline_core::geom::{Point, Polyline, Pose};
 use isoline_core::{Map, MapScores, MapStats, Params, Scan};
-use isoline_io::write::map::{write_map, MapFormat, MAP_EXTENSIONS};
+use isoline_io::map_files::{write_map, MapFormat, MAP_EXTENSIONS};
 use isoline_io::{BadFrame, Frame};
 
 /// `isoline map` options.

@@ -189,11 +189,11 @@ impl Mapper {
     fn write(&mut self, curves: &[Polyline]) -> Result<()> {
         let scans = self.report.scans;
         for p in &self.out.paths {
-            isoline_io::write::map::write_map(p, curves, &self.path, scans)?;
+            isoline_io::map_files::write_map(p, curves, &self.path, scans)?;
         }
         if let Some(l) = &self.live {
             // A viewer that is behind sees the next write.
-            l.show(isoline_io::write::map::map_view(curves, scans));
+            l.show(isoline_io::map_files::map_view(curves, scans));
         }
         self.report.writes += 1;
         self.since_write = 0;

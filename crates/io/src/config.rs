@@ -61,7 +61,7 @@ pub struct MapConfig {
     pub max_range: Option<f64>,
     /// Tiles held in memory at most. Default 512.
     pub max_tiles: Option<usize>,
-    /// Lay each scan onto the map before fusing it. Default true.
+    /// Lay each scan onto the map before fusing it. Default false.
     pub align: Option<bool>,
     /// The map's files, one path or a list (the extension picks the format: .geojson,
     /// .svg, .ndjson, .json, .mcap), relative to the configuration file's folder. The
@@ -115,11 +115,11 @@ impl MapConfig {
         };
         let mut problems = p.validate().err().unwrap_or_default();
         for o in self.output.iter().flat_map(OneOrMore::paths) {
-            if crate::write::map::MapFormat::of(&o).is_none() {
+            if crate::map_files::MapFormat::of(&o).is_none() {
                 problems.push(format!(
                     "map.output = {:?}: a map is written as {}",
                     o.display().to_string(),
-                    crate::write::map::MAP_EXTENSIONS
+                    crate::map_files::MAP_EXTENSIONS
                 ));
             }
         }

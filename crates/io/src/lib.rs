@@ -34,6 +34,7 @@ mod error;
 pub mod format;
 pub mod foxglove;
 mod ingest;
+pub mod map_files;
 mod record;
 mod tiles;
 pub mod write;

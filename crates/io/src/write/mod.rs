@@ -3,7 +3,6 @@
 //! array, pretty-printed), `.geojson` (a FeatureCollection of LineStrings), `.csv`
 //! (`stream,frame,polyline,closed,vertex,x,y,junction`) and `.svg` (see `super::svg`).
 
-pub mod map;
 pub mod svg;
 
 use std::fmt::Write as _;

@@ -96,7 +96,7 @@ pub fn write_map(path: &Path, curves: &[Polyline], path_taken: &[Point], scans: 
             ))
         }
     };
-    super::write_atomic(path, text.as_bytes()).map_err(|e| Error::io(path, e))
+    crate::write::write_atomic(path, text.as_bytes()).map_err(|e| Error::io(path, e))
 }
 
 /// One LineString a piece, closed ones with their first point repeated, with its length.
@@ -129,8 +129,8 @@ fn svg(curves: &[Polyline], path_taken: &[Point]) -> String {
             dots.push(p);
         }
     }
-    super::svg::render(
-        &super::svg::Drawing {
+    crate::write::svg::render(
+        &crate::write::svg::Drawing {
             points: &dots,
             polylines: curves,
             ..Default::default()
