@@ -2,7 +2,8 @@
 # The maps of docs/benchmarks.md: each CARMEN log (*.log.gz, as published) and NDJSON
 # beam stream (*.ndjson.gz) in $ISOLINE_REAL fused by `isoline map` into one
 # world-frame map (target/map-logs/NAME.svg, .geojson and the run's summary .json), the
-# beam streams (odometry poses) also with the alignment off, to show what drift does;
+# beam streams (odometry poses) also with each scan aligned onto the map, to show what
+# drift does and what the alignment does about it;
 # then one table row a run from the summaries.
 # Usage: ISOLINE_REAL=DIR scripts/map-logs.sh
 set -euo pipefail
@@ -16,18 +17,18 @@ if [ -z "$real" ] || ! ls "$real"/*.gz > /dev/null 2>&1; then
 fi
 dir=target/map-logs
 mkdir -p "$dir"
-printf '[map]\nalign = false\n' > "$dir/no-align.toml"
+printf '[map]\nalign = true\n' > "$dir/align.toml"
 runs=()
 for gz in "$real"/*.gz; do
   name=$(basename "$gz" .gz)
   case $name in
     *.log) name=${name%.log}; input=$gz; configs=("") ;;
-    *.ndjson) name=${name%.ndjson}; input=$gz; configs=("" "$dir/no-align.toml") ;;
+    *.ndjson) name=${name%.ndjson}; input=$gz; configs=("" "$dir/align.toml") ;;
     *) continue ;;
   esac
   for cfg in "${configs[@]}"; do
     tag=$name; args=()
-    [ -n "$cfg" ] && { tag=$name-no-align; args=(-c "$cfg"); }
+    [ -n "$cfg" ] && { tag=$name-align; args=(-c "$cfg"); }
     "$bin" map "$input" "${args[@]}" -q -o "$dir/$tag.svg" -o "$dir/$tag.geojson" \
       --stats "$dir/$tag.json"
     runs+=("$dir/$tag.json")

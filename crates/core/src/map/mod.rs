@@ -89,7 +89,9 @@ pub struct MapParams {
     /// Tiles held in memory at most; the least recently seen go to the store.
     pub max_tiles: usize,
     /// Lay each scan onto the map before fusing it (its pose corrected by at most
-    /// `8 hit_tolerance` and 0.1 rad); off, scans go where their poses put them.
+    /// `8 hit_tolerance` and 0.1 rad); off (the default), scans go where their poses put
+    /// them. Scan-to-map alignment drifts as odometry does where the map ahead is
+    /// new (docs/method.md): use it for poses worse than the drift.
     pub align: bool,
 }
 
@@ -103,7 +105,7 @@ impl Default for MapParams {
             hit_tolerance: 0.05,
             max_range: 20.0,
             max_tiles: 512,
-            align: true,
+            align: false,
         }
     }
 }
@@ -280,7 +282,9 @@ impl Map {
         curves: &[Polyline],
         noise: f64,
     ) -> Result<Pose> {
+        let given = pose;
         let pose = if self.params.align && self.scans > 0 {
+            self.load_under(scan, pose)?;
             self.align(scan, pose, noise)
         } else {
             pose
@@ -309,10 +313,49 @@ impl Map {
             })
             .collect();
         self.fuse_curves(&world, 3.0 * noise + 2.0 * self.params.cell)?;
+        // The scores judge the map by the returns where the scan's own pose puts them,
+        // whatever the alignment made of it (a map true only to itself scores badly).
+        let placed = if given == pose {
+            world
+        } else {
+            curves
+                .iter()
+                .map(|c| Polyline {
+                    closed: c.closed,
+                    points: c.points.iter().map(|&p| to_world(given, p)).collect(),
+                })
+                .collect()
+        };
         self.score
-            .scan(scan, pose, &world, self.params.cell, self.scans);
+            .scan(scan, given, &placed, self.params.cell, self.scans);
         self.evict()?;
         Ok(pose)
+    }
+
+    /// Brings into memory the tiles under the scan's returns (placed by `pose`) that the
+    /// store holds, so that the alignment sees the map whatever has been spilled: the
+    /// votes load them anyway, and a map must not depend on its memory bound.
+    fn load_under(&mut self, scan: &Scan, pose: Pose) -> Result<()> {
+        let (cell, side) = (self.params.cell, self.params.tile);
+        let origin = to_world(pose, scan.origin);
+        // The four samples round each return, as the field's bilinear lookup takes them.
+        let mut keys: Vec<Key> = scan
+            .returns()
+            .into_iter()
+            .map(|p| to_world(pose, p))
+            .filter(|&p| crate::geom::dist(p, origin) <= self.params.max_range)
+            .flat_map(|p| {
+                let (i, j) = ((p[0] / cell).floor() as i64, (p[1] / cell).floor() as i64);
+                [(0, 0), (1, 0), (0, 1), (1, 1)].map(|(di, dj)| locate(i + di, j + dj, side).0)
+            })
+            .filter(|k| self.stored.contains_key(k))
+            .collect();
+        keys.sort_unstable();
+        keys.dedup();
+        for k in keys {
+            self.load(k)?;
+        }
+        Ok(())
     }
 
     /// The fused signed distance and its gradient at `q` (bilinear in the lattice), where
