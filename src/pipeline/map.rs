@@ -80,7 +80,7 @@ pub struct MapReport {
     pub static_within: f64,
     /// Share of the map's length seen through more often than hit.
     pub seen_through: f64,
-    /// Tiles in memory at the end, and spilled to the store.
+    /// Tiles in memory at the end.
     pub tiles_resident: usize,
     /// Tiles in the store at the end.
     pub tiles_stored: usize,
