@@ -8,13 +8,7 @@
 # Usage: ISOLINE_REAL=DIR scripts/map-logs.sh
 set -euo pipefail
 . "$(dirname "$0")/lib.sh"
-real=${ISOLINE_REAL:-}
-if [ -z "$real" ] || ! ls "$real"/*.gz > /dev/null 2>&1; then
-  echo "no recordings in ISOLINE_REAL='$real' (*.log.gz CARMEN logs, *.ndjson.gz beam streams)" >&2
-  # The docs test runs every documented command without the recordings.
-  [ "$quick" = 1 ] && exit 0
-  exit 1
-fi
+need_recordings
 dir=target/map-logs
 mkdir -p "$dir"
 printf '[map]\nalign = true\n' > "$dir/align.toml"

@@ -15,13 +15,7 @@
 # Usage: ISOLINE_REAL=DIR scripts/real-logs.sh
 set -euo pipefail
 . "$(dirname "$0")/lib.sh"
-real=${ISOLINE_REAL:-}
-if [ -z "$real" ] || ! ls "$real"/*.gz > /dev/null 2>&1; then
-  echo "no recordings in ISOLINE_REAL='$real' (*.log.gz CARMEN logs, *.ndjson.gz beam streams)" >&2
-  # The docs test runs every documented command without the recordings.
-  [ "$quick" = 1 ] && exit 0
-  exit 1
-fi
+need_recordings
 dir=target/real-logs
 mkdir -p "$dir"
 for gz in "$real"/*.gz; do

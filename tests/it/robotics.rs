@@ -899,25 +899,8 @@ fn a_lingering_live_view_shows_the_last_frame_after_the_recording_ends() {
     use foxglove::Decode;
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    let sim = simulate(d, 4, 0.1);
-    let bag = d.join("robot.mcap");
-    write_bag(&bag, &sim, |_, b| b);
-    let cfg = d.join("demo.toml");
-    std::fs::write(
-        &cfg,
-        format!(
-            "[input]\npath = {bag:?}\nodometry = \"/odom\"\n[output]\npath = {:?}\n\
-             [live]\nbind = \"127.0.0.1:0\"\nlinger = true\n",
-            d.join("out.mcap")
-        ),
-    )
-    .unwrap();
     let started = Instant::now();
-    let mut child = Command::new(env!("CARGO_BIN_EXE_isoline"))
-        .args(["run", "-c", p(&cfg)])
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
+    let (_, mut child) = lingering_on_a_bag(d, 4, "", "[output]\npath = \"out.mcap\"\n");
     let mut stderr = BufReader::new(child.stderr.take().unwrap());
     let mut line = String::new();
     let mut addr = None;
@@ -960,24 +943,13 @@ fn the_daemon_writes_the_map_as_it_grows_and_shows_it_live() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     let n = 120;
-    let sim = simulate(d, n, 0.1);
-    let bag = d.join("robot.mcap");
-    write_bag(&bag, &sim, |_, b| b);
-    let cfg = d.join("map.toml");
-    std::fs::write(
-        &cfg,
-        format!(
-            "[input]\npath = {bag:?}\nodometry = \"/odom\"\nreplay = 40\n[output]\npath = \"out.ndjson\"\n\
-             [map]\noutput = [\"map.ndjson\", \"map.geojson\"]\nevery = 15\n\
-             [live]\nbind = \"127.0.0.1:0\"\nlinger = true\n"
-        ),
-    )
-    .unwrap();
-    let mut child = Command::new(env!("CARGO_BIN_EXE_isoline"))
-        .args(["run", "-c", p(&cfg)])
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
+    let (sim, mut child) = lingering_on_a_bag(
+        d,
+        n,
+        "replay = 40\n",
+        "[output]\npath = \"out.ndjson\"\n[map]\noutput = [\"map.ndjson\", \"map.geojson\"]\n\
+         every = 15\n",
+    );
     let stderr = BufReader::new(child.stderr.take().unwrap());
     let (tx, lines) = std::sync::mpsc::channel();
     std::thread::spawn(move || {
@@ -1062,4 +1034,28 @@ fn terminate(child: &mut std::process::Child) {
         .unwrap();
     assert!(ok.success());
     assert!(child.wait().unwrap().success());
+}
+
+/// `isoline run` on a bag of `n` simulated scans of the room (poses on `/odom`) in `d`,
+/// with `input` added to `[input]`, `tables` after it, and a live view on a free port
+/// that lingers after the input ends; its stderr piped.
+fn lingering_on_a_bag(d: &Path, n: usize, input: &str, tables: &str) -> (Sim, std::process::Child) {
+    let sim = simulate(d, n, 0.1);
+    let bag = d.join("robot.mcap");
+    write_bag(&bag, &sim, |_, b| b);
+    let cfg = d.join("daemon.toml");
+    std::fs::write(
+        &cfg,
+        format!(
+            "[input]\npath = {bag:?}\nodometry = \"/odom\"\n{input}{tables}\
+             [live]\nbind = \"127.0.0.1:0\"\nlinger = true\n"
+        ),
+    )
+    .unwrap();
+    let child = Command::new(env!("CARGO_BIN_EXE_isoline"))
+        .args(["run", "-c", p(&cfg)])
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    (sim, child)
 }
