@@ -12,12 +12,14 @@
 //! Otherwise, while it is no farther from the data than a cold tube start would be (twice
 //! the larger of the tube radius and the previous frame's spread), it is offset outward
 //! past nine samples in ten, because the evolution only moves the curve inward. Farther
-//! (a jump, a restarted stream, a mesh that no longer covers the data): cold start. The
+//! (a jump, a restarted stream): cold start. Beyond the previous mesh the level set is
+//! extended as a distance ([`carry`]), so a new mesh over data whose extent moved still
+//! starts warm. The
 //! solve stage then checks the result against the previous frame's and falls back to a
 //! cold start when it is clearly worse ([`crate::levelset::evolve::solve`]).
 
-use crate::fem::locate::{locate_all, Location};
-use crate::geom::{BBox, Placement, Point};
+use crate::fem::locate::{gap, locate_all, Location};
+use crate::geom::{Placement, Point};
 use crate::levelset::solver::spread;
 use crate::mesh::Mesh;
 
@@ -81,26 +83,22 @@ pub fn decide(spread: f64, previous_spread: f64, c: &WarmCriteria) -> Decision {
 }
 
 /// The level set `u` of `old` (in data coordinates and units) at each of `coords` (in
-/// the local coordinates of `at`), in local units, by walking to each point; `None`
-/// when `old` does not cover every point.
-pub fn carry(old: &Mesh, u: &[f64], at: &Placement, coords: &[Point]) -> Option<Vec<f64>> {
+/// the local coordinates of `at`), in local units, by walking to each point. Beyond the
+/// old mesh (a new mesh made where data whose extent moved need it) the old frame says
+/// only that its closed curves lie inside its domain, so the level set is extended as a
+/// distance: its value where the walk leaves the domain plus the way out, the most a
+/// signed distance can grow over that way (it is 1-Lipschitz). The outside stays
+/// outside, and how well the carried curve fits the new data is for the spread to say.
+pub fn carry(old: &Mesh, u: &[f64], at: &Placement, coords: &[Point]) -> Vec<f64> {
     let mut old = old.clone();
     for c in &mut old.coords {
         *c = at.to_local(*c);
     }
-    // The old domain is convex (a box, possibly moved and turned with a moving
-    // sensor's frame): it covers the new mesh when it holds the corners of its box.
-    let b = BBox::of(coords)?;
-    let corners = [b.min, [b.max[0], b.min[1]], b.max, [b.min[0], b.max[1]]];
-    if !crate::fem::locate::covers(&old, &corners) {
-        return None;
-    }
     let loc = locate_all(&old, coords);
-    Some(
-        loc.iter()
-            .map(|l| at.len_to_local(l.interpolate(&old, u)))
-            .collect(),
-    )
+    loc.iter()
+        .zip(coords)
+        .map(|(l, &p)| at.len_to_local(l.interpolate(&old, u)) + gap(&old, l, p))
+        .collect()
 }
 
 /// A warm start for the frame meshed by `mesh` (in the local coordinates of `at`; the
@@ -113,7 +111,7 @@ pub fn warm_start(
     data: &[Location],
     c: &WarmCriteria,
 ) -> Option<(Vec<f64>, bool)> {
-    let mut u = carry(prev.mesh, prev.u, at, &mesh.coords)?;
+    let mut u = carry(prev.mesh, prev.u, at, &mesh.coords);
     let (spread, _) = spread(mesh, data, &u, c.settle_width);
     let decision = decide(spread, at.len_to_local(prev.spread), c);
     tracing::debug!(spread, ?decision, "warm start");
@@ -131,7 +129,7 @@ pub fn warm_start(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::geom::dist;
+    use crate::geom::{dist, BBox};
 
     const UNIT: Placement = Placement {
         center: [0.0, 0.0],
@@ -164,7 +162,7 @@ mod tests {
     }
 
     #[test]
-    fn carrying_interpolates_and_refuses_uncovered_meshes() {
+    fn carrying_interpolates_and_extends_beyond_the_old_mesh_as_a_distance() {
         let bbox = BBox {
             min: [-1.0, -1.0],
             max: [1.0, 1.0],
@@ -178,12 +176,15 @@ mod tests {
             scale: 0.5,
         };
         let probes = [[0.0, 0.0], [0.5, -0.3], [-1.7, 1.5]];
-        let got = carry(&old, &u, &at, &probes).unwrap();
+        let got = carry(&old, &u, &at, &probes);
         for (p, g) in probes.iter().zip(&got) {
             let q = at.to_data(*p);
             assert!((g - (2.0 * q[0] - q[1]) / 0.5).abs() < 1e-12, "{p:?}: {g}");
         }
-        assert!(carry(&old, &u, &at, &[[1.9, 0.0]]).is_none());
+        // Beyond the old mesh, (1.05, -0.2) in data coordinates: the value at the nearest
+        // point of its domain, (1, -0.2), plus the way out (0.05, 0.1 in local units).
+        let out = carry(&old, &u, &at, &[[1.9, 0.0]]);
+        assert!((out[0] - (2.2 / 0.5 + 0.1)).abs() < 1e-12, "{}", out[0]);
     }
 
     #[test]
