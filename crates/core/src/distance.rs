@@ -177,6 +177,99 @@ pub fn tube_radius(field: &DistanceField, floor: f64) -> f64 {
     (2.0 * *p95).max(floor)
 }
 
+/// How far a sample's neighbours may lie, in units of the data's sampling spacing (the
+/// median over the samples of the distance to their second nearest other sample: on a
+/// curve, about the spacing along it). The open strokes join ends across gaps up to 8
+/// times the 95th percentile of the nearest-neighbour spacing (`repair::strokes`, twice
+/// `2 r` with `r` at least twice the tube radius); for samples at random along a curve
+/// that percentile is 1.8 times this median (nearest neighbours `Exp(2 lambda)`: 1.50 /
+/// lambda, against 0.84 / lambda), so no sample the strokes could join is isolated. A
+/// median, unlike that percentile, does not move while fewer than half the points are
+/// outliers.
+pub const NEIGHBOUR_SPACINGS: f64 = 14.0;
+
+/// Samples linked through neighbours in fewer than this many are isolated: one or two
+/// samples make no curve.
+pub const MIN_CLUSTER: usize = 3;
+
+/// The scale at which a point set's samples are neighbours, and which samples are
+/// isolated there (outliers): those in a cluster of fewer than [`MIN_CLUSTER`] samples
+/// linked by steps within the reach. A curve's samples, however sparse at its end, are
+/// one chain of such steps; a stray point is alone.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Neighbourhood {
+    /// The median distance from a sample to its second nearest other sample.
+    pub spacing: f64,
+    /// [`NEIGHBOUR_SPACINGS`] times `spacing`.
+    pub reach: f64,
+    /// Per input point, whether it is isolated.
+    pub isolated: Vec<bool>,
+}
+
+impl Neighbourhood {
+    /// The neighbourhood of `points` (validated, as for [`DistanceField::new`]; exact
+    /// duplicates count once). With fewer than 16 distinct samples, or no spacing (all
+    /// the second neighbours coincident), nothing is isolated: there is no scale to judge
+    /// by.
+    pub fn of(points: &[Point]) -> Result<Neighbourhood> {
+        let field = DistanceField::new(points)?;
+        let pts = field.points();
+        let mut positive: Vec<f64> = pts
+            .par_iter()
+            .map_init(Vec::new, |buf, &p| {
+                field.nearest_k(p, 3, buf);
+                buf.get(2).map_or(0.0, |&j| dist(p, pts[j as usize]))
+            })
+            .filter(|d| *d > 0.0 && d.is_finite())
+            .collect();
+        if pts.len() < 16 || positive.is_empty() {
+            return Ok(Neighbourhood {
+                spacing: 0.0,
+                reach: f64::INFINITY,
+                isolated: vec![false; points.len()],
+            });
+        }
+        let mid = positive.len() / 2;
+        let (_, &mut spacing, _) = positive.select_nth_unstable_by(mid, f64::total_cmp);
+        let reach = NEIGHBOUR_SPACINGS * spacing;
+        // Clusters by union-find over the pairs within reach.
+        let mut parent: Vec<u32> = (0..pts.len() as u32).collect();
+        fn root(parent: &mut [u32], mut i: u32) -> u32 {
+            while parent[i as usize] != i {
+                parent[i as usize] = parent[parent[i as usize] as usize];
+                i = parent[i as usize];
+            }
+            i
+        }
+        let mut near = Vec::new();
+        for (i, &p) in pts.iter().enumerate() {
+            field.within(p, reach, &mut near);
+            for &j in &near {
+                let (a, b) = (root(&mut parent, i as u32), root(&mut parent, j));
+                if a != b {
+                    parent[a as usize] = b;
+                }
+            }
+        }
+        let mut size = vec![0usize; pts.len()];
+        for i in 0..pts.len() as u32 {
+            size[root(&mut parent, i) as usize] += 1;
+        }
+        let small: Vec<bool> = (0..pts.len() as u32)
+            .map(|i| size[root(&mut parent, i) as usize] < MIN_CLUSTER)
+            .collect();
+        let isolated = points
+            .par_iter()
+            .map(|&p| small[field.nearest(p).index as usize])
+            .collect();
+        Ok(Neighbourhood {
+            spacing,
+            reach,
+            isolated,
+        })
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

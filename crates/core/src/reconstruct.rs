@@ -9,6 +9,7 @@
 //! from the data's bounding-box diagonal `D` and the mesh's `hmin`, so results do not
 //! depend on the data's units.
 
+use std::borrow::Cow;
 use std::time::Instant;
 
 use crate::distance::validate_points;
@@ -87,7 +88,8 @@ pub struct Reconstruction {
     /// The estimated noise of the data (median local-fit residual; for a scan, the range
     /// noise).
     pub noise_estimate: f64,
-    /// Scan frames: the clusters of returns that no curve explains, in data coordinates.
+    /// Scan frames: the clusters of returns that no curve explains; point clouds: the
+    /// outliers (samples with no curve's neighbourhood, one each). In data coordinates.
     pub features: Vec<Feature>,
     /// Point clouds: where open strokes meet, and which of `polylines` meet there
     /// (the strokes of a drawing).
@@ -226,8 +228,13 @@ pub struct Prepared {
     pub(crate) placement: Placement,
     /// Diagonal `D` of the data's bounding box, in local units (1 but for rounding).
     pub(crate) diag: f64,
-    /// The points, in local coordinates.
+    /// The points, in local coordinates (a point cloud's isolated samples left out).
     pub(crate) local: Vec<Point>,
+    /// A point cloud's isolated samples (outliers), in data coordinates.
+    pub(crate) isolated: Vec<Point>,
+    /// The reach within which samples are neighbours, in local units (infinite for a
+    /// scan, and for too few points to judge).
+    pub(crate) reach: f64,
     /// The parameters in local units.
     pub(crate) params: Params,
     /// Their distance field and metric frames.
@@ -288,6 +295,32 @@ fn prepare_here(points: &[Point], scan: Option<&Scan>, params: &Params) -> Resul
         .validate()
         .map_err(config("solver parameters"))?;
     params.scan.validate().map_err(config("scan parameters"))?;
+    // A point cloud's outliers (samples in clusters too small for a curve at the
+    // neighbours' reach, `distance::Neighbourhood`) are reported as features and take no
+    // part in the field, the mesh or the support. A scan's returns are judged along their
+    // runs instead (`scan`). Where nearly every sample is isolated there is no curve to
+    // keep them from, and they stay.
+    let all = points;
+    let (points, isolated, reach) = match scan {
+        Some(_) => (Cow::Borrowed(all), Vec::new(), f64::INFINITY),
+        None => {
+            let n = crate::distance::Neighbourhood::of(all)?;
+            let outliers = n.isolated.iter().filter(|&&b| b).count();
+            if outliers == 0 || outliers + crate::distance::MIN_CLUSTER > all.len() {
+                (Cow::Borrowed(all), Vec::new(), n.reach)
+            } else {
+                let pick = |out: bool| -> Vec<Point> {
+                    all.iter()
+                        .zip(&n.isolated)
+                        .filter(|&(_, &i)| i == out)
+                        .map(|(&p, _)| p)
+                        .collect()
+                };
+                (Cow::Owned(pick(false)), pick(true), n.reach)
+            }
+        }
+    };
+    let points: &[Point] = &points;
     let bbox = BBox::of(points).ok_or(Error::EmptyPointSet)?;
     let extent = bbox.diag();
     if extent <= 0.0 {
@@ -322,7 +355,9 @@ fn prepare_here(points: &[Point], scan: Option<&Scan>, params: &Params) -> Resul
         None => MetricField::new(&local, &mesh_params)?,
     };
     Ok(Prepared {
-        points: points.len(),
+        points: all.len(),
+        isolated,
+        reach: reach / placement.scale,
         placement,
         diag,
         local,
@@ -589,7 +624,33 @@ fn export_with(
             },
         ),
     };
-    let polylines = crate::export::well_formed(polylines, 1e-9 * at.len_to_data(prepared.diag));
+    let eps = 1e-9 * at.len_to_data(prepared.diag);
+    let (polylines, junctions, mut enforced) = match scan {
+        // A scan's pieces are cut to its runs' support already, and where two walls meet
+        // at a corner their pieces may cross by a few millimetres: a junction, which
+        // scans do not report yet, rather than an error.
+        Some(_) => (
+            crate::export::well_formed(polylines, eps),
+            junctions,
+            Vec::new(),
+        ),
+        None => {
+            let field = &prepared.metric.field;
+            let extent = BBox::of(&prepared.local).map_or(0.0, |b| {
+                at.len_to_data((b.max[0] - b.min[0]).max(b.max[1] - b.min[1]))
+            });
+            crate::export::invariants::enforce(
+                polylines,
+                junctions,
+                &crate::export::invariants::Cloud {
+                    distance: &|p| at.len_to_data(field.distance(at.to_local(p))),
+                    reach: at.len_to_data(3.0 * sigma + 2.0 * hmin + prepared.reach),
+                    extent,
+                    eps,
+                },
+            )
+        }
+    };
     let fit = crate::export::fit::fit(&data, &polylines, tolerance);
     let supported = match &scan_analysis {
         Some(a) => a
@@ -600,7 +661,16 @@ fn export_with(
             .sum(),
         None => data.len(),
     };
-    let warnings = crate::export::fit::warnings(supported, &polylines, &fit, tolerance);
+    let mut warnings = crate::export::fit::warnings(supported, &polylines, &fit, tolerance);
+    warnings.append(&mut enforced);
+    let features = match scan {
+        Some(_) => features,
+        None => prepared
+            .isolated
+            .iter()
+            .map(|&center| Feature { center, returns: 1 })
+            .collect(),
+    };
     let ms = stage_ms(
         prepared,
         &adapted.ms,
@@ -627,10 +697,8 @@ fn export_with(
         renormalizations: report.renormalizations,
         hmin: at.len_to_data(hmin),
         eps: at.len_to_data(solved.settings.eps),
-        unexplained: prepared
-            .scan
-            .as_ref()
-            .map(|_| features.iter().map(|f| f.returns).sum()),
+        unexplained: (prepared.scan.is_some() || !features.is_empty())
+            .then(|| features.iter().map(|f| f.returns).sum()),
         range_noise: prepared
             .scan
             .as_ref()

@@ -72,7 +72,8 @@ pub struct Stats {
     pub hmin: f64,
     /// Stopping tolerance used, in data units.
     pub eps: f64,
-    /// Scan frames: returns that no curve explains (the features' returns).
+    /// Scan frames: returns that no curve explains (the features' returns); point
+    /// clouds with outliers: how many.
     pub unexplained: Option<usize>,
     /// Scan frames: the range noise used (configured, or estimated from the returns).
     pub range_noise: Option<f64>,

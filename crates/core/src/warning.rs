@@ -22,6 +22,29 @@ pub enum Warning {
         /// The accuracy bound `3 sigma + 2 hmin`, in data units.
         tolerance: f64,
     },
+    /// Curve stretches farther than `reach` from every sample were cut: no data
+    /// support them (the invariant of [`crate::export::invariants::supported`]).
+    OffData {
+        /// The length cut, in data units.
+        length: f64,
+        /// The support distance: the accuracy bound plus the neighbours' reach.
+        reach: f64,
+    },
+    /// Segments that crossed another were removed: curves are simple and disjoint
+    /// ([`crate::export::invariants::uncrossed`]).
+    Crossings {
+        /// The segments removed.
+        removed: usize,
+    },
+    /// The curves look collapsed: one junction holds most of the strokes' ends (a star
+    /// of spokes across the drawing), or they are far shorter than the data's extent.
+    Collapsed {
+        /// Ends at the busiest junction, of all the open curves' ends.
+        ends: (usize, usize),
+        /// The curves' length against the data's extent (its bounding box's longer
+        /// side).
+        length: (f64, f64),
+    },
 }
 
 impl fmt::Display for Warning {
@@ -39,6 +62,19 @@ impl fmt::Display for Warning {
                 f,
                 "only {:.0}% of the points lie within {tolerance:.3} of a curve",
                 100.0 * explained
+            ),
+            Warning::OffData { length, reach } => write!(
+                f,
+                "cut {length:.3} of curve lying farther than {reach:.3} from every sample"
+            ),
+            Warning::Crossings { removed } => {
+                write!(f, "removed {removed} segments where curves crossed")
+            }
+            Warning::Collapsed { ends, length } => write!(
+                f,
+                "the curves look collapsed: {} of {} ends meet at one junction, length {:.3} \
+                 against the data's extent {:.3}",
+                ends.0, ends.1, length.0, length.1
             ),
         }
     }

@@ -4,6 +4,7 @@
 
 pub mod contour;
 pub mod fit;
+pub mod invariants;
 pub mod support;
 
 use crate::geom::{Placement, Polyline};

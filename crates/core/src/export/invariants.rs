@@ -1,0 +1,591 @@
+//! What every result's curves hold, whatever the passes before made of them: each vertex
+//! lies within the support distance of the data, and no two segments cross (the curves
+//! are simple and disjoint but where pieces meet at a shared end). A piece that breaks
+//! one is cut where it does, and the record's warnings say how much was cut
+//! ([`crate::Warning::OffData`], [`crate::Warning::Crossings`]).
+//!
+//! Both are checks on the output, not repairs of the method: on the shapes and scans the
+//! project's tables hold, they cut nothing.
+
+use crate::geom::{dist, Point, Polyline};
+use crate::repair::strokes::Junction;
+use crate::warning::Warning;
+
+/// What [`enforce`] needs of a point cloud (lengths in data units).
+pub struct Cloud<'a> {
+    /// A point's distance to the nearest sample that is not an outlier.
+    pub distance: &'a (dyn Fn(Point) -> f64 + Sync),
+    /// The support distance: the accuracy bound `3 sigma + 2 hmin` plus the neighbours'
+    /// reach.
+    pub reach: f64,
+    /// The longer side of the samples' bounding box.
+    pub extent: f64,
+    /// Segments no longer than this are a repeated point.
+    pub eps: f64,
+}
+
+/// A point cloud's curves made to hold the invariants: within the support distance of
+/// its samples ([`supported`]), no two crossing ([`uncrossed`]), and well formed
+/// ([`super::well_formed`]); each junction keeps the pieces its ends went to (cuts move no
+/// vertex). Returns the warnings for what had to be cut, and [`collapsed`]'s.
+pub fn enforce(
+    polylines: Vec<Polyline>,
+    junctions: Vec<Junction>,
+    cloud: &Cloud<'_>,
+) -> (Vec<Polyline>, Vec<Junction>, Vec<Warning>) {
+    let mut warnings = Vec::new();
+    let ends: Vec<Vec<Point>> = junctions
+        .iter()
+        .map(|j| {
+            j.polylines
+                .iter()
+                .filter_map(|&k| polylines.get(k))
+                .filter_map(|pl| {
+                    let (a, b) = (*pl.points.first()?, *pl.points.last()?);
+                    Some(if dist(a, j.at) <= dist(b, j.at) { a } else { b })
+                })
+                .collect()
+        })
+        .collect();
+    let (polylines, cut) = supported(polylines, cloud.distance, cloud.reach);
+    if cut > 0.0 {
+        warnings.push(Warning::OffData {
+            length: cut,
+            reach: cloud.reach,
+        });
+    }
+    let (polylines, removed) = uncrossed(polylines);
+    if removed > 0 {
+        warnings.push(Warning::Crossings { removed });
+    }
+    let polylines = super::well_formed(polylines, cloud.eps);
+    let junctions: Vec<Junction> = junctions
+        .into_iter()
+        .zip(ends)
+        .filter_map(|(j, ends)| {
+            let members: Vec<usize> = polylines
+                .iter()
+                .enumerate()
+                .filter(|(_, pl)| {
+                    let (a, b) = (pl.points[0], pl.points[pl.points.len() - 1]);
+                    !pl.closed && ends.iter().any(|&e| e == a || e == b)
+                })
+                .map(|(k, _)| k)
+                .collect();
+            (members.len() >= 2).then_some(Junction {
+                at: j.at,
+                polylines: members,
+            })
+        })
+        .collect();
+    warnings.extend(collapsed(&polylines, &junctions, cloud.extent));
+    (polylines, junctions, warnings)
+}
+
+/// Whether a point cloud's curves look collapsed: a star (one junction holding six or
+/// more of the open curves' ends, and at least half of them: spokes from one point
+/// across the drawing), or curves shorter than half the longer side of the data's box
+/// `extent` (a curve through data spanning a box is about as long as its side at least).
+pub fn collapsed(polylines: &[Polyline], junctions: &[Junction], extent: f64) -> Option<Warning> {
+    let open_ends = 2 * polylines.iter().filter(|pl| !pl.closed).count();
+    let busiest = junctions
+        .iter()
+        .map(|j| j.polylines.len())
+        .max()
+        .unwrap_or(0);
+    let length: f64 = polylines.iter().map(Polyline::length).sum();
+    let star = busiest >= 6 && 2 * busiest >= open_ends;
+    let short = !polylines.is_empty() && length < 0.5 * extent;
+    (star || short).then_some(Warning::Collapsed {
+        ends: (busiest, open_ends),
+        length: (length, extent),
+    })
+}
+
+/// `polylines` with every stretch whose vertices lie farther than `reach` from the data
+/// (`distance` gives a vertex's distance) removed: a closed curve with such a stretch
+/// opens there, an open one splits. Pieces of fewer than two vertices go. Returns the
+/// kept pieces and the length removed.
+pub fn supported(
+    polylines: Vec<Polyline>,
+    distance: impl Fn(Point) -> f64,
+    reach: f64,
+) -> (Vec<Polyline>, f64) {
+    let mut out = Vec::with_capacity(polylines.len());
+    let mut removed = 0.0;
+    for pl in polylines {
+        let ok: Vec<bool> = pl.points.iter().map(|&p| distance(p) <= reach).collect();
+        if ok.iter().all(|&b| b) {
+            out.push(pl);
+            continue;
+        }
+        let before = pl.length();
+        let n = pl.points.len();
+        // A closed curve is walked from a vertex off the data, so each kept stretch is
+        // one open piece.
+        let start = if pl.closed {
+            ok.iter().position(|&b| !b).unwrap_or(0)
+        } else {
+            0
+        };
+        let steps = if pl.closed { n + 1 } else { n };
+        let mut kept = 0.0;
+        let mut cur: Vec<Point> = Vec::new();
+        let mut flush = |cur: &mut Vec<Point>, out: &mut Vec<Polyline>| {
+            if cur.len() >= 2 {
+                let piece = Polyline {
+                    closed: false,
+                    points: std::mem::take(cur),
+                };
+                kept += piece.length();
+                out.push(piece);
+            } else {
+                cur.clear();
+            }
+        };
+        for k in 0..steps {
+            let i = (start + k) % n;
+            if ok[i] {
+                cur.push(pl.points[i]);
+            } else {
+                flush(&mut cur, &mut out);
+            }
+        }
+        flush(&mut cur, &mut out);
+        removed += (before - kept).max(0.0);
+    }
+    (out, removed)
+}
+
+/// The segments of `polylines` as (piece, index of its first vertex, a, b).
+fn segments(polylines: &[Polyline]) -> Vec<(usize, usize, Point, Point)> {
+    let mut out = Vec::new();
+    for (k, pl) in polylines.iter().enumerate() {
+        let n = pl.points.len();
+        if n < 2 {
+            continue;
+        }
+        let m = if pl.closed { n } else { n - 1 };
+        out.extend((0..m).map(|i| (k, i, pl.points[i], pl.points[(i + 1) % n])));
+    }
+    out
+}
+
+/// Whether the segments `ab` and `cd` cross properly: each one's ends strictly on
+/// either side of the other's line (exact predicates). Touching, at an end or along a
+/// line, is not crossing: pieces meet at junctions that way.
+fn cross(a: Point, b: Point, c: Point, d: Point) -> bool {
+    let o = |p: Point, q: Point, r: Point| {
+        robust::orient2d(
+            robust::Coord { x: p[0], y: p[1] },
+            robust::Coord { x: q[0], y: q[1] },
+            robust::Coord { x: r[0], y: r[1] },
+        )
+    };
+    let (d1, d2) = (o(a, b, c), o(a, b, d));
+    let (d3, d4) = (o(c, d, a), o(c, d, b));
+    ((d1 > 0.0 && d2 < 0.0) || (d1 < 0.0 && d2 > 0.0))
+        && ((d3 > 0.0 && d4 < 0.0) || (d3 < 0.0 && d4 > 0.0))
+}
+
+/// `polylines` with no two segments crossing. A piece crossing itself makes a small
+/// loop there (a twist a pass left at a corner): the smaller side of the crossing is cut
+/// out and the crossing point joins the two sides, so a closed curve stays closed. Of
+/// two pieces crossing each other, the shorter loses its segment through the crossing,
+/// splitting there; removing a segment crosses nothing new, so one pass leaves none.
+/// Returns the pieces and the number of crossings undone.
+pub fn uncrossed(polylines: Vec<Polyline>) -> (Vec<Polyline>, usize) {
+    let mut untwisted = 0;
+    let polylines: Vec<Polyline> = polylines
+        .into_iter()
+        .map(|pl| {
+            let (pl, n) = untwist(pl);
+            untwisted += n;
+            pl
+        })
+        .collect();
+    let (out, cut) = uncross_pieces(polylines);
+    (out, untwisted + cut)
+}
+
+/// A piece with its self-crossings undone, each by cutting out the smaller side.
+fn untwist(mut pl: Polyline) -> (Polyline, usize) {
+    let mut undone = 0;
+    // Each cut removes at least one vertex: at most as many as there are.
+    for _ in 0..pl.points.len() {
+        let segs = segments(std::slice::from_ref(&pl));
+        let Some((s, t)) = crossing_pairs(&segs).into_iter().next() else {
+            break;
+        };
+        let (i, j) = (
+            segs[s as usize].1.min(segs[t as usize].1),
+            segs[s as usize].1.max(segs[t as usize].1),
+        );
+        let (a, b, c, d) = (
+            pl.points[i],
+            pl.points[i + 1],
+            pl.points[j],
+            pl.points[(j + 1) % pl.points.len()],
+        );
+        let x = intersection(a, b, c, d);
+        let inner: Vec<Point> = std::iter::once(x)
+            .chain(pl.points[i + 1..=j].iter().copied())
+            .collect();
+        let mut outer: Vec<Point> = pl.points[..=i].to_vec();
+        outer.push(x);
+        outer.extend_from_slice(&pl.points[j + 1..]);
+        let area = |p: &[Point]| {
+            Polyline {
+                closed: true,
+                points: p.to_vec(),
+            }
+            .signed_area()
+            .abs()
+        };
+        // An open piece keeps its ends, so the loop between the crossings goes; a closed
+        // one keeps the side enclosing more.
+        pl.points = if !pl.closed || area(&outer) >= area(&inner) {
+            outer
+        } else {
+            inner
+        };
+        undone += 1;
+    }
+    (pl, undone)
+}
+
+/// Where the lines of `ab` and `cd` meet (they cross: the denominator is not zero).
+fn intersection(a: Point, b: Point, c: Point, d: Point) -> Point {
+    let (r, s) = ([b[0] - a[0], b[1] - a[1]], [d[0] - c[0], d[1] - c[1]]);
+    let den = r[0] * s[1] - r[1] * s[0];
+    let t = ((c[0] - a[0]) * s[1] - (c[1] - a[1]) * s[0]) / den;
+    [a[0] + t * r[0], a[1] + t * r[1]]
+}
+
+/// The pairs of crossing segments (indices into `segs`, smaller first), sorted.
+fn crossing_pairs(segs: &[(usize, usize, Point, Point)]) -> Vec<(u32, u32)> {
+    if segs.len() < 2 {
+        return Vec::new();
+    }
+    // A uniform grid of cells about four median segments wide: each segment is tested
+    // against those sharing a cell with its bounding box.
+    let mut lens: Vec<f64> = segs.iter().map(|s| dist(s.2, s.3)).collect();
+    let mid = lens.len() / 2;
+    let (_, &mut median, _) = lens.select_nth_unstable_by(mid, f64::total_cmp);
+    let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+    for s in segs {
+        for p in [s.2, s.3] {
+            for k in 0..2 {
+                lo[k] = lo[k].min(p[k]);
+                hi[k] = hi[k].max(p[k]);
+            }
+        }
+    }
+    let span = (hi[0] - lo[0]).max(hi[1] - lo[1]);
+    // At most about 4 cells a segment in all: a few long segments cannot ask for more.
+    let cells_per_side = ((span / (4.0 * median.max(f64::MIN_POSITIVE))).ceil())
+        .clamp(1.0, (2.0 * (segs.len() as f64).sqrt()).max(1.0)) as usize;
+    let cell = span.max(f64::MIN_POSITIVE) / cells_per_side as f64;
+    let at = |x: f64, k: usize| (((x - lo[k]) / cell) as usize).min(cells_per_side - 1);
+    let mut grid: rustc_hash::FxHashMap<(usize, usize), Vec<u32>> = Default::default();
+    for (j, s) in segs.iter().enumerate() {
+        let (x0, x1) = (at(s.2[0].min(s.3[0]), 0), at(s.2[0].max(s.3[0]), 0));
+        let (y0, y1) = (at(s.2[1].min(s.3[1]), 1), at(s.2[1].max(s.3[1]), 1));
+        for x in x0..=x1 {
+            for y in y0..=y1 {
+                grid.entry((x, y)).or_default().push(j as u32);
+            }
+        }
+    }
+    let mut pairs: Vec<(u32, u32)> = Vec::new();
+    for ids in grid.values() {
+        for (x, &s) in ids.iter().enumerate() {
+            for &t in &ids[x + 1..] {
+                let (p, q) = (&segs[s as usize], &segs[t as usize]);
+                if cross(p.2, p.3, q.2, q.3) {
+                    pairs.push((s.min(t), s.max(t)));
+                }
+            }
+        }
+    }
+    pairs.sort_unstable();
+    pairs.dedup();
+    pairs
+}
+
+/// Pieces crossing each other: of each pair, the shorter piece's segment goes.
+fn uncross_pieces(polylines: Vec<Polyline>) -> (Vec<Polyline>, usize) {
+    let segs = segments(&polylines);
+    let pairs = crossing_pairs(&segs);
+    let length: Vec<f64> = polylines.iter().map(Polyline::length).collect();
+    let mut cut = vec![false; segs.len()];
+    for &(s, t) in &pairs {
+        let (s, t) = (s as usize, t as usize);
+        if cut[s] || cut[t] {
+            continue;
+        }
+        let (p, q) = (&segs[s], &segs[t]);
+        let victim = if p.0 == q.0 || length[q.0] <= length[p.0] {
+            t
+        } else {
+            s
+        };
+        cut[victim] = true;
+    }
+    let removed = cut.iter().filter(|&&c| c).count();
+    if removed == 0 {
+        return (polylines, 0);
+    }
+    // Each piece split at its removed segments, as `supported` splits at removed
+    // vertices: a segment is removed by opening the piece between its two vertices.
+    let mut out = Vec::with_capacity(polylines.len() + removed);
+    let mut first = 0;
+    for pl in polylines {
+        let n = pl.points.len();
+        let m = if n < 2 {
+            0
+        } else if pl.closed {
+            n
+        } else {
+            n - 1
+        };
+        let gone = &cut[first..first + m];
+        first += m;
+        if !gone.iter().any(|&c| c) {
+            out.push(pl);
+            continue;
+        }
+        // Walk from the vertex after a removed segment (closed), or from the start.
+        let start = if pl.closed {
+            (gone.iter().position(|&c| c).unwrap_or(0) + 1) % n
+        } else {
+            0
+        };
+        let mut cur = vec![pl.points[start]];
+        let steps = if pl.closed { n } else { m };
+        for k in 0..steps {
+            let i = (start + k) % n;
+            if i >= m {
+                break;
+            }
+            let next = pl.points[(i + 1) % n];
+            if gone[i] {
+                if cur.len() >= 2 {
+                    out.push(Polyline {
+                        closed: false,
+                        points: std::mem::take(&mut cur),
+                    });
+                }
+                cur = vec![next];
+            } else {
+                cur.push(next);
+            }
+        }
+        if cur.len() >= 2 {
+            out.push(Polyline {
+                closed: false,
+                points: cur,
+            });
+        }
+    }
+    (out, removed)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn open(points: &[[f64; 2]]) -> Polyline {
+        Polyline {
+            closed: false,
+            points: points.to_vec(),
+        }
+    }
+
+    /// A stroke that runs on past its data loses exactly the stretch farther than the
+    /// reach: the length removed is that stretch's, to rounding.
+    #[test]
+    fn a_stretch_off_the_data_is_cut() {
+        let data: Vec<Point> = (0..=10).map(|i| [i as f64 * 0.1, 0.0]).collect();
+        let d = |p: Point| {
+            data.iter()
+                .map(|&q| dist(p, q))
+                .fold(f64::INFINITY, f64::min)
+        };
+        // Along the data, then 1 up and away from them.
+        let pl = open(&[[0.0, 0.0], [0.5, 0.0], [1.0, 0.0], [1.0, 0.05], [1.0, 1.0]]);
+        let (out, removed) = supported(vec![pl], d, 0.1);
+        assert_eq!(out.len(), 1);
+        assert_eq!(out[0].points.len(), 4);
+        assert!((removed - 0.95).abs() < 1e-12, "{removed}");
+        // A closed loop off the data on one side opens there.
+        let sq = Polyline {
+            closed: true,
+            points: vec![[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]],
+        };
+        let (out, removed) = supported(vec![sq], d, 0.1);
+        assert_eq!(out.len(), 1);
+        assert!(!out[0].closed);
+        assert_eq!(out[0].points, vec![[0.0, 0.0], [1.0, 0.0]]);
+        assert!((removed - 3.0).abs() < 1e-12);
+    }
+
+    /// Two strokes crossing in an X: the shorter loses the segment through the
+    /// crossing; two pieces meeting at a shared end, or touching, are left alone.
+    #[test]
+    fn crossings_are_cut_and_junctions_kept() {
+        let long = open(&[[-1.0, 0.0], [0.0, 0.0], [1.0, 0.0]]);
+        let short = open(&[[0.5, -0.5], [0.5, 0.5], [0.5, 0.7]]);
+        let (out, removed) = uncrossed(vec![long.clone(), short]);
+        assert_eq!(removed, 1);
+        assert_eq!(out[0], long);
+        assert_eq!(out.len(), 2);
+        assert_eq!(out[1].points, vec![[0.5, 0.5], [0.5, 0.7]]);
+        let t = open(&[[0.0, 0.0], [0.0, 1.0]]);
+        let touching = open(&[[0.3, 0.0], [0.3, -1.0]]);
+        let (out, removed) = uncrossed(vec![long.clone(), t, touching]);
+        assert_eq!((out.len(), removed), (3, 0));
+    }
+
+    /// A figure eight (a closed curve crossing itself) keeps its larger side, closed,
+    /// and the result crosses nothing.
+    #[test]
+    fn a_self_crossing_loop_opens() {
+        let eight = Polyline {
+            closed: true,
+            points: vec![[0.0, 0.0], [1.0, 1.0], [1.0, 0.0], [0.0, 1.0]],
+        };
+        let (out, removed) = uncrossed(vec![eight]);
+        assert_eq!(removed, 1);
+        assert_eq!(out.len(), 1);
+        assert!(out[0].closed);
+        assert_eq!(out[0].points.len(), 3);
+        assert_eq!(uncrossed(out).1, 0);
+        // A loop with a small twist at one corner loses the twist only.
+        let twisted = Polyline {
+            closed: true,
+            points: vec![
+                [0.0, 0.0],
+                [1.0, 0.0],
+                [1.1, 0.1],
+                [1.1, -0.05],
+                [1.0, 0.05],
+                [1.0, 1.0],
+                [0.0, 1.0],
+            ],
+        };
+        let (out, removed) = uncrossed(vec![twisted]);
+        assert_eq!(removed, 1);
+        assert!(out[0].closed);
+        assert!((out[0].signed_area().abs() - 1.0).abs() < 0.01);
+    }
+
+    /// Twelve spokes from one junction are a star; a cross of four is not; a curve
+    /// a tenth of the data's extent is short.
+    #[test]
+    fn stars_and_short_results_are_flagged() {
+        let spokes: Vec<Polyline> = (0..12)
+            .map(|k| {
+                let a = std::f64::consts::TAU * k as f64 / 12.0;
+                open(&[[0.0, 0.0], [a.cos(), a.sin()]])
+            })
+            .collect();
+        let at = |n: usize| Junction {
+            at: [0.0, 0.0],
+            polylines: (0..n).collect(),
+        };
+        let w = collapsed(&spokes, &[at(12)], 2.0);
+        assert!(
+            matches!(w, Some(Warning::Collapsed { ends: (12, 24), .. })),
+            "{w:?}"
+        );
+        assert_eq!(collapsed(&spokes[..4], &[at(4)], 2.0), None);
+        let w = collapsed(&[open(&[[0.0, 0.0], [0.1, 0.0]])], &[], 1.0);
+        assert!(matches!(w, Some(Warning::Collapsed { .. })), "{w:?}");
+    }
+
+    /// On data that hold them, the invariants cut nothing, at any size: a noisy
+    /// circle among a few scattered points comes out as one closed loop with no
+    /// warning, the scattered points as its features.
+    #[test]
+    fn good_data_are_left_alone_at_any_size() {
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
+        let mut unit: Vec<Point> = (0..600)
+            .map(|_| {
+                let a = rng.random::<f64>() * std::f64::consts::TAU;
+                let r = 0.3 + 0.003 * (rng.random::<f64>() - 0.5);
+                [0.5 + r * a.cos(), 0.5 + r * a.sin()]
+            })
+            .collect();
+        unit.extend([[0.05, 0.05], [0.95, 0.1], [0.9, 0.93]]);
+        for scale in [1e-6, 1e-3, 1.0, 1e3, 1e6] {
+            let points: Vec<Point> = unit.iter().map(|p| [p[0] * scale, p[1] * scale]).collect();
+            let r = crate::reconstruct(&points, &crate::Params::default()).unwrap();
+            assert_eq!(r.polylines.len(), 1, "{scale}: {:?}", r.warnings);
+            assert!(r.polylines[0].closed, "{scale}");
+            assert!(r.warnings.is_empty(), "{scale}: {:?}", r.warnings);
+            assert_eq!(r.features.len(), 3, "{scale}");
+        }
+    }
+
+    proptest::proptest! {
+        #![proptest_config(proptest::prelude::ProptestConfig::with_cases(12))]
+        /// Random point sets (a noisy circle or two among scattered points, or points
+        /// anywhere), at sizes from 1e-6 to 1e6, through the whole reconstruction: the curves cross nowhere, have no
+        /// zero-length segment, and every vertex lies within the support distance
+        /// `3 sigma + 2 hmin + reach` of a sample that is not isolated.
+        #[test]
+        fn every_result_holds_the_invariants(
+            circles in proptest::collection::vec(([0.2f64..0.8, 0.2f64..0.8], 0.05f64..0.3), 0..3),
+            per_circle in 50usize..300,
+            noise in 0.0f64..0.01,
+            scattered in proptest::collection::vec([0.0f64..1.0, 0.0f64..1.0], 0..40),
+            seed in 0u64..1000,
+            exponent in -6i32..7,
+        ) {
+            let scale = 10f64.powi(exponent);
+            use rand::{Rng, SeedableRng};
+            let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+            let mut points: Vec<Point> = scattered.clone();
+            for &(c, r) in &circles {
+                for _ in 0..per_circle {
+                    let a = rng.random::<f64>() * std::f64::consts::TAU;
+                    let e = noise * (rng.random::<f64>() - 0.5);
+                    points.push([c[0] + (r + e) * a.cos(), c[1] + (r + e) * a.sin()]);
+                }
+            }
+            proptest::prop_assume!(points.len() >= 20);
+            // At any size: lengths in the data's units and the local ones must not mix.
+            points.iter_mut().for_each(|p| *p = [p[0] * scale, p[1] * scale]);
+            let Ok(r) = crate::reconstruct(&points, &crate::Params::default()) else {
+                return Ok(());
+            };
+            let n = crate::distance::Neighbourhood::of(&points).unwrap();
+            let inliers: Vec<Point> = points
+                .iter()
+                .zip(&n.isolated)
+                .filter(|(_, &i)| !i)
+                .map(|(&p, _)| p)
+                .collect();
+            let d = |p: Point| inliers.iter().map(|&q| dist(p, q)).fold(f64::INFINITY, f64::min);
+            let reach = 3.0 * r.noise_estimate + 2.0 * r.stats.hmin + n.reach;
+            for pl in &r.polylines {
+                for &p in &pl.points {
+                    proptest::prop_assert!(d(p) <= reach * (1.0 + 1e-9), "{} > {reach}", d(p));
+                }
+                let m = pl.points.len();
+                let segs = if pl.closed { m } else { m - 1 };
+                for i in 0..segs {
+                    proptest::prop_assert!(pl.points[i] != pl.points[(i + 1) % m]);
+                }
+            }
+            let segs = segments(&r.polylines);
+            for (x, a) in segs.iter().enumerate() {
+                for b in &segs[x + 1..] {
+                    proptest::prop_assert!(!cross(a.2, a.3, b.2, b.3), "{a:?} crosses {b:?}");
+                }
+            }
+        }
+    }
+}
