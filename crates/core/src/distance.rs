@@ -8,6 +8,7 @@ use kiddo::{ImmutableKdTree, SquaredEuclidean};
 use rayon::prelude::*;
 use std::num::NonZeroUsize;
 
+use crate::disjoint::root;
 use crate::error::{Error, Result};
 use crate::geom::{dist, Point};
 
@@ -234,13 +235,6 @@ impl Neighbourhood {
         let reach = NEIGHBOUR_SPACINGS * spacing;
         // Clusters by union-find over the pairs within reach.
         let mut parent: Vec<u32> = (0..pts.len() as u32).collect();
-        fn root(parent: &mut [u32], mut i: u32) -> u32 {
-            while parent[i as usize] != i {
-                parent[i as usize] = parent[parent[i as usize] as usize];
-                i = parent[i as usize];
-            }
-            i
-        }
         let mut near = Vec::new();
         for (i, &p) in pts.iter().enumerate() {
             field.within(p, reach, &mut near);

@@ -60,6 +60,7 @@
 #![deny(rustdoc::broken_intra_doc_links)]
 
 mod band;
+mod disjoint;
 mod distance;
 mod error;
 mod export;

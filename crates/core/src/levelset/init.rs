@@ -3,6 +3,7 @@
 
 use rayon::prelude::*;
 
+use crate::disjoint::root;
 use crate::distance::DistanceField;
 use crate::fem::P1Space;
 use crate::geom::{dist, sub, BBox, Point};
@@ -545,13 +546,6 @@ fn bridge_corridors(mesh: &Mesh, corridor: &Corridors<'_>, free: &[bool], region
     });
     let regions = region.iter().copied().max().map_or(0, |m| m + 1);
     let mut parent: Vec<u32> = (0..regions).collect();
-    fn find(parent: &mut [u32], mut r: u32) -> u32 {
-        while parent[r as usize] != r {
-            parent[r as usize] = parent[parent[r as usize] as usize];
-            r = parent[r as usize];
-        }
-        r
-    }
     let mut near = Vec::new();
     for &v in &ids {
         let Some(sv) = strip_at(Some(corridor), v) else {
@@ -562,7 +556,7 @@ fn bridge_corridors(mesh: &Mesh, corridor: &Corridors<'_>, free: &[bool], region
         for &j in &near {
             let w = by_point[j as usize];
             let q = mesh.coords[w];
-            let (a, b) = (find(&mut parent, region[v]), find(&mut parent, region[w]));
+            let (a, b) = (root(&mut parent, region[v]), root(&mut parent, region[w]));
             if a == b || !sv.holds(p, q) {
                 continue;
             }
@@ -573,7 +567,7 @@ fn bridge_corridors(mesh: &Mesh, corridor: &Corridors<'_>, free: &[bool], region
         }
     }
     for r in region.iter_mut() {
-        *r = find(&mut parent, *r);
+        *r = root(&mut parent, *r);
     }
 }
 

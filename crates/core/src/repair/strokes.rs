@@ -12,6 +12,7 @@
 //! chains between its ends and its forks are the polylines, smoothed over `r / 2`, and
 //! forks closer than `2 r` are one junction (a crossing forks twice).
 
+use crate::disjoint::root;
 use crate::distance::DistanceField;
 use crate::geom::{cross, dist, dot, scale, sub, Point, Polyline, Sym2};
 
@@ -513,7 +514,7 @@ fn spanning_tree(
                 edges: &mut Vec<(usize, usize)>| {
         pairs.sort_unstable_by(|a, b| a.0.total_cmp(&b.0));
         for (_, i, j) in pairs {
-            let (a, b) = (find(parent, i), find(parent, j));
+            let (a, b) = (root(parent, i), root(parent, j));
             if a != b {
                 parent[a] = b;
                 edges.push((i, j));
@@ -623,7 +624,7 @@ fn end_pairs(
         degree[a] += 1;
         degree[b] += 1;
     }
-    let comp: Vec<usize> = (0..parent.len()).map(|i| find(parent, i)).collect();
+    let comp: Vec<usize> = (0..parent.len()).map(|i| root(parent, i)).collect();
     let mut near = Vec::new();
     let mut pairs = Vec::new();
     for (i, &p) in nodes.iter().enumerate().filter(|&(i, _)| degree[i] <= 1) {
@@ -638,14 +639,6 @@ fn end_pairs(
 }
 
 /// The root of `i`'s set in the union-find `parent`, halving the path on the way.
-fn find(parent: &mut [usize], mut i: usize) -> usize {
-    while parent[i] != i {
-        parent[i] = parent[parent[i]];
-        i = parent[i];
-    }
-    i
-}
-
 /// The chain of the tree from `from` through its neighbour `first`, on through nodes of
 /// degree 2 until a node of another degree, `from` again, or `limit` of length: the
 /// nodes (both ends included) and the length.
