@@ -11,15 +11,8 @@ set -euo pipefail
 . "$(dirname "$0")/lib.sh"
 out=${1:-target/cgal-peer}
 tol=${2:-0.01}
-mkdir -p "$out" .tools
-if ! dpkg -s libcgal-dev >/dev/null 2>&1; then
-  sudo=""; [ "$(id -u)" = 0 ] || sudo=sudo
-  $sudo apt-get install -y --no-install-recommends libcgal-dev libgmp-dev libmpfr-dev g++ >&2
-fi
-otr=.tools/otr2
-if [ ! -x "$otr" ] || [ scripts/cgal/otr2.cpp -nt "$otr" ]; then
-  g++ -O2 -std=c++17 -o "$otr" scripts/cgal/otr2.cpp -lgmp -lmpfr
-fi
+mkdir -p "$out"
+need_otr2
 score() { python3 scripts/cgal/score.py "$@"; }
 echo "| shape | sigma | isoline Hausdorff | components | degree != 2 | ms | CGAL Hausdorff | components | degree != 2 | ms |"
 echo "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|"

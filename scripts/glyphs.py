@@ -10,11 +10,15 @@ to the test part by a hash of its name, and development seeds are 0..99_999, tes
 100_000 and up, so that tuning on one part never sees the other.
 
     glyphs.py make DIR --part dev|test --cases N     # frames and truths in DIR
-    glyphs.py score DIR                              # one JSON line a case, then a summary
+    glyphs.py score DIR [--peer cgal]                # one JSON line a case, then a summary
+    glyphs.py edges DIR                              # CGAL's edges as result records
 
 `make` writes DIR/<case>.ndjson (one frame of points), DIR/<case>.truth.json (the shape's
 curves, `isoline synth`'s truth format) and DIR/<case>.case.json (what was drawn).
-`score` reads DIR/<case>.recon.ndjson (isoline's record) beside them.
+`score` reads DIR/<case>.recon.ndjson (isoline's record) beside them, or with `--peer
+cgal` DIR/<case>.cgal.ndjson: CGAL's optimal-transport edges (DIR/<case>.edges, its
+milliseconds in DIR/<case>.cgal-ms) chained into polylines by `edges`, scored by the same
+rules against the same bound (isoline's hmin on the same points).
 """
 
 import argparse
@@ -330,12 +334,70 @@ def arms(truth_dense_tree, truth_dense, centre, radius):
     return int(np.sum(near & ~np.roll(near, 1)))
 
 
-def score_case(d, case):
+def chain(edges):
+    """Edges (pairs of points) joined into polylines at their shared ends: chains between
+    vertices of degree other than 2, and the cycles left, closed."""
+    key = lambda p: (round(p[0], 12), round(p[1], 12))
+    nbr = {}
+    for a, b in edges:
+        ka, kb = key(a), key(b)
+        if ka == kb:
+            continue
+        nbr.setdefault(ka, []).append(kb)
+        nbr.setdefault(kb, []).append(ka)
+    used, out = set(), []
+
+    def walk(start, nxt):
+        pts, prev, cur = [start], start, nxt
+        used.add(frozenset((start, nxt)))
+        while True:
+            pts.append(cur)
+            if len(nbr[cur]) != 2 or cur == start:
+                return pts
+            step = [n for n in nbr[cur] if frozenset((cur, n)) not in used]
+            if not step:
+                return pts
+            prev, cur = cur, step[0]
+            used.add(frozenset((prev, cur)))
+
+    for v, ns in nbr.items():
+        if len(ns) != 2:
+            for n in ns:
+                if frozenset((v, n)) not in used:
+                    out.append({"closed": False, "points": [list(p) for p in walk(v, n)]})
+    for v, ns in nbr.items():
+        for n in ns:
+            if frozenset((v, n)) not in used:
+                pts = walk(v, n)
+                if pts[-1] == pts[0]:
+                    out.append({"closed": True, "points": [list(p) for p in pts[:-1]]})
+                else:
+                    out.append({"closed": False, "points": [list(p) for p in pts]})
+    return out
+
+
+def edges(args):
+    for path in sorted(glob.glob(os.path.join(args.dir, "*.case.json"))):
+        case = path[: -len(".case.json")]
+        if not os.path.exists(case + ".edges"):
+            continue
+        segs = []
+        for line in open(case + ".edges"):
+            x1, y1, x2, y2 = map(float, line.split())
+            segs.append(((x1, y1), (x2, y2)))
+        rec = json.loads(open(case + ".recon.ndjson").readline())
+        ms = float(open(case + ".cgal-ms").read())
+        with open(case + ".cgal.ndjson", "w") as f:
+            json.dump({"frame": 0, "polylines": chain(segs), "stats": {"hmin": rec["stats"]["hmin"], "ms": {"total": ms}}}, f)
+            f.write("\n")
+
+
+def score_case(d, case, peer="recon"):
     c = json.load(open(os.path.join(d, case + ".case.json")))
     truth = json.load(open(os.path.join(d, case + ".truth.json")))["polylines"]
     frame = json.loads(open(os.path.join(d, case + ".ndjson")).readline())
     data = np.array(frame["points"])
-    path = os.path.join(d, case + ".recon.ndjson")
+    path = os.path.join(d, f"{case}.{peer}.ndjson")
     rec = json.loads(open(path).readline()) if os.path.exists(path) and os.path.getsize(path) else None
     row = dict(c)
     if rec is None or "polylines" not in rec:
@@ -402,7 +464,9 @@ def score(args):
     rows = []
     for path in sorted(glob.glob(os.path.join(args.dir, "*.case.json"))):
         case = os.path.basename(path)[: -len(".case.json")]
-        row = score_case(args.dir, case)
+        if args.peer != "recon" and not os.path.exists(os.path.join(args.dir, f"{case}.{args.peer}.ndjson")):
+            continue
+        row = score_case(args.dir, case, args.peer)
         rows.append(row)
         print(json.dumps(row))
     summary(rows)
@@ -436,8 +500,11 @@ def main():
     m.add_argument("--cases", type=int, default=100)
     s = sub.add_parser("score")
     s.add_argument("dir")
+    s.add_argument("--peer", default="recon", help="cgal: score CGAL's records (from `edges`) instead of isoline's")
+    e = sub.add_parser("edges")
+    e.add_argument("dir")
     args = ap.parse_args()
-    {"make": make, "score": score}[args.cmd](args)
+    {"make": make, "score": score, "edges": edges}[args.cmd](args)
 
 
 if __name__ == "__main__":

@@ -6,8 +6,12 @@
 # and scipy in a fresh virtual environment (.tools/glyphs).
 #
 #   scripts/glyphs.sh [dev|test] [CASES] [OUT_DIR]   # default: test 600 target/glyphs-PART
+#   CGAL=N scripts/glyphs.sh ...                     # also CGAL on the first N cases
 #
-# Prints one JSON line a case, then the Markdown table of docs/benchmarks.md.
+# Prints one JSON line a case, then the Markdown table of docs/benchmarks.md; with CGAL,
+# then the same for CGAL's optimal-transport reconstruction (scripts/cgal/otr2.cpp,
+# Wasserstein tolerance 0.01, built as scripts/cgal-peer.sh builds it) and for isoline
+# on the same cases.
 set -euo pipefail
 . "$(dirname "$0")/lib.sh"
 part=${1:-test}
@@ -31,3 +35,20 @@ rm -rf "$out"
 ls "$out"/*.case.json | sed 's/\.case\.json$//' \
   | xargs -P 2 -I{} sh -c '"$0" reconstruct {}.ndjson -o {}.recon.ndjson 2> {}.err || true' "$bin"
 "$py" scripts/glyphs.py score "$out"
+cgal=${CGAL:-0}
+[ "$quick" = 1 ] && [ "$cgal" -gt 0 ] && cgal=1
+if [ "$cgal" -gt 0 ]; then
+  need_otr2
+  mkdir -p "$out/cgal"
+  for c in $(ls "$out"/*.case.json | sed 's/\.case\.json$//' | head -n "$cgal"); do
+    name=$(basename "$c")
+    cp "$c".case.json "$c".truth.json "$c".ndjson "$c".recon.ndjson "$out/cgal/"
+    python3 scripts/cgal/score.py xy "$c.ndjson" "$out/cgal/$name.xy"
+    "$otr" "$out/cgal/$name.xy" 0.01 > "$out/cgal/$name.edges" 2> "$out/cgal/$name.cgal-ms" || true
+  done
+  "$py" scripts/glyphs.py edges "$out/cgal"
+  echo "CGAL:"
+  "$py" scripts/glyphs.py score "$out/cgal" --peer cgal | grep '^|'
+  echo "isoline, the same cases:"
+  "$py" scripts/glyphs.py score "$out/cgal" | grep '^|'
+fi

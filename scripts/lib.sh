@@ -22,3 +22,18 @@ need_recordings() {
     exit 1
   fi
 }
+
+# CGAL's optimal-transport reconstruction as $otr, the driver scripts/cgal/otr2.cpp built
+# into .tools/ (Debian's libcgal-dev installed first when missing, with apt-get, as root
+# or through sudo): `$otr POINTS.xy TOLERANCE > EDGES` prints its edges.
+need_otr2() {
+  mkdir -p .tools
+  if ! dpkg -s libcgal-dev >/dev/null 2>&1; then
+    local sudo=""; [ "$(id -u)" = 0 ] || sudo=sudo
+    $sudo apt-get install -y --no-install-recommends libcgal-dev libgmp-dev libmpfr-dev g++ >&2
+  fi
+  otr=.tools/otr2
+  if [ ! -x "$otr" ] || [ scripts/cgal/otr2.cpp -nt "$otr" ]; then
+    g++ -O2 -std=c++17 -o "$otr" scripts/cgal/otr2.cpp -lgmp -lmpfr
+  fi
+}

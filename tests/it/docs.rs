@@ -6,7 +6,8 @@
 //! `isoline ...` and `cargo run --release -- ...` run the binary under test; scripts run
 //! with `QUICK=1` (a small version of their run) and that binary. `cargo test`, `cargo
 //! bench`, `cargo build`, `scripts/test.sh` and `.ci/run` are the suite and its build,
-//! `scripts/cgal-peer.sh` installs a Debian package and builds a C++ peer, and `python`,
+//! `scripts/cgal-peer.sh` installs a Debian package and builds a C++ peer,
+//! `scripts/glyphs.sh` installs Debian's fonts and a Python environment, and `python`,
 //! `pip` and `scripts/python.sh` are the Python package's, which scripts/python.sh tests
 //! (with the `python` blocks of docs/python.md): not run here. Any
 //! other command fails the test, so a page cannot show one that nothing checks. `toml`
@@ -129,8 +130,9 @@ fn run(dir: &Path, page: &Path, command: &str) {
         // The Python package: scripts/python.sh (run by scripts/test.sh) builds it into a
         // fresh virtual environment and tests it, its examples included.
         | ["python" | "pip" | "scripts/python.sh", ..]
-        // Installs a Debian package and builds a C++ driver: a measurement run by hand.
-        | ["scripts/cgal-peer.sh", ..] => return,
+        // Install Debian packages (and build a C++ driver, or a Python environment with
+        // fontTools): measurements run by hand.
+        | ["scripts/cgal-peer.sh" | "scripts/glyphs.sh", ..] => return,
         ["cargo", "run", "--release", "--", rest @ ..] | ["isoline", rest @ ..] => {
             let mut c = Command::new(bin);
             c.args(rest);
