@@ -646,6 +646,10 @@ fn export_with(
                     distance: &|p| at.len_to_data(field.distance(at.to_local(p))),
                     reach: at.len_to_data(3.0 * sigma + 2.0 * hmin + prepared.reach),
                     extent,
+                    min_area: {
+                        let s = at.len_to_data(1.0);
+                        params.min_area(hmin) * s * s
+                    },
                     eps,
                 },
             )

@@ -20,12 +20,15 @@ pub struct Cloud<'a> {
     pub reach: f64,
     /// The longer side of the samples' bounding box.
     pub extent: f64,
+    /// Closed loops enclosing less are specks ([`super::ExportParams::min_area`]).
+    pub min_area: f64,
     /// Segments no longer than this are a repeated point.
     pub eps: f64,
 }
 
 /// A point cloud's curves made to hold the invariants: within the support distance of
-/// its samples ([`supported`]), no two crossing ([`uncrossed`]), and well formed
+/// its samples ([`supported`]), no two crossing ([`uncrossed`]: pieces crossing
+/// themselves split into loops, specks smaller than `min_area` dropped), and well formed
 /// ([`super::well_formed`]); each junction keeps the pieces its ends went to (cuts move no
 /// vertex). Returns the warnings for what had to be cut, and [`collapsed`]'s.
 pub fn enforce(
@@ -54,7 +57,7 @@ pub fn enforce(
             reach: cloud.reach,
         });
     }
-    let (polylines, removed) = uncrossed(polylines);
+    let (polylines, removed) = uncrossed(polylines, cloud.min_area);
     if removed > 0 {
         warnings.push(Warning::Crossings { removed });
     }
@@ -188,70 +191,65 @@ fn cross(a: Point, b: Point, c: Point, d: Point) -> bool {
         && ((d3 > 0.0 && d4 < 0.0) || (d3 < 0.0 && d4 > 0.0))
 }
 
-/// `polylines` with no two segments crossing. A piece crossing itself makes a small
-/// loop there (a twist a pass left at a corner): the smaller side of the crossing is cut
-/// out and the crossing point joins the two sides, so a closed curve stays closed. Of
-/// two pieces crossing each other, the shorter loses its segment through the crossing,
-/// splitting there; removing a segment crosses nothing new, so one pass leaves none.
-/// Returns the pieces and the number of crossings undone.
-pub fn uncrossed(polylines: Vec<Polyline>) -> (Vec<Polyline>, usize) {
+/// `polylines` with no two segments crossing. A piece crossing itself is split at the
+/// crossing into the loop between its two passes and the rest (a closed curve into two
+/// loops, an open one into the open rest and the loop), the crossing point a vertex of
+/// both: they touch there and cross nowhere. A loop enclosing less than `min_area` is a
+/// speck (a twist a pass left at a corner) and goes, as the export stage's specks do.
+/// Of two pieces crossing each other, the shorter loses its segment through the
+/// crossing, splitting there; removing a segment crosses nothing new, so one pass
+/// leaves none. Returns the pieces and the number of crossings undone.
+pub fn uncrossed(polylines: Vec<Polyline>, min_area: f64) -> (Vec<Polyline>, usize) {
     let mut untwisted = 0;
-    let polylines: Vec<Polyline> = polylines
-        .into_iter()
-        .map(|pl| {
-            let (pl, n) = untwist(pl);
-            untwisted += n;
-            pl
-        })
-        .collect();
-    let (out, cut) = uncross_pieces(polylines);
+    let mut simple = Vec::with_capacity(polylines.len());
+    for pl in polylines {
+        untwisted += untwist(pl, min_area, &mut simple);
+    }
+    let (out, cut) = uncross_pieces(simple);
     (out, untwisted + cut)
 }
 
-/// A piece with its self-crossings undone, each by cutting out the smaller side.
-fn untwist(mut pl: Polyline) -> (Polyline, usize) {
+/// `pl` split at its self-crossings into simple pieces, pushed onto `out` (specks
+/// dropped); the number of crossings undone.
+fn untwist(pl: Polyline, min_area: f64, out: &mut Vec<Polyline>) -> usize {
     let mut undone = 0;
-    // Each cut removes at least one vertex: at most as many as there are.
-    for _ in 0..pl.points.len() {
+    let mut todo = vec![pl];
+    while let Some(mut pl) = todo.pop() {
         let segs = segments(std::slice::from_ref(&pl));
         let Some((s, t)) = crossing_pairs(&segs).into_iter().next() else {
-            break;
+            if !pl.closed || pl.signed_area().abs() >= min_area {
+                out.push(pl);
+            }
+            continue;
         };
         let (i, j) = (
             segs[s as usize].1.min(segs[t as usize].1),
             segs[s as usize].1.max(segs[t as usize].1),
         );
-        let (a, b, c, d) = (
+        let n = pl.points.len();
+        let x = intersection(
             pl.points[i],
             pl.points[i + 1],
             pl.points[j],
-            pl.points[(j + 1) % pl.points.len()],
+            pl.points[(j + 1) % n],
         );
-        let x = intersection(a, b, c, d);
-        let inner: Vec<Point> = std::iter::once(x)
-            .chain(pl.points[i + 1..=j].iter().copied())
-            .collect();
-        let mut outer: Vec<Point> = pl.points[..=i].to_vec();
-        outer.push(x);
-        outer.extend_from_slice(&pl.points[j + 1..]);
-        let area = |p: &[Point]| {
-            Polyline {
-                closed: true,
-                points: p.to_vec(),
-            }
-            .signed_area()
-            .abs()
+        // Each side has fewer segments than the piece had (one more vertex, the crossing,
+        // and at least two segments fewer), so the splitting ends.
+        let inner = Polyline {
+            closed: true,
+            points: std::iter::once(x)
+                .chain(pl.points[i + 1..=j].iter().copied())
+                .collect(),
         };
-        // An open piece keeps its ends, so the loop between the crossings goes; a closed
-        // one keeps the side enclosing more.
-        pl.points = if !pl.closed || area(&outer) >= area(&inner) {
-            outer
-        } else {
-            inner
-        };
+        let mut rest: Vec<Point> = pl.points[..=i].to_vec();
+        rest.push(x);
+        rest.extend_from_slice(&pl.points[j + 1..]);
+        pl.points = rest;
+        todo.push(pl);
+        todo.push(inner);
         undone += 1;
     }
-    (pl, undone)
+    undone
 }
 
 /// Where the lines of `ab` and `cd` meet (they cross: the denominator is not zero).
@@ -436,31 +434,34 @@ mod tests {
     fn crossings_are_cut_and_junctions_kept() {
         let long = open(&[[-1.0, 0.0], [0.0, 0.0], [1.0, 0.0]]);
         let short = open(&[[0.5, -0.5], [0.5, 0.5], [0.5, 0.7]]);
-        let (out, removed) = uncrossed(vec![long.clone(), short]);
+        let (out, removed) = uncrossed(vec![long.clone(), short], 0.0);
         assert_eq!(removed, 1);
         assert_eq!(out[0], long);
         assert_eq!(out.len(), 2);
         assert_eq!(out[1].points, vec![[0.5, 0.5], [0.5, 0.7]]);
         let t = open(&[[0.0, 0.0], [0.0, 1.0]]);
         let touching = open(&[[0.3, 0.0], [0.3, -1.0]]);
-        let (out, removed) = uncrossed(vec![long.clone(), t, touching]);
+        let (out, removed) = uncrossed(vec![long.clone(), t, touching], 0.0);
         assert_eq!((out.len(), removed), (3, 0));
     }
 
-    /// A figure eight (a closed curve crossing itself) keeps its larger side, closed,
-    /// and the result crosses nothing.
+    /// A figure eight (a closed curve crossing itself) becomes its two loops, touching
+    /// at the crossing; a small twist at a loop's corner is a speck and goes.
     #[test]
-    fn a_self_crossing_loop_opens() {
+    fn a_self_crossing_loop_splits_into_loops() {
         let eight = Polyline {
             closed: true,
             points: vec![[0.0, 0.0], [1.0, 1.0], [1.0, 0.0], [0.0, 1.0]],
         };
-        let (out, removed) = uncrossed(vec![eight]);
+        let (out, removed) = uncrossed(vec![eight], 0.01);
         assert_eq!(removed, 1);
-        assert_eq!(out.len(), 1);
-        assert!(out[0].closed);
-        assert_eq!(out[0].points.len(), 3);
-        assert_eq!(uncrossed(out).1, 0);
+        assert_eq!(out.len(), 2);
+        for pl in &out {
+            assert!(pl.closed);
+            assert_eq!(pl.points.len(), 3);
+            assert!((pl.signed_area().abs() - 0.25).abs() < 1e-12);
+        }
+        assert_eq!(uncrossed(out, 0.01).1, 0);
         // A loop with a small twist at one corner loses the twist only.
         let twisted = Polyline {
             closed: true,
@@ -474,8 +475,9 @@ mod tests {
                 [0.0, 1.0],
             ],
         };
-        let (out, removed) = uncrossed(vec![twisted]);
+        let (out, removed) = uncrossed(vec![twisted], 0.01);
         assert_eq!(removed, 1);
+        assert_eq!(out.len(), 1);
         assert!(out[0].closed);
         assert!((out[0].signed_area().abs() - 1.0).abs() < 0.01);
     }
