@@ -1,5 +1,5 @@
-//! A disjoint-set forest over indices (union-find with path halving): the clusters of a
-//! point cloud's neighbours, a tube's regions, the strokes' spanning tree.
+//! A disjoint-set forest over indices (union-find with path halving): a tube's regions,
+//! the strokes' spanning tree.
 
 /// An index into the forest: `u32` (the meshes' and trees' indices) or `usize`.
 pub(crate) trait Node: Copy + PartialEq {

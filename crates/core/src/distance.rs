@@ -8,7 +8,6 @@ use kiddo::{ImmutableKdTree, SquaredEuclidean};
 use rayon::prelude::*;
 use std::num::NonZeroUsize;
 
-use crate::disjoint::root;
 use crate::error::{Error, Result};
 use crate::geom::{dist, Point};
 
@@ -215,12 +214,21 @@ impl Neighbourhood {
     pub fn of(points: &[Point]) -> Result<Neighbourhood> {
         let field = DistanceField::new(points)?;
         let pts = field.points();
-        let mut positive: Vec<f64> = pts
+        // Each sample's nearest other and its distance, and the distance to its second.
+        let near: Vec<(u32, f64, f64)> = pts
             .par_iter()
             .map_init(Vec::new, |buf, &p| {
                 field.nearest_k(p, 3, buf);
-                buf.get(2).map_or(0.0, |&j| dist(p, pts[j as usize]))
+                let at = |k: usize| {
+                    buf.get(k)
+                        .map_or(f64::INFINITY, |&j| dist(p, pts[j as usize]))
+                };
+                (buf.get(1).copied().unwrap_or(0), at(1), at(2))
             })
+            .collect();
+        let mut positive: Vec<f64> = near
+            .iter()
+            .map(|n| n.2)
             .filter(|d| *d > 0.0 && d.is_finite())
             .collect();
         if pts.len() < 16 || positive.is_empty() {
@@ -233,24 +241,14 @@ impl Neighbourhood {
         let mid = positive.len() / 2;
         let (_, &mut spacing, _) = positive.select_nth_unstable_by(mid, f64::total_cmp);
         let reach = NEIGHBOUR_SPACINGS * spacing;
-        // Clusters by union-find over the pairs within reach.
-        let mut parent: Vec<u32> = (0..pts.len() as u32).collect();
-        let mut near = Vec::new();
-        for (i, &p) in pts.iter().enumerate() {
-            field.within(p, reach, &mut near);
-            for &j in &near {
-                let (a, b) = (root(&mut parent, i as u32), root(&mut parent, j));
-                if a != b {
-                    parent[a as usize] = b;
-                }
-            }
-        }
-        let mut size = vec![0usize; pts.len()];
-        for i in 0..pts.len() as u32 {
-            size[root(&mut parent, i) as usize] += 1;
-        }
-        let small: Vec<bool> = (0..pts.len() as u32)
-            .map(|i| size[root(&mut parent, i) as usize] < MIN_CLUSTER)
+        // A cluster of fewer than 3 samples, exactly: a sample with two others within
+        // reach has a cluster of 3; one with a single other is in a pair unless that
+        // other has a second neighbour; one with none is alone. No search beyond the
+        // three nearest, however dense the data.
+        debug_assert_eq!(MIN_CLUSTER, 3);
+        let small: Vec<bool> = near
+            .iter()
+            .map(|&(j, d1, d2)| d2 > reach && (d1 > reach || near[j as usize].2 > reach))
             .collect();
         let isolated = points
             .par_iter()
