@@ -22,6 +22,7 @@ rules against the same bound (isoline's hmin on the same points).
 """
 
 import argparse
+import concurrent.futures
 import glob
 import hashlib
 import json
@@ -216,22 +217,38 @@ def make(args):
     os.makedirs(args.dir, exist_ok=True)
     pool = [s for s in shapes() if part_of(s[0]) == args.part]
     first = 0 if args.part == "dev" else TEST_SEEDS
+    if args.grid:
+        # Distinct shapes, each at every noise level with and without outliers: the
+        # variants of a shape differ only in what the grid varies (and their draws).
+        order = np.random.default_rng(first).permutation(len(pool))
+        for i in range(min(args.cases, len(pool))):
+            seed = first + i
+            name, kind, pls = pool[int(order[i])]
+            n = DENSITIES[int(np.random.default_rng(seed).integers(len(DENSITIES)))]
+            for k, (sigma, out) in enumerate((s, o) for s in NOISES for o in (0.0, OUTLIERS)):
+                rng = np.random.default_rng([seed, k])
+                write_case(args.dir, f"{seed:06d}-{k}", name, kind, pls, n, sigma, out, rng)
+        return
     for seed in range(first, first + args.cases):
         rng = np.random.default_rng(seed)
         name, kind, pls = pool[int(rng.integers(len(pool)))]
-        truth = normalized(pls)
         sigma = NOISES[int(rng.integers(len(NOISES)))]
         n = DENSITIES[int(rng.integers(len(DENSITIES)))]
         out = OUTLIERS if rng.random() < 0.5 else 0.0
-        pts = sample(truth, n, sigma, out, rng)
-        case = f"{seed:06d}"
-        with open(os.path.join(args.dir, case + ".ndjson"), "w") as f:
-            json.dump({"stream": "glyphs", "frame": 0, "points": pts.round(7).tolist()}, f)
-            f.write("\n")
-        with open(os.path.join(args.dir, case + ".truth.json"), "w") as f:
-            json.dump({"polylines": truth}, f)
-        with open(os.path.join(args.dir, case + ".case.json"), "w") as f:
-            json.dump({"case": case, "shape": name, "kind": kind, "points": n, "sigma": sigma, "outliers": out}, f)
+        write_case(args.dir, f"{seed:06d}", name, kind, pls, n, sigma, out, rng)
+
+
+def write_case(dir, case, name, kind, pls, n, sigma, out, rng):
+    """One case's points (NDJSON frame), truth and description."""
+    truth = normalized(pls)
+    pts = sample(truth, n, sigma, out, rng)
+    with open(os.path.join(dir, case + ".ndjson"), "w") as f:
+        json.dump({"stream": "glyphs", "frame": 0, "points": pts.round(7).tolist()}, f)
+        f.write("\n")
+    with open(os.path.join(dir, case + ".truth.json"), "w") as f:
+        json.dump({"polylines": truth}, f)
+    with open(os.path.join(dir, case + ".case.json"), "w") as f:
+        json.dump({"case": case, "shape": name, "kind": kind, "points": n, "sigma": sigma, "outliers": out}, f)
 
 
 # ---- scoring ----
@@ -461,34 +478,52 @@ def score_case(d, case, peer="recon"):
 
 
 def score(args):
-    rows = []
+    cases = []
     for path in sorted(glob.glob(os.path.join(args.dir, "*.case.json"))):
         case = os.path.basename(path)[: -len(".case.json")]
         if args.peer != "recon" and not os.path.exists(os.path.join(args.dir, f"{case}.{args.peer}.ndjson")):
             continue
-        row = score_case(args.dir, case, args.peer)
-        rows.append(row)
+        cases.append(case)
+    with concurrent.futures.ProcessPoolExecutor() as pool:
+        rows = list(pool.map(score_case, [args.dir] * len(cases), cases, [args.peer] * len(cases), chunksize=8))
+    for row in rows:
         print(json.dumps(row))
     summary(rows)
 
 
 def summary(rows):
-    """The table's rows: by kind and outliers, over noise levels."""
+    """The table's rows: by kind and outliers, over noise levels; then by noise level too."""
     print()
-    print("| shapes | outliers | cases | right components | Hausdorff within bound | curves away from data | stars | zero-length segments | crossings | errors |")
-    print("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
+    header()
     for kind in ("outline", "strokes"):
         for out in (0.0, OUTLIERS):
-            rs = [r for r in rows if r["kind"] == kind and r["outliers"] == out]
-            if not rs:
-                continue
-            ok = [r for r in rs if "error" not in r]
-            pct = lambda k: f"{100 * sum(1 for r in ok if r[k]) / len(rs):.1f}%"
-            print(
-                f"| {'font outlines' if kind == 'outline' else 'Hershey strokes'} | {'5%' if out else 'none'} | {len(rs)} | "
-                f"{pct('right_components')} | {pct('within')} | {sum(1 for r in ok if r['away_from_data'])} | "
-                f"{sum(1 for r in ok if r['star'])} | {sum(r['zero_length'] for r in ok)} | {sum(r['crossings'] for r in ok)} | {len(rs) - len(ok)} |"
-            )
+            row(rows, kind, out, None)
+    print()
+    header(by_noise=True)
+    for kind in ("outline", "strokes"):
+        for out in (0.0, OUTLIERS):
+            for sigma in NOISES:
+                row(rows, kind, out, sigma)
+
+
+def header(by_noise=False):
+    noise = " σ |" if by_noise else ""
+    print(f"| shapes | outliers |{noise} cases | right components | Hausdorff within bound | curves away from data | stars | zero-length segments | crossings | errors |")
+    print("|---|---:|" + ("---:|" if by_noise else "") + "---:|---:|---:|---:|---:|---:|---:|---:|")
+
+
+def row(rows, kind, out, sigma):
+    rs = [r for r in rows if r["kind"] == kind and r["outliers"] == out and (sigma is None or r["sigma"] == sigma)]
+    if not rs:
+        return
+    ok = [r for r in rs if "error" not in r]
+    pct = lambda k: f"{100 * sum(1 for r in ok if r[k]) / len(rs):.1f}%"
+    noise = "" if sigma is None else f" {sigma:g} |"
+    print(
+        f"| {'font outlines' if kind == 'outline' else 'Hershey strokes'} | {'5%' if out else 'none'} |{noise} {len(rs)} | "
+        f"{pct('right_components')} | {pct('within')} | {sum(1 for r in ok if r['away_from_data'])} | "
+        f"{sum(1 for r in ok if r['star'])} | {sum(r['zero_length'] for r in ok)} | {sum(r['crossings'] for r in ok)} | {len(rs) - len(ok)} |"
+    )
 
 
 def main():
@@ -498,6 +533,7 @@ def main():
     m.add_argument("dir")
     m.add_argument("--part", choices=["dev", "test"], required=True)
     m.add_argument("--cases", type=int, default=100)
+    m.add_argument("--grid", action="store_true", help="CASES distinct shapes, each at every noise level with and without outliers")
     s = sub.add_parser("score")
     s.add_argument("dir")
     s.add_argument("--peer", default="recon", help="cgal: score CGAL's records (from `edges`) instead of isoline's")

@@ -7,6 +7,8 @@
 #
 #   scripts/glyphs.sh [dev|test] [CASES] [OUT_DIR]   # default: test 600 target/glyphs-PART
 #   CGAL=N scripts/glyphs.sh ...                     # also CGAL on the first N cases
+#   GRID=1 scripts/glyphs.sh test 300 ...            # 300 distinct shapes, each at every
+#                                                    # noise level with and without outliers
 #
 # Prints one JSON line a case, then the Markdown table of docs/benchmarks.md; with CGAL,
 # then the same for CGAL's optimal-transport reconstruction (scripts/cgal/otr2.cpp,
@@ -31,7 +33,9 @@ if ! "$py" -c "import fontTools, numpy, scipy" 2> /dev/null; then
   .tools/glyphs/bin/pip install --quiet --disable-pip-version-check fonttools numpy scipy
 fi
 rm -rf "$out"
-"$py" scripts/glyphs.py make "$out" --part "$part" --cases "$cases"
+grid=()
+[ "${GRID:-0}" = 1 ] && grid=(--grid)
+"$py" scripts/glyphs.py make "$out" --part "$part" --cases "$cases" "${grid[@]}"
 ls "$out"/*.case.json | sed 's/\.case\.json$//' \
   | xargs -P 2 -I{} sh -c '"$0" reconstruct {}.ndjson -o {}.recon.ndjson 2> {}.err || true' "$bin"
 "$py" scripts/glyphs.py score "$out"
