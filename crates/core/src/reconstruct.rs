@@ -607,23 +607,6 @@ fn export_with(
     let sigma = scan.map_or(adapted.noise_estimate, |(a, _, _)| a.scales.noise);
     let tolerance = at.len_to_data(3.0 * sigma + 2.0 * hmin);
     let data: Vec<Point> = prepared.local.iter().map(|&q| at.to_data(q)).collect();
-    let (polylines, junctions) = match scan {
-        Some(_) => (polylines, Vec::new()),
-        None => crate::repair::mend(
-            polylines,
-            &crate::repair::Frame {
-                field: &prepared.metric.field,
-                data: &data,
-                at,
-                sigma,
-                one_wall_noise: adapted.one_wall_noise,
-                hmin,
-                min_area: params.min_area(hmin),
-                enclosed: solved.enclosed,
-                tolerance,
-            },
-        ),
-    };
     let eps = 1e-9 * at.len_to_data(prepared.diag);
     let (polylines, junctions, mut enforced) = match scan {
         // A scan's pieces are cut to its runs' support already, and where two walls meet
@@ -631,28 +614,43 @@ fn export_with(
         // scans do not report yet, rather than an error.
         Some(_) => (
             crate::export::well_formed(polylines, eps),
-            junctions,
+            Vec::new(),
             Vec::new(),
         ),
         None => {
             let field = &prepared.metric.field;
+            let support = crate::export::invariants::Support::new(field, prepared.reach);
+            let tol = 3.0 * sigma + 2.0 * hmin;
             let extent = BBox::of(&prepared.local).map_or(0.0, |b| {
                 at.len_to_data((b.max[0] - b.min[0]).max(b.max[1] - b.min[1]))
             });
-            crate::export::invariants::enforce(
+            let min_area = params.min_area(hmin);
+            let repaired = crate::repair::repair(
                 polylines,
-                junctions,
+                &crate::repair::Frame {
+                    field,
+                    data: &data,
+                    at,
+                    sigma,
+                    one_wall_noise: adapted.one_wall_noise,
+                    hmin,
+                    min_area,
+                    enclosed: solved.enclosed,
+                    tolerance,
+                    tolerances: &params.repair,
+                },
                 &crate::export::invariants::Cloud {
-                    distance: &|p| at.len_to_data(field.distance(at.to_local(p))),
-                    reach: at.len_to_data(3.0 * sigma + 2.0 * hmin + prepared.reach),
+                    distance: &|p| at.len_to_data(support.distance(at.to_local(p), tol)),
+                    tolerance: at.len_to_data(tol),
                     extent,
                     min_area: {
                         let s = at.len_to_data(1.0);
-                        params.min_area(hmin) * s * s
+                        min_area * s * s
                     },
                     eps,
                 },
-            )
+            );
+            (repaired.polylines, repaired.junctions, repaired.warnings)
         }
     };
     let fit = crate::export::fit::fit(&data, &polylines, tolerance);

@@ -21,6 +21,8 @@ pub struct ExportParams {
     pub simplify: f64,
     /// Closed loops enclosing less area are dropped. Default `pi (3 hmin)^2`; 0 keeps all.
     pub min_area: Option<f64>,
+    /// The tolerances a point cloud's repair passes decide by (dimensionless).
+    pub repair: crate::repair::Tolerances,
 }
 
 impl ExportParams {
@@ -35,6 +37,7 @@ impl ExportParams {
         ExportParams {
             simplify: self.simplify * s,
             min_area: self.min_area.map(|a| a * s * s),
+            repair: self.repair.clone(),
         }
     }
 }

@@ -17,29 +17,12 @@
 
 use rayon::prelude::*;
 
-use super::gaps::{continued, corner, hermite, End, Loop, MIN_CORNER};
+use super::gaps::{continued, corner, hermite, End, Loop};
 use super::through::implicit_circle;
+use super::Tolerances;
 use crate::distance::DistanceField;
 use crate::geom::{add, cross, dist, dot, norm, polyline_dist, scale, sub, Point, Polyline};
 use crate::index::SegmentIndex;
-
-/// Consecutive samples a circle goes through: one more than a circle needs, so that
-/// lying on it is a test.
-const RUN: usize = 5;
-/// The least turn at a corner between two runs' curves (radians, 11 degrees). Two
-/// runs of a smooth curve of monotone curvature give nested circles, which touch at
-/// most; clean runs that each lie on their circle to a quarter of `hmin` do not cross
-/// by chance (the spiral's inner end turns by 23 degrees).
-const MIN_TURN: f64 = 0.2;
-/// How far a run's circle is continued to a corner, in radians of its turn over the
-/// samples' distance: twice what [`gaps`](super::gaps) allows its sides' fits, since a
-/// circle that holds five clean samples to `hmin / 4` is the curve's own (the spiral's
-/// inner cap, of radius 0.04, meets its wall between samples 0.07 apart).
-const MAX_SIDE_TURN: f64 = 2.0;
-/// The largest slope of a run's circle at its first sample, against the chord from its
-/// first sample to its last: steeper, the run turns by over 127 degrees and is no
-/// stretch of one wall.
-const MAX_SLOPE: f64 = 2.0;
 
 /// A run of samples' curve.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -52,8 +35,9 @@ pub(super) enum Curve {
 
 impl Curve {
     /// The circle (or line) through `run` (in order along it), if they lie on it to
-    /// within `fit_tol`.
-    pub(super) fn through(run: &[Point], fit_tol: f64) -> Option<Curve> {
+    /// within `fit_tol` with a slope against the chord from the first to the last of at
+    /// most `max_slope` (steeper, the run turns back and is no stretch of one wall).
+    pub(super) fn through(run: &[Point], fit_tol: f64, max_slope: f64) -> Option<Curve> {
         let (o, last) = (run[0], run[run.len() - 1]);
         let span = dist(o, last);
         if span <= 0.0 {
@@ -66,7 +50,7 @@ impl Curve {
             .map(|&q| (dot(sub(q, o), x), dot(sub(q, o), y)))
             .collect();
         let (a, b, c, off) = implicit_circle(&mut local)?;
-        if off > fit_tol || b.abs() > MAX_SLOPE {
+        if off > fit_tol || b.abs() > max_slope {
             return None;
         }
         // A radius a billion spans long is a line to rounding.
@@ -89,9 +73,10 @@ impl Curve {
         s: impl Fn(isize) -> Point,
         run: std::ops::Range<isize>,
         fit_tol: f64,
+        t: &Tolerances,
     ) -> Option<Curve> {
         let points: Vec<Point> = run.map(s).collect();
-        Curve::through(&points, fit_tol)
+        Curve::through(&points, fit_tol, t.between_max_slope)
     }
 
     /// Where the curve crosses the line through `p` with unit normal `n`: none, one or
@@ -177,6 +162,7 @@ pub fn between_samples(
     tol: f64,
     fit_tol: f64,
     step: f64,
+    t: &Tolerances,
 ) -> Vec<usize> {
     let mut changed = Vec::new();
     let positive = |x: f64| x.is_finite() && x > 0.0;
@@ -213,7 +199,7 @@ pub fn between_samples(
         chain.sort_by(|u, v| u.0.total_cmp(&v.0));
         // Two samples at one place along the loop have no order.
         chain.dedup_by(|u, v| u.0 == v.0);
-        if chain.len() < 2 * RUN {
+        if chain.len() < 2 * t.between_run {
             continue;
         }
         let old = curves[k].points.clone();
@@ -253,7 +239,7 @@ pub fn between_samples(
         let corners: Vec<Option<Vec<Point>>> = (0..m)
             .into_par_iter()
             .map(|i| {
-                let inner = corner_piece(|j| sample(i, j), fit_tol, step)?;
+                let inner = corner_piece(|j| sample(i, j), fit_tol, step, t)?;
                 near(i, inner, tol.max(dist(sample(i, 0), sample(i, 1))))
             })
             .collect();
@@ -265,7 +251,7 @@ pub fn between_samples(
             .map(|i| match &corners[i] {
                 Some(inner) => Some(inner.clone()),
                 None => {
-                    let inner = between(|j| sample(i, j), |j| is_corner(i, j), fit_tol, step)?;
+                    let inner = between(|j| sample(i, j), |j| is_corner(i, j), fit_tol, step, t)?;
                     near(i, inner, 2.0 * tol)
                 }
             })
@@ -295,7 +281,7 @@ pub fn between_samples(
 
 /// The inner points of the curve between the samples `s(0)` and `s(1)` (`s(j)` the
 /// `j`-th after `s(0)` along the loop, before it where negative) where no corner lies
-/// between them: runs of [`RUN`] consecutive samples whose pairs (`corner(j)` for the
+/// between them: runs of `between_run` consecutive samples whose pairs (`corner(j)` for the
 /// pair from `s(j)`) hold no corner, lying on a circle to within `fit_tol`, say which.
 /// - The run ending at `s(0)` and the one starting at `s(1)` each hold the other sample
 ///   (or neither lies on a circle): a smooth stretch, on the circle of a run with
@@ -311,18 +297,19 @@ fn between(
     corner: impl Fn(isize) -> bool,
     fit_tol: f64,
     step: f64,
+    t: &Tolerances,
 ) -> Option<Vec<Point>> {
     let (p, q) = (s(0), s(1));
     let c = dist(p, q);
     if c <= 0.0 {
         return None;
     }
-    let n = RUN as isize;
+    let n = t.between_run as isize;
     let curve = |first: isize| {
         if (first..first + n - 1).any(&corner) {
             return None;
         }
-        Curve::of_run(&s, first..first + n, fit_tol)
+        Curve::of_run(&s, first..first + n, fit_tol, t)
     };
     let (before, after) = (curve(1 - n), curve(1));
     let holds = |c: Option<Curve>, x: Point| c.map(|c| c.off(x) <= fit_tol);
@@ -338,17 +325,18 @@ fn between(
         // Neither holds the other's sample.
         _ => {
             // A side too short for five samples (a cap's end): four on a circle.
-            let short = |first: isize| Curve::of_run(&s, first..first + n - 1, fit_tol);
+            let short = |first: isize| Curve::of_run(&s, first..first + n - 1, fit_tol, t);
             let before = before.or_else(|| short(2 - n));
             let after = after.or_else(|| short(1));
             let a = before?.end(p, sub(p, s(-1)))?;
             let b = after?.end(q, sub(s(2), q))?;
             // A turn of a corner's size is one that `corner` could not place.
-            if dot(a.tangent, b.tangent) < MIN_CORNER.cos() {
+            if dot(a.tangent, b.tangent) < t.corner_min_turn.cos() {
                 return None;
             }
             let mut arc = Vec::new();
-            hermite(p, q, a.tangent, b.tangent, step, &mut arc)?;
+            let limits = (t.arc_max_turn, t.arc_max_bulge);
+            hermite(p, q, a.tangent, b.tangent, limits, step, &mut arc)?;
             return Some(arc);
         }
     };
@@ -366,14 +354,19 @@ fn between(
 }
 
 /// The inner points of the path between the samples `s(0)` and `s(1)` (as for
-/// [`between`]) round the corner where the circles of the [`RUN`] samples up to
+/// [`between`]) round the corner where the circles of the `between_run` samples up to
 /// `s(0)` and of those from `s(1)` on meet, as [`corner`] finds it: each side's curve
 /// taken along the loop's run into `s(0)` and out of `s(1)` (the chord between them
 /// may run nearly across a side at an acute corner).
-fn corner_piece(s: impl Fn(isize) -> Point, fit_tol: f64, step: f64) -> Option<Vec<Point>> {
+fn corner_piece(
+    s: impl Fn(isize) -> Point,
+    fit_tol: f64,
+    step: f64,
+    t: &Tolerances,
+) -> Option<Vec<Point>> {
     let (p, q) = (s(0), s(1));
-    let n = RUN as isize;
-    let curve = |first: isize| Curve::of_run(&s, first..first + n, fit_tol);
+    let n = t.between_run as isize;
+    let curve = |first: isize| Curve::of_run(&s, first..first + n, fit_tol, t);
     let (before, after) = (curve(1 - n)?, curve(1)?);
     // Either side's curve running on through the other's first sample: a smooth
     // stretch whose curvature changes fast (two runs' circles may cross there), or a
@@ -391,7 +384,8 @@ fn corner_piece(s: impl Fn(isize) -> Point, fit_tol: f64, step: f64) -> Option<V
     }
     let at_p = before.end(p, sub(p, s(-1)))?;
     let at_q = after.end(q, sub(s(2), q))?;
-    let path = corner(p, q, at_p, at_q, (MIN_TURN, MAX_SIDE_TURN), step)?;
+    let limits = (t.between_min_turn, t.between_max_side_turn, t.arc_max_turn);
+    let path = corner(p, q, at_p, at_q, limits, step)?;
     if (q_held.is_some() || p_held.is_some()) && !path.midway {
         return None;
     }
@@ -473,7 +467,14 @@ mod tests {
             points: points.clone(),
         }];
         assert_eq!(
-            between_samples(&mut curves, &field(&samples), 4e-3, 2.5e-4, 1e-3),
+            between_samples(
+                &mut curves,
+                &field(&samples),
+                4e-3,
+                2.5e-4,
+                1e-3,
+                &Tolerances::default()
+            ),
             [0]
         );
         let out = &curves[0].points;
@@ -548,7 +549,14 @@ mod tests {
             closed: true,
             points,
         }];
-        between_samples(&mut curves, &field(&samples), 4e-3, 2.5e-4, 1e-3);
+        between_samples(
+            &mut curves,
+            &field(&samples),
+            4e-3,
+            2.5e-4,
+            1e-3,
+            &Tolerances::default(),
+        );
         for &p in &curves[0].points {
             let limit = if norm(p) < 0.01 { 2.5e-4 } else { 1e-12 };
             assert!(off(p) <= limit, "{p:?}: {:e}", off(p));
@@ -572,7 +580,14 @@ mod tests {
         }];
         let samples = circle(0.05, 31, 0.0);
         assert_eq!(
-            between_samples(&mut curves, &field(&samples), 2e-3, 1e-4, 1e-3),
+            between_samples(
+                &mut curves,
+                &field(&samples),
+                2e-3,
+                1e-4,
+                1e-3,
+                &Tolerances::default()
+            ),
             [0]
         );
         let worst = curves[0]
@@ -611,7 +626,14 @@ mod tests {
             closed: true,
             points: ellipse(1000, 0.995),
         }];
-        between_samples(&mut curves, &field(&samples), 4e-3, 1e-4, 1e-3);
+        between_samples(
+            &mut curves,
+            &field(&samples),
+            4e-3,
+            1e-4,
+            1e-3,
+            &Tolerances::default(),
+        );
         let worst = curves[0].points.iter().map(|&p| off(p)).fold(0.0, f64::max);
         assert!(worst <= 5e-5, "{worst:e}");
     }
@@ -641,7 +663,14 @@ mod tests {
             closed: true,
             points: points.clone(),
         }];
-        between_samples(&mut curves, &field(&samples), 4e-3, 1e-4, 1e-3);
+        between_samples(
+            &mut curves,
+            &field(&samples),
+            4e-3,
+            1e-4,
+            1e-3,
+            &Tolerances::default(),
+        );
         let out = &curves[0].points;
         for p in points.iter().filter(|p| norm(**p) > 0.31) {
             assert!(out.contains(p), "{p:?} moved");
@@ -686,7 +715,14 @@ mod tests {
             closed: true,
             points,
         }];
-        between_samples(&mut curves, &field(&samples), 4e-3, 2.5e-4, 1e-3);
+        between_samples(
+            &mut curves,
+            &field(&samples),
+            4e-3,
+            2.5e-4,
+            1e-3,
+            &Tolerances::default(),
+        );
         let off = |p: Point| {
             let to_arc = (norm(p) - r).abs();
             if p[1] <= 0.0 || p[0].abs() > r {
@@ -741,7 +777,14 @@ mod tests {
             closed: true,
             points,
         }];
-        between_samples(&mut curves, &field(&samples), 4e-3, 2.5e-4, 1e-3);
+        between_samples(
+            &mut curves,
+            &field(&samples),
+            4e-3,
+            2.5e-4,
+            1e-3,
+            &Tolerances::default(),
+        );
         // Between the bottom side's last sample and the cap's first, and between the
         // cap's last and the top side's first (short of the feet of the cap's samples,
         // past which the loop between them, which no run of five holds, stays).
@@ -798,13 +841,13 @@ mod tests {
                 .collect();
             let field = field(&samples);
             let mut curves = vec![Polyline { closed: true, points: points.clone() }];
-            crate::repair::through::through_samples(&mut curves, &field, tol, fit_tol);
+            crate::repair::through::through_samples(&mut curves, &field, tol, fit_tol, &Tolerances::default());
             proptest::prop_assert_eq!(curves[0].points.len(), n);
             for (p, q) in curves[0].points.iter().zip(&points) {
                 proptest::prop_assert!(p[0].is_finite() && p[1].is_finite());
                 proptest::prop_assert!(dist(*p, *q) < tol);
             }
-            between_samples(&mut curves, &field, tol, fit_tol, 0.1 * tol);
+            between_samples(&mut curves, &field, tol, fit_tol, 0.1 * tol, &Tolerances::default());
             proptest::prop_assert!(curves[0].closed && curves[0].points.len() >= 3);
             for p in &curves[0].points {
                 proptest::prop_assert!(p[0].is_finite() && p[1].is_finite());
@@ -858,7 +901,7 @@ mod tests {
             };
             polyline_dist(v, &wall).min(to_cap)
         };
-        let inner = corner_piece(at, fit_tol, hmin).unwrap();
+        let inner = corner_piece(at, fit_tol, hmin, &Tolerances::default()).unwrap();
         let off = inner.iter().map(|&v| off_truth(v)).fold(0.0, f64::max);
         assert!(off < 1e-3, "{off}");
     }
@@ -889,6 +932,9 @@ mod tests {
             [0.3282951, -0.1543371],
         ];
         let at = |j: isize| s[(j + 6) as usize];
-        assert_eq!(corner_piece(at, 9.34e-4, 3.74e-3), None);
+        assert_eq!(
+            corner_piece(at, 9.34e-4, 3.74e-3, &Tolerances::default()),
+            None
+        );
     }
 }

@@ -25,15 +25,10 @@ use crate::geom::{
 };
 use crate::index::SegmentIndex;
 
-/// A turn between the ends' tangents beyond this (radians) leaves no way to tell a bend
-/// from a fold: the stretch stays as it is.
-const MAX_TURN: f64 = 0.95 * std::f64::consts::PI;
-/// How far an arc may stray from its chord, in chords.
-const MAX_BULGE: f64 = 0.6;
+use super::Tolerances;
+
 /// Vertices per arc, at most.
 const MAX_ARC_VERTICES: usize = 4096;
-/// Samples a tangent is fitted to, at least (the nearest, where fewer lie within reach).
-const MIN_FIT: usize = 5;
 
 /// A knot's direction, from the samples' fit there.
 #[derive(Clone, Copy, Debug)]
@@ -48,6 +43,7 @@ pub(super) struct End {
 pub(super) struct Fit<'a> {
     pub(super) field: &'a DistanceField,
     pub(super) sigma: f64,
+    pub(super) t: &'a Tolerances,
 }
 
 /// Replaces every stretch of the closed polylines of `curves` whose vertices lie
@@ -58,21 +54,22 @@ pub(super) struct Fit<'a> {
 /// The tangents are the samples' own: a quadratic fitted to those near each knot (at an
 /// end, on its side only), their line where it holds them or where the noise (`sigma`)
 /// hides the curvature; two sides whose curves run on to meet within one and a half
-/// chords, turning by 40 degrees or more, meet at that corner. Arcs are taken where
-/// each turns less than 171 degrees, stays within 0.6 chords of its chord and all keep
-/// `tol` from every other part of the curves. Open polylines are left as they are.
-/// Returns the indices of the polylines changed.
+/// chords, turning by `t.corner_min_turn` or more, meet at that corner. Arcs are taken
+/// where each turns less than `t.arc_max_turn`, stays within `t.arc_max_bulge` chords of
+/// its chord and all keep `tol` from every other part of the curves. Open polylines are
+/// left as they are. Returns the indices of the polylines changed.
 pub fn span_gaps(
     curves: &mut [Polyline],
     field: &DistanceField,
     sigma: f64,
     tol: f64,
     step: f64,
+    t: &Tolerances,
 ) -> Vec<usize> {
     if !(tol.is_finite() && tol > 0.0 && step.is_finite() && step > 0.0 && sigma >= 0.0) {
         return Vec::new();
     }
-    let fit = Fit { field, sigma };
+    let fit = Fit { field, sigma, t };
     let index = SegmentIndex::new(curves);
     let mut spans = Vec::new();
     for (k, pl) in curves.iter().enumerate() {
@@ -139,7 +136,7 @@ impl Fit<'_> {
     }
 
     /// The unit tangent of the samples' curve at `p` (a curve vertex near them),
-    /// fitted to the samples within `reach` of the nearest (at least [`MIN_FIT`]) and
+    /// fitted to the samples within `reach` of the nearest (at least `arc_min_fit` of the tolerances) and
     /// pointing along the first of `along` that is not across it, with the curvature
     /// where a quadratic was fitted. `None` when they give no direction, or every
     /// `along` runs across it.
@@ -162,15 +159,15 @@ impl Fit<'_> {
             .map(|&i| field.points()[i as usize])
             .filter(this_side)
             .collect();
-        if pts.len() < MIN_FIT {
+        if pts.len() < self.t.arc_min_fit {
             // Sparse samples: the nearest on this side, but within four times the reach
             // (the next wall of a spiral lies a few spacings away).
-            field.nearest_k(centre, 4 * MIN_FIT, &mut ids);
+            field.nearest_k(centre, 4 * self.t.arc_min_fit, &mut ids);
             pts = ids
                 .iter()
                 .map(|&i| field.points()[i as usize])
                 .filter(|q| this_side(q) && dist(*q, centre) <= 4.0 * reach)
-                .take(MIN_FIT)
+                .take(self.t.arc_min_fit)
                 .collect();
         }
         if pts.len() < 2 {
@@ -470,7 +467,12 @@ impl<'a> Loop<'a> {
             };
             let a = fit.tangent(p, r, &[before, d], Some(behind_p))?;
             let b = fit.tangent(q, r, &[after, d], Some(behind_q))?;
-            corner(p, q, a, b, (MIN_CORNER, MAX_SIDE_TURN), step).map(|c| c.inner)
+            let limits = (
+                fit.t.corner_min_turn,
+                fit.t.corner_max_side_turn,
+                fit.t.arc_max_turn,
+            );
+            corner(p, q, a, b, limits, step).map(|c| c.inner)
         };
         let mut arc = Vec::new();
         let mut i = 0;
@@ -517,6 +519,7 @@ impl<'a> Loop<'a> {
                     q,
                     tangents[i].tangent,
                     tangents[i + 1].tangent,
+                    (fit.t.arc_max_turn, fit.t.arc_max_bulge),
                     step,
                     &mut arc,
                 )?,
@@ -632,21 +635,12 @@ fn untangle(pa: Point, pb: Point, knots: &mut [Point]) {
     }
 }
 
-/// Turns at a corner from which the sides meet there rather than round a smooth arc,
-/// radians (40 degrees). Circles fitted across a bend and its straight (a spiral's caps)
-/// misjudge its curvature and cross at up to 0.56 rad on clean spirals; the bays' walls
-/// meet their circles at 1.1 and 1.7.
-pub(super) const MIN_CORNER: f64 = 0.7;
-/// How far a side's fitted curve is continued to a corner, in radians of its turn over a
-/// chord: at most a radian round its osculating circle.
-const MAX_SIDE_TURN: f64 = 1.0;
-
 /// The inner points of the path from `p` to `q` round the corner where the samples'
 /// curves on each side (`a` at `p`, `b` at `q`: their lines, or their osculating
 /// circles where a quadratic was fitted) meet, when they meet within one and a half
 /// chords ahead of `p` and behind `q` (an acute corner lies past one chord from the
 /// sample farther from it), each turning by at most `max_side_turn` radians over a
-/// chord, and turn there by `min_turn` at least: the corner the samples
+/// chord, and turn there by `min_turn` at least and `max_turn` at most: the corner the samples
 /// imply, which no smooth arc between them keeps. A smooth curve between `p` and `q`
 /// gives none: osculating circles of a curve of monotone curvature are nested (Tait and
 /// Kneser), and two circles fitted to the same one meet, if at all, at a small angle.
@@ -657,7 +651,7 @@ pub(super) fn corner(
     q: Point,
     a: End,
     b: End,
-    (min_turn, max_side_turn): (f64, f64),
+    (min_turn, max_side_turn, max_turn): (f64, f64, f64),
     step: f64,
 ) -> Option<Corner> {
     let c = dist(p, q);
@@ -693,7 +687,7 @@ pub(super) fn corner(
         let turn = (dot(ta, tb) / (norm(ta) * norm(tb)))
             .clamp(-1.0, 1.0)
             .acos();
-        (min_turn..=MAX_TURN).contains(&turn)
+        (min_turn..=max_turn).contains(&turn)
     };
     let path = |&(i, j, x): &(usize, usize, Point)| {
         let mut path = vec![p];
@@ -801,12 +795,13 @@ pub(super) fn continued(p: Point, t: Point, k: f64, length: f64, step: f64) -> V
 
 /// The inner points of the Hermite arc from `p` to `q` with unit tangents `tp` and `tq`,
 /// at most `step` apart, appended to `out`: `None` when the tangents turn by more than
-/// [`MAX_TURN`] or the arc strays more than [`MAX_BULGE`] chords from its chord.
+/// `max_turn` or the arc strays more than `max_bulge` chords from its chord.
 pub(super) fn hermite(
     p: Point,
     q: Point,
     tp: Point,
     tq: Point,
+    (max_turn, max_bulge): (f64, f64),
     step: f64,
     out: &mut Vec<Point>,
 ) -> Option<()> {
@@ -815,7 +810,7 @@ pub(super) fn hermite(
         return Some(());
     }
     let turn = dot(tp, tq).clamp(-1.0, 1.0).acos();
-    if turn > MAX_TURN {
+    if turn > max_turn {
         return None;
     }
     let m = c / (0.25 * turn).cos().powi(2);
@@ -836,7 +831,7 @@ pub(super) fn hermite(
             ),
             add(scale(q, -2.0 * t3 + 3.0 * t2), scale(tq, m * (t3 - t2))),
         );
-        if cross(chord, sub(x, p)).abs() > MAX_BULGE * c {
+        if cross(chord, sub(x, p)).abs() > max_bulge * c {
             return None;
         }
         out.push(x);
@@ -906,7 +901,14 @@ mod tests {
             points: loop_points,
         }];
         let before = curves[0].points.len();
-        let changed = span_gaps(&mut curves, &field(&samples), 0.0, 0.01, 0.005);
+        let changed = span_gaps(
+            &mut curves,
+            &field(&samples),
+            0.0,
+            0.01,
+            0.005,
+            &Tolerances::default(),
+        );
         assert_eq!(changed, [0]);
         let pl = &curves[0];
         assert!(pl.points.len() > before + 200, "{}", pl.points.len());
@@ -953,7 +955,14 @@ mod tests {
             points,
         }];
         assert!(off_circle(&curves[0].points, 1.0) > 0.029);
-        let changed = span_gaps(&mut curves, &field(&samples), 0.0, 0.01, 0.005);
+        let changed = span_gaps(
+            &mut curves,
+            &field(&samples),
+            0.0,
+            0.01,
+            0.005,
+            &Tolerances::default(),
+        );
         assert_eq!(changed, [0]);
         let across: Vec<Point> = curves[0]
             .points
@@ -989,7 +998,15 @@ mod tests {
                 points: other,
             },
         ];
-        assert!(span_gaps(&mut curves, &field(&samples), 0.0, 0.01, 0.005).is_empty());
+        assert!(span_gaps(
+            &mut curves,
+            &field(&samples),
+            0.0,
+            0.01,
+            0.005,
+            &Tolerances::default()
+        )
+        .is_empty());
         assert_eq!(curves[0].points, loop_points);
     }
 
@@ -1004,7 +1021,15 @@ mod tests {
             closed: true,
             points: points.clone(),
         }];
-        assert!(span_gaps(&mut curves, &field(&samples), 0.0, 0.01, 0.005).is_empty());
+        assert!(span_gaps(
+            &mut curves,
+            &field(&samples),
+            0.0,
+            0.01,
+            0.005,
+            &Tolerances::default()
+        )
+        .is_empty());
         assert_eq!(curves[0].points, points);
     }
 
@@ -1022,7 +1047,14 @@ mod tests {
             points: circle(r, 2000, |a| !in_quarter(a)),
         }];
         assert_eq!(
-            span_gaps(&mut curves, &field(&samples), 0.0, 0.01, 0.005),
+            span_gaps(
+                &mut curves,
+                &field(&samples),
+                0.0,
+                0.01,
+                0.005,
+                &Tolerances::default()
+            ),
             [0]
         );
         let pl = &curves[0];
@@ -1098,7 +1130,14 @@ mod tests {
             points,
         }];
         assert_eq!(
-            span_gaps(&mut curves, &field(&samples), 0.0, 0.01, 0.005),
+            span_gaps(
+                &mut curves,
+                &field(&samples),
+                0.0,
+                0.01,
+                0.005,
+                &Tolerances::default()
+            ),
             [0]
         );
         let off = curves[0]
@@ -1123,7 +1162,14 @@ mod tests {
             points,
         }];
         assert_eq!(
-            span_gaps(&mut curves, &field(samples), 0.0, 0.01, 0.005),
+            span_gaps(
+                &mut curves,
+                &field(samples),
+                0.0,
+                0.01,
+                0.005,
+                &Tolerances::default()
+            ),
             [0]
         );
         let to_corner = nearest(&curves[0].points, corner);
@@ -1220,7 +1266,8 @@ mod tests {
                     &field(&samples),
                     0.0,
                     0.01 * size,
-                    0.005 * size
+                    0.005 * size,
+                    &Tolerances::default()
                 ),
                 [0]
             );
@@ -1253,7 +1300,15 @@ mod tests {
             },
         ];
         let before = curves.clone();
-        assert!(span_gaps(&mut curves, &field(&samples), 0.0, 0.01, 0.005).is_empty());
+        assert!(span_gaps(
+            &mut curves,
+            &field(&samples),
+            0.0,
+            0.01,
+            0.005,
+            &Tolerances::default()
+        )
+        .is_empty());
         assert_eq!(curves, before);
     }
 
@@ -1291,7 +1346,7 @@ mod tests {
             curvature: Some(-1.0 / rb),
         };
         let step = 1e-4;
-        let got = corner(p, q, a, b, (0.2, 2.0), step).unwrap();
+        let got = corner(p, q, a, b, (0.2, 2.0, 0.95 * std::f64::consts::PI), step).unwrap();
         assert!(got.midway);
         // The two candidates, finely drawn: up the first circle then on round the
         // second, or round the second from the lower crossing.

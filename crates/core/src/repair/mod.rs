@@ -16,6 +16,115 @@ use crate::distance::DistanceField;
 use crate::geom::{Placement, Point, Polyline};
 use strokes::Junction;
 
+/// Every number the repair passes decide by, with its reason: each is dimensionless (a
+/// multiple of `hmin`, a count of samples, an angle in radians or a ratio), so one set
+/// serves data of any size. The defaults are the values the project's tables and the
+/// glyph corpus's development range were made with; docs/method.md lists them. Work
+/// bounds (vertices per arc, pairs per frame) are not tolerances: they are constants of
+/// their pass, each a bound on cost that no result of the tables reaches.
+#[derive(Clone, Debug, PartialEq)]
+#[non_exhaustive]
+pub struct Tolerances {
+    /// Samples lying on circles to within this many `hmin` are clean: the mending
+    /// through and between samples runs on them. A quarter: noise of `sigma` leaves
+    /// circle fits off by about `sigma`, and the export's mesh resolves `hmin`.
+    pub clean_fit: f64,
+    /// How far the passes on clean samples move a vertex, in `hmin`: the level set
+    /// passes clean samples by up to the capture's tolerance (`2 hmin`) and kinks round
+    /// them by up to twice that.
+    pub max_move: f64,
+    /// Arcs across gaps: the largest turn between the ends' tangents, radians (171
+    /// degrees); beyond it a bend cannot be told from a fold.
+    pub arc_max_turn: f64,
+    /// Arcs across gaps: how far an arc may stray from its chord, in chords.
+    pub arc_max_bulge: f64,
+    /// Arcs across gaps: samples an end's tangent is fitted to, at least (a quadratic
+    /// needs three, and two more make it a test).
+    pub arc_min_fit: usize,
+    /// The turn at which two sides' curves meet at a corner rather than round a smooth
+    /// arc, radians (40 degrees).
+    pub corner_min_turn: f64,
+    /// How far a side's fitted curve is continued to a corner across a gap, in radians
+    /// of its turn over the chord: a radian round its osculating circle.
+    pub corner_max_side_turn: f64,
+    /// Between clean samples: consecutive samples a circle goes through, one more than a
+    /// circle needs so that lying on it is a test.
+    pub between_run: usize,
+    /// Between clean samples: the least turn at a corner between two runs' circles,
+    /// radians (11 degrees); nested osculating circles of one smooth curve do not cross.
+    pub between_min_turn: f64,
+    /// Between clean samples: how far a run's circle is continued to a corner, radians
+    /// of its turn over the samples' distance (twice the gaps' sides: five clean samples
+    /// on one circle are the curve's own).
+    pub between_max_side_turn: f64,
+    /// Between clean samples: the largest slope of a run's circle against its chord
+    /// (steeper, the run turns by over 127 degrees and is no stretch of one wall).
+    pub between_max_slope: f64,
+    /// Through clean samples: the samples looked at round a vertex (several sides'
+    /// worth, where the sampling thins out on one side).
+    pub through_nearest: usize,
+    /// Through clean samples: the nearest samples whose principal axis is a vertex's
+    /// tangent.
+    pub through_frame: usize,
+    /// Through clean samples: samples the circle goes through on either side of a
+    /// vertex (interpolated, never extrapolated past the samples' end).
+    pub through_each_side: usize,
+    /// Through clean samples: the largest slope of the fitted curve in a vertex's frame.
+    pub through_max_slope: f64,
+    /// Pinches: how far a join may turn from an end's run, radians (45 degrees: more
+    /// along its wall than across).
+    pub pinch_max_turn: f64,
+    /// Strokes: samples a line is fitted to when thinning, at most (the nearest within
+    /// the stroke scale).
+    pub stroke_fit: usize,
+    /// Strokes: candidate tree edges per moved sample, at most.
+    pub stroke_links: usize,
+    /// Strokes: a join across a gap runs within this cosine of the line at each end (30
+    /// degrees).
+    pub stroke_along_cos: f64,
+    /// Loops through empty space: a gap this many times the median of the gaps around
+    /// it may be a bridge (a random sampling's longest gap is about `ln n` means).
+    pub bridge_gaps: f64,
+    /// Loops through empty space: samples off the loops past a bridge's end that show
+    /// the sheet running on (three, so that one in the noise's tail is not one).
+    pub bridge_left_behind: usize,
+    /// Loops through empty space: gaps on either side a gap is compared with.
+    pub bridge_context: usize,
+    /// Loops joined by strokes: the loop's samples within this many tolerances of the
+    /// samples beside it are thinned.
+    pub joined_window: f64,
+}
+
+impl Default for Tolerances {
+    fn default() -> Tolerances {
+        Tolerances {
+            clean_fit: 0.25,
+            max_move: 4.0,
+            arc_max_turn: 0.95 * std::f64::consts::PI,
+            arc_max_bulge: 0.6,
+            arc_min_fit: 5,
+            corner_min_turn: 0.7,
+            corner_max_side_turn: 1.0,
+            between_run: 5,
+            between_min_turn: 0.2,
+            between_max_side_turn: 2.0,
+            between_max_slope: 2.0,
+            through_nearest: 24,
+            through_frame: 4,
+            through_each_side: 2,
+            through_max_slope: 1.0,
+            pinch_max_turn: std::f64::consts::FRAC_PI_4,
+            stroke_fit: 64,
+            stroke_links: 16,
+            stroke_along_cos: 0.866,
+            bridge_gaps: 20.0,
+            bridge_left_behind: 3,
+            bridge_context: 10,
+            joined_window: 8.0,
+        }
+    }
+}
+
 /// What [`mend`] needs of the frame besides its curves (lengths in the local units of
 /// the frame's placement unless said otherwise).
 #[derive(Clone, Copy, Debug)]
@@ -39,6 +148,49 @@ pub struct Frame<'a> {
     pub enclosed: bool,
     /// The accuracy bound `3 sigma + 2 hmin`, in data units.
     pub tolerance: f64,
+    /// The passes' tolerances.
+    pub tolerances: &'a Tolerances,
+}
+
+/// What the repair stage makes of a point cloud's curves.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Repaired {
+    /// The curves, in data coordinates.
+    pub polylines: Vec<Polyline>,
+    /// Where open strokes meet (indices into `polylines`).
+    pub junctions: Vec<Junction>,
+    /// What the invariants had to cut.
+    pub warnings: Vec<crate::Warning>,
+}
+
+/// The repair stage of a point cloud, after the export stage's contour.
+///
+/// Takes the zero isoline's `curves` (data coordinates), the frame they came from and
+/// what the invariants need of the cloud. Mends them ([`mend`]: the passes, each
+/// deciding by `frame.tolerances`) and guarantees, whatever the passes made
+/// ([`crate::export::invariants::enforce`]):
+/// - every vertex within the accuracy bound of the data's support (a sample that is not
+///   an outlier, or the disc on a gap between neighbouring samples);
+/// - no two segments crossing: curves simple and disjoint but where pieces meet at a
+///   junction's shared end;
+/// - no zero-length segment, no closed curve of fewer than three vertices;
+/// - junctions indexing the returned curves, each with two or more ends;
+///
+/// with a warning for each invariant that had to cut, and one when the result looks
+/// collapsed.
+pub fn repair(
+    curves: Vec<Polyline>,
+    frame: &Frame<'_>,
+    cloud: &crate::export::invariants::Cloud<'_>,
+) -> Repaired {
+    let (polylines, junctions) = mend(curves, frame);
+    let (polylines, junctions, warnings) =
+        crate::export::invariants::enforce(polylines, junctions, cloud);
+    Repaired {
+        polylines,
+        junctions,
+        warnings,
+    }
 }
 
 /// Mends a point cloud's `curves` (data coordinates) and adds its open strokes: loops
@@ -54,6 +206,7 @@ pub fn mend(curves: Vec<Polyline>, frame: &Frame<'_>) -> (Vec<Polyline>, Vec<Jun
         at,
         sigma,
         hmin,
+        tolerances: t,
         ..
     } = *frame;
     // Across sampling gaps first: a loop that passed a sparse wall by would otherwise
@@ -74,7 +227,7 @@ pub fn mend(curves: Vec<Polyline>, frame: &Frame<'_>) -> (Vec<Polyline>, Vec<Jun
     // bend's, not noise, and the mending below holds the curve to the one wall's
     // residual: with the estimate, a loop that cuts an inlet's sharp corner by twice the
     // spacing counts as held there.
-    let fit_tol = 0.25 * hmin;
+    let fit_tol = t.clean_fit * hmin;
     let clean = sigma.min(frame.one_wall_noise) <= fit_tol;
     let mend_sigma = if sigma > fit_tol && clean {
         frame.one_wall_noise
@@ -94,7 +247,7 @@ pub fn mend(curves: Vec<Polyline>, frame: &Frame<'_>) -> (Vec<Polyline>, Vec<Jun
     // become one, whose joins along the walls are arcs to span.
     let mut joined = vec![false; curves.len()];
     for (kept, removed) in
-        pinches::join_pinches(&mut local, field, mend_sigma, clean, mend_tol, hmin)
+        pinches::join_pinches(&mut local, field, mend_sigma, clean, mend_tol, hmin, t)
     {
         joined[kept] = true;
         joined.remove(removed);
@@ -104,19 +257,20 @@ pub fn mend(curves: Vec<Polyline>, frame: &Frame<'_>) -> (Vec<Polyline>, Vec<Jun
         loops = joined.iter().filter(|&&j| j).count(),
         "loops joined across pinches"
     );
-    let mut changed = gaps::span_gaps(&mut local, field, mend_sigma, mend_tol, hmin);
+    let mut changed = gaps::span_gaps(&mut local, field, mend_sigma, mend_tol, hmin, t);
     tracing::debug!(loops = changed.len(), "sampling gaps spanned by arcs");
     // Then onto clean samples, which the level set passes by up to the capture's
     // tolerance (the arcs go through those they skipped, not onto the others), and round
     // which it kinks by up to twice that: moves of 4 hmin at most.
     changed.extend((0..joined.len()).filter(|&k| joined[k]));
     if clean {
-        let onto = through::through_samples(&mut local, field, 4.0 * hmin, fit_tol);
+        let onto = through::through_samples(&mut local, field, t.max_move * hmin, fit_tol, t);
         tracing::debug!(loops = onto.len(), "loops moved onto clean samples");
         changed.extend(onto);
         // Then between them: the vertices round a corner, whose nearest samples span
         // both walls, are not moved above.
-        let pieces = between::between_samples(&mut local, field, 4.0 * hmin, fit_tol, hmin);
+        let pieces =
+            between::between_samples(&mut local, field, t.max_move * hmin, fit_tol, hmin, t);
         tracing::debug!(loops = pieces.len(), "loops drawn between clean samples");
         changed.extend(pieces);
     }
@@ -139,6 +293,7 @@ pub fn mend(curves: Vec<Polyline>, frame: &Frame<'_>) -> (Vec<Polyline>, Vec<Jun
         at.len_to_data(sigma),
         at.len_to_data(hmin),
         frame.tolerance,
+        t,
     )
 }
 

@@ -16,11 +16,9 @@ use crate::distance::DistanceField;
 use crate::geom::{dist, dot, norm, scale, sub, Point, Polyline};
 
 use super::gaps::{Fit, Gap, Loop};
+use super::Tolerances;
 use crate::geom::crossing;
 
-/// How far a join may turn from an end's run and still run along its wall, radians (45
-/// degrees: more along it than across).
-const MAX_JOIN_TURN: f64 = std::f64::consts::FRAC_PI_4;
 /// Nearest samples the chord behind a join's end is looked for among.
 const CHORD_CANDIDATES: usize = 8;
 /// Joins per frame, at most: each pass pairs every two stretches, so that the cost stays
@@ -37,8 +35,8 @@ const MAX_STRETCHES: usize = 4096;
 /// within `tol` of the samples of `field`, with every vertex between them farther
 /// (walked `step` at a time), more than `4 step` long. Two stretches of two loops join
 /// when both walls' gaps are shorter than twice the wider stretch's chord, the samples'
-/// tangent at each of the four ends (`sigma` their noise) turns less than 45 degrees
-/// from its join (or, where the samples are `clean`, the chord of the two samples
+/// tangent at each of the four ends (`sigma` their noise) turns less than
+/// `t.pinch_max_turn` from its join (or, where the samples are `clean`, the chord of the two samples
 /// behind it, where the fit takes in another wall round a corner), and no join crosses
 /// a curve or the other join. More than 4,096 stretches are
 /// not paired at all. Returns the joins made, as (kept, removed) indices, in order.
@@ -49,12 +47,13 @@ pub fn join_pinches(
     clean: bool,
     tol: f64,
     step: f64,
+    t: &Tolerances,
 ) -> Vec<(usize, usize)> {
     let mut joins = Vec::new();
     if !(tol.is_finite() && tol > 0.0 && step.is_finite() && step > 0.0 && sigma >= 0.0) {
         return joins;
     }
-    let fit = Fit { field, sigma };
+    let fit = Fit { field, sigma, t };
     while joins.len() < MAX_JOINS {
         let Some((k1, g1, k2, g2)) = best_pinch(curves, &fit, tol, step, clean) else {
             break;
@@ -144,7 +143,7 @@ fn best_pinch(
 /// leaves the wall, to vertex `to` of `l_to`, where the other comes back to it, is
 /// shorter than twice `neck` and runs along the wall: the samples' tangent at each end
 /// (fitted to those behind it, as an arc across a gap takes it) turns less than
-/// [`MAX_JOIN_TURN`] from the join, or, on `clean` samples, the chord of the two
+/// `pinch_max_turn` of the tolerances from the join, or, on `clean` samples, the chord of the two
 /// samples behind it does ([`chord_behind`]): an end a spacing short of a corner has
 /// the other wall's samples among the fit's five. Not the loops' runs: over a join's
 /// length those are chords, which turn towards a disc beside the gap.
@@ -168,7 +167,7 @@ fn along_wall(
         fit.tangent(p, reach, &[run_in, d], Some(d)),
         fit.tangent(q, reach, &[run_out, d], Some(scale(d, -1.0))),
     ];
-    let cos = MAX_JOIN_TURN.cos();
+    let cos = fit.t.pinch_max_turn.cos();
     let along = |t: Point| dot(d, t) >= cos * len * norm(t) && norm(t) > 0.0;
     // On clean samples, where the fit runs round a corner, the chord of the two
     // samples behind the end.
@@ -294,7 +293,15 @@ mod tests {
     fn a_band_pinched_where_both_walls_have_a_gap_is_one_loop() {
         let (samples, mut curves) = pinched_band();
         let field = DistanceField::new(&samples).unwrap();
-        let joins = join_pinches(&mut curves, &field, 0.0, true, 0.004, 0.002);
+        let joins = join_pinches(
+            &mut curves,
+            &field,
+            0.0,
+            true,
+            0.004,
+            0.002,
+            &Tolerances::default(),
+        );
         assert_eq!(joins, vec![(0, 1)]);
         assert_eq!(curves.len(), 1);
         let off = curves[0]
@@ -338,7 +345,16 @@ mod tests {
             })
             .collect();
         let before = curves.clone();
-        assert!(join_pinches(&mut curves, &field, 0.0, true, 0.004, 0.002).is_empty());
+        assert!(join_pinches(
+            &mut curves,
+            &field,
+            0.0,
+            true,
+            0.004,
+            0.002,
+            &Tolerances::default()
+        )
+        .is_empty());
         assert_eq!(curves, before);
     }
 
@@ -362,12 +378,14 @@ mod tests {
         let (p, q) = ([0.814, 0.274], [0.740, 0.3181]);
         let d = sub(q, p);
         let len = norm(d);
+        let t = Tolerances::default();
         let fit = Fit {
             field: &field,
             sigma: 0.0,
+            t: &t,
         };
         let e = fit.tangent(p, fit.reach(len), &[d], Some(d));
-        let cos = MAX_JOIN_TURN.cos();
+        let cos = t.pinch_max_turn.cos();
         assert!(e.is_none_or(|e| dot(e.tangent, d) < cos * len), "{e:?}");
         let chord = chord_behind(&field, p, d).unwrap();
         assert!(dot(chord, d) >= 0.999 * norm(chord) * len, "{chord:?}");

@@ -13,16 +13,10 @@
 //! forks closer than `2 r` are one junction (a crossing forks twice).
 
 use crate::disjoint::root;
+
+use super::Tolerances;
 use crate::distance::DistanceField;
 use crate::geom::{cross, dist, dot, scale, sub, Point, Polyline, Sym2};
-
-/// Samples a line is fitted to, at most (the nearest within `r`).
-const FIT: usize = 64;
-/// Candidate tree edges per moved sample, at most (the nearest within `r`).
-const LINKS: usize = 16;
-/// A join across a gap longer than the sampling's runs within 30 degrees of the line
-/// at each of its ends: the cosine.
-const ALONG_COS: f64 = 0.866;
 
 /// Where strokes meet.
 #[derive(Clone, Debug, PartialEq)]
@@ -47,6 +41,7 @@ pub fn with_strokes(
     sigma: f64,
     hmin: f64,
     tol: f64,
+    t: &Tolerances,
 ) -> (Vec<Polyline>, Vec<Junction>) {
     // `away`: each sample's distance to the curves (none: infinite).
     let find = |away: Vec<f64>| {
@@ -69,7 +64,7 @@ pub fn with_strokes(
             .filter(|&(_, d)| d > r)
             .map(|(p, _)| p)
             .collect();
-        strokes(&loose, r)
+        strokes(&loose, r, t)
     };
     let nowhere = || vec![f64::INFINITY; data.len()];
     if !enclosed {
@@ -90,9 +85,9 @@ pub fn with_strokes(
     let mut away = None;
     for _ in 0..PRUNE_ROUNDS {
         let before = closed.len();
-        let (kept, held) = without_bridges(closed, data, tol);
+        let (kept, held) = without_bridges(closed, data, tol, t);
         let held = held.unwrap_or_else(|| distances(&kept));
-        (closed, away) = without_joined_strokes(kept, data, held, tol, sigma, hmin);
+        (closed, away) = without_joined_strokes(kept, data, held, tol, sigma, hmin, t);
         if closed.len() == before || closed.is_empty() {
             break;
         }
@@ -111,34 +106,16 @@ pub fn with_strokes(
     (curves, junctions)
 }
 
-/// Gaps between supported positions this many times the median of the gaps around them
-/// may be a bridge: far beyond a random sampling's longest gap (about `ln n` times the
-/// mean, the median being 0.69 of it) for any number of samples `n` below a million.
-/// The median of the gaps around fluctuates too (a clean closed curve's widest sampling
-/// gap measured 28 times it), so a bridge must also leave a sheet that runs on
-/// ([`LEFT_BEHIND`]).
-const BRIDGE: f64 = 20.0;
-/// Samples off the loops, near a gap's end, that show the sheet running on past where
-/// the loop left it, at least: a loop closed through empty space leaves a stroke's
-/// samples behind (a baseline beyond the loop's turn down to an arc), while the samples
-/// at a closed curve's sampling gap stop where the gap starts. Three, so that a sample
-/// in the noise's tail is not one.
-const LEFT_BEHIND: usize = 3;
-/// The loop's samples within this many times the tolerance of the samples beside it
-/// are the ones [`without_joined_strokes`] thins.
-const JOINED_WINDOW: f64 = 8.0;
 /// The samples [`without_joined_strokes`] thins for a loop, at most.
 const JOINED_SAMPLES: usize = 8192;
 /// Rounds of the loop tests, at most: each after one that dropped a loop. Bounded, so
 /// that the cost stays linear in the samples whatever the number of loops.
 const PRUNE_ROUNDS: usize = 4;
-/// Gaps on either side a gap is compared with.
-const BRIDGE_CONTEXT: usize = 10;
 
 /// The loops of `closed` that the data support all round: a loop that bridges a gap in
 /// its samples (a stretch with no sample within `tol`, longer than `2 tol` and
-/// [`BRIDGE`] times the gaps between samples around it, whose middle lies a quarter of
-/// its length from every sample, and past one of whose ends [`LEFT_BEHIND`] samples
+/// `bridge_gaps` times the gaps between samples around it, whose middle lies a quarter of
+/// its length from every sample, and past one of whose ends `bridge_left_behind` samples
 /// farther than `tol` from the loops lie within `tol` and half its length) is no closed
 /// curve of the data but strokes joined through empty space (an arc whose ends come
 /// near a line), and is left out, its samples to the strokes. With them, the samples'
@@ -147,6 +124,7 @@ fn without_bridges(
     closed: Vec<Polyline>,
     data: &[Point],
     tol: f64,
+    t: &Tolerances,
 ) -> (Vec<Polyline>, Option<Vec<f64>>) {
     if closed.is_empty() {
         return (closed, None);
@@ -191,7 +169,7 @@ fn without_bridges(
         .zip(at)
         .zip(lengths)
         .filter_map(|((pl, mut at), total)| {
-            if at.len() < 2 * BRIDGE_CONTEXT + 1 {
+            if at.len() < 2 * t.bridge_context + 1 {
                 return Some(pl);
             }
             at.sort_unstable_by(f64::total_cmp);
@@ -205,18 +183,18 @@ fn without_bridges(
                     }
                 })
                 .collect();
-            let mut around = Vec::with_capacity(2 * BRIDGE_CONTEXT);
+            let mut around = Vec::with_capacity(2 * t.bridge_context);
             let bridged = (0..n).any(|i| {
                 if gaps[i] <= 2.0 * tol {
                     return false;
                 }
                 around.clear();
                 around.extend(
-                    (1..=BRIDGE_CONTEXT).flat_map(|o| [gaps[(i + o) % n], gaps[(i + n - o) % n]]),
+                    (1..=t.bridge_context).flat_map(|o| [gaps[(i + o) % n], gaps[(i + n - o) % n]]),
                 );
                 let mid = around.len() / 2;
                 let median = *around.select_nth_unstable_by(mid, f64::total_cmp).1;
-                if gaps[i] <= BRIDGE * median {
+                if gaps[i] <= t.bridge_gaps * median {
                     return false;
                 }
                 // Through empty space, not a bulge beside the samples: the loop's point
@@ -242,7 +220,7 @@ fn without_bridges(
                 off.as_ref().is_some_and(|f| {
                     [at[i], at[i] + gaps[i]].iter().any(|&s| {
                         f.within(point_at(&pl, s % total), tol + 0.5 * gaps[i], &mut near);
-                        near.len() >= LEFT_BEHIND
+                        near.len() >= t.bridge_left_behind
                     })
                 })
             });
@@ -259,13 +237,13 @@ fn without_bridges(
 /// has a sample within `tol` all along). A loop goes, its samples to the strokes, where
 /// the strokes of its own samples (those within `tol` of it, at the scale `r` of
 /// [`with_strokes`]) have two free ends, each with no other within `r`, past each of
-/// which [`LEFT_BEHIND`] samples off the loops lie ahead on its line (within `tol` of
+/// which `bridge_left_behind` samples off the loops lie ahead on its line (within `tol` of
 /// the line, `r + tol` of the end): the line runs on past both places where the loop
 /// left it. A
 /// closed curve's own samples make one stroke whose two ends face each other across a
-/// sampling gap, and nothing runs on past them. Only loops with [`LEFT_BEHIND`] samples
+/// sampling gap, and nothing runs on past them. Only loops with `bridge_left_behind` samples
 /// off the loops within `2 tol` are tried, and only their samples within
-/// [`JOINED_WINDOW`] `tol` of those are thinned, at most [`JOINED_SAMPLES`] of them.
+/// `joined_window` `tol` of those are thinned, at most [`JOINED_SAMPLES`] of them.
 /// `away`: each sample's distance to the loops; with the loops kept, and the distances
 /// when every loop stays.
 fn without_joined_strokes(
@@ -275,6 +253,7 @@ fn without_joined_strokes(
     tol: f64,
     sigma: f64,
     hmin: f64,
+    t: &Tolerances,
 ) -> (Vec<Polyline>, Option<Vec<f64>>) {
     let index = crate::index::SegmentIndex::new(&closed);
     // Each segment's loop, in the index's order.
@@ -303,7 +282,7 @@ fn without_joined_strokes(
             }
         }
     }
-    if off_near.iter().all(|n| n.len() < LEFT_BEHIND) {
+    if off_near.iter().all(|n| n.len() < t.bridge_left_behind) {
         return (closed, Some(away));
     }
     let Ok(off) = DistanceField::new(&off) else {
@@ -314,7 +293,7 @@ fn without_joined_strokes(
     // noise's tail leaves a few samples off every loop.
     let tried: Vec<Point> = off_near
         .iter()
-        .filter(|n| n.len() >= LEFT_BEHIND)
+        .filter(|n| n.len() >= t.bridge_left_behind)
         .flatten()
         .copied()
         .collect();
@@ -323,7 +302,7 @@ fn without_joined_strokes(
     };
     let mut on: Vec<Vec<Point>> = vec![Vec::new(); closed.len()];
     for (&p, &d) in data.iter().zip(&away) {
-        if d <= tol && beside.nearest(p).dist <= JOINED_WINDOW * tol {
+        if d <= tol && beside.nearest(p).dist <= t.joined_window * tol {
             if let Some(k) = loop_of(p) {
                 on[k].push(p);
             }
@@ -335,7 +314,7 @@ fn without_joined_strokes(
         .into_iter()
         .zip(on.iter().zip(&off_near))
         .filter(|(_, (on, off_near))| {
-            if off_near.len() < LEFT_BEHIND {
+            if off_near.len() < t.bridge_left_behind {
                 return true;
             }
             let stride = on.len().div_ceil(JOINED_SAMPLES).max(1);
@@ -345,7 +324,7 @@ fn without_joined_strokes(
             };
             let delta = crate::distance::tube_radius(&field, 2.0 * hmin);
             let r = (2.0 * delta).max(6.0 * sigma);
-            let (lines, junctions) = strokes(&on, r);
+            let (lines, junctions) = strokes(&on, r, t);
             // Each free end with its line: the principal line of the stroke's points
             // `r` to `3 r` back (nearer ones may curl into the loop's turn, by 24
             // degrees at sigma 0.005), or within `3 r` where fewer lie there,
@@ -384,7 +363,7 @@ fn without_joined_strokes(
             let runs_on = ends
                 .iter()
                 .enumerate()
-                .filter(|&(i, &(e, c, t))| {
+                .filter(|&(i, &(e, c, dir))| {
                     let alone = ends
                         .iter()
                         .enumerate()
@@ -397,9 +376,9 @@ fn without_joined_strokes(
                         let pts = off.points();
                         let ahead = near.iter().filter(|&&q| {
                             let q = pts[q as usize];
-                            dot(sub(q, e), t) > 0.0 && cross(t, sub(q, c)).abs() <= tol
+                            dot(sub(q, e), dir) > 0.0 && cross(dir, sub(q, c)).abs() <= tol
                         });
-                        ahead.count() >= LEFT_BEHIND
+                        ahead.count() >= t.bridge_left_behind
                     }
                 })
                 .count();
@@ -427,35 +406,35 @@ fn point_at(pl: &Polyline, mut s: f64) -> Point {
 /// The strokes through `points` at scale `r` (at least a few sample spacings and three
 /// noise deviations): open polylines, each at least `2 r` long or ending at a junction,
 /// and the junctions. Samples with fewer than 3 others within `r` are left out.
-pub fn strokes(points: &[Point], r: f64) -> (Vec<Polyline>, Vec<Junction>) {
+pub fn strokes(points: &[Point], r: f64, t: &Tolerances) -> (Vec<Polyline>, Vec<Junction>) {
     if points.len() < 3 || r.is_nan() || r <= 0.0 {
         return (Vec::new(), Vec::new());
     }
     let Ok(field) = DistanceField::new(points) else {
         return (Vec::new(), Vec::new());
     };
-    let moved = thin(&field, r);
-    let (nodes, edges) = spanning_tree(&moved, &field, r);
+    let moved = thin(&field, r, t);
+    let (nodes, edges) = spanning_tree(&moved, &field, r, t);
     let mut adj: Vec<Vec<usize>> = vec![Vec::new(); nodes.len()];
     for &(a, b) in &edges {
         adj[a].push(b);
         adj[b].push(a);
     }
     prune(&nodes, &mut adj, r);
-    chains(&nodes, &adj, r, |p| {
+    chains(&nodes, &adj, r, t, |p| {
         field.points()[field.nearest(p).index as usize]
     })
 }
 
 /// Each sample moved across its sheet onto the principal line of its neighbours within
 /// `r`; `None` for a sample with fewer than 3 neighbours (an outlier).
-fn thin(field: &DistanceField, r: f64) -> Vec<Option<Point>> {
+fn thin(field: &DistanceField, r: f64, t: &Tolerances) -> Vec<Option<Point>> {
     use rayon::prelude::*;
     let pts = field.points();
     pts.par_iter()
         .map_init(Vec::new, |buf, &p| {
-            // At most the FIT nearest: the cost stays bounded on dense data.
-            field.nearest_k(p, FIT, buf);
+            // At most the `stroke_fit` nearest: the cost stays bounded on dense data.
+            field.nearest_k(p, t.stroke_fit, buf);
             // A sample with too few neighbours within `r` (a stroke's end past a gap in
             // a sparse clean sampling) takes those within `2 r`; one without them there
             // either is an outlier.
@@ -489,7 +468,7 @@ fn principal(pts: impl Iterator<Item = Point> + Clone) -> (Point, Sym2) {
 }
 
 /// The minimum spanning forest of the moved samples (Kruskal) over each one's
-/// [`LINKS`] nearest within `r`, then over the pairs of the ends that left across a gap
+/// `stroke_links` nearest within `r`, then over the pairs of the ends that left across a gap
 /// along a stroke (the nearest of a sample at its edge all lie on its own side): within
 /// the moved samples' reach, or up to `2 r` where the `samples` run on across it or it
 /// runs along the line at both its ends; then over the pairs of an end and another
@@ -500,6 +479,7 @@ fn spanning_tree(
     moved: &[Option<Point>],
     samples: &DistanceField,
     r: f64,
+    t: &Tolerances,
 ) -> (Vec<Point>, Vec<(usize, usize)>) {
     let nodes: Vec<Point> = moved.iter().flatten().copied().collect();
     let Ok(tree) = DistanceField::new(&nodes) else {
@@ -524,7 +504,7 @@ fn spanning_tree(
     let mut near = Vec::new();
     let mut pairs = Vec::new();
     for (i, &p) in nodes.iter().enumerate() {
-        tree.nearest_k(p, LINKS, &mut near);
+        tree.nearest_k(p, t.stroke_links, &mut near);
         pairs.extend(
             near.iter()
                 .map(|&j| j as usize)
@@ -576,7 +556,7 @@ fn spanning_tree(
     };
     // The join from `e` to `f` runs along the line at `e`.
     let mut along = |e: Point, f: Point| {
-        line_at(e).is_some_and(|t| dot(sub(f, e), t).abs() >= ALONG_COS * dist(e, f))
+        line_at(e).is_some_and(|u| dot(sub(f, e), u).abs() >= t.stroke_along_cos * dist(e, f))
     };
     // End to end: a stroke that stops more than `r` short of another's side does not
     // touch it.
@@ -714,6 +694,7 @@ fn chains(
     nodes: &[Point],
     adj: &[Vec<usize>],
     r: f64,
+    t: &Tolerances,
     snap: impl Fn(Point) -> Point,
 ) -> (Vec<Polyline>, Vec<Junction>) {
     let n = nodes.len();
@@ -792,7 +773,7 @@ fn chains(
                         .map(move |_| &pl.points[..])
                 })
                 .collect();
-            crossing(at, &arms, r).unwrap_or(at)
+            crossing(at, &arms, r, t).unwrap_or(at)
         })
         .collect();
     let mut out = Vec::new();
@@ -846,7 +827,7 @@ fn chains(
 /// crossed with the line through the others, each fitted to the arm points between `r`
 /// and `3 r` from `at` (nearer, the thinning saw two arms) and straight there to `r / 4`;
 /// `None` when they are not, or cross more than `r` from `at`.
-fn crossing(at: Point, arms: &[&[Point]], r: f64) -> Option<Point> {
+fn crossing(at: Point, arms: &[&[Point]], r: f64, t: &Tolerances) -> Option<Point> {
     // At least the four nearest beyond `r`, where the arm has fewer within `3 r` (its
     // chain's vertices may be as sparse as the samples).
     let part = |arm: &&[Point]| -> Vec<Point> {
@@ -898,24 +879,31 @@ fn crossing(at: Point, arms: &[&[Point]], r: f64) -> Option<Point> {
         .collect();
     // A T's stem may bend (a hook standing on a line): its circle meets the line, where
     // a line fitted to the bend and run on would miss the foot by the bend's sagitta.
-    let p = match (parts.len() == 3).then(|| arm_meets(line_a, &rest, band, at)) {
-        Some(Some(p)) => p,
-        _ => {
-            let line_b = crate::repair::corners::fit_line(&rest, band)?;
-            crate::repair::corners::intersect(line_a, line_b)?
-        }
-    };
+    let p =
+        match (parts.len() == 3).then(|| arm_meets(line_a, &rest, band, at, t.between_max_slope)) {
+            Some(Some(p)) => p,
+            _ => {
+                let line_b = crate::repair::corners::fit_line(&rest, band)?;
+                crate::repair::corners::intersect(line_a, line_b)?
+            }
+        };
     (dist(p, at) <= r).then_some(p)
 }
 
 /// Where the circle (or line) fitted to `arm` (its points in order along it) within
-/// `band` meets `line` (a point on it and its unit normal): of the two crossings, the
-/// one nearer `at`.
-fn arm_meets(line: (Point, Point), arm: &[Point], band: f64, at: Point) -> Option<Point> {
+/// `band` (at most `max_slope` against its chord) meets `line` (a point on it and its
+/// unit normal): of the two crossings, the one nearer `at`.
+fn arm_meets(
+    line: (Point, Point),
+    arm: &[Point],
+    band: f64,
+    at: Point,
+    max_slope: f64,
+) -> Option<Point> {
     if arm.len() < 6 {
         return None;
     }
-    super::between::Curve::through(arm, band)?
+    super::between::Curve::through(arm, band, max_slope)?
         .meets_line(line.0, line.1)
         .into_iter()
         .filter(|p| p.iter().all(|v| v.is_finite()))
@@ -986,7 +974,11 @@ mod tests {
         };
         let mut data = line([-0.3, 0.0], [0.3, 0.0], 300);
         data.extend(arc(400));
-        assert!(without_bridges(vec![bridged], &data, 0.005).0.is_empty());
+        assert!(
+            without_bridges(vec![bridged], &data, 0.005, &Tolerances::default())
+                .0
+                .is_empty()
+        );
 
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
         let angles: Vec<f64> = (0..400)
@@ -998,7 +990,9 @@ mod tests {
             .collect();
         let circle = circle_loop(0.3, 600);
         assert_eq!(
-            without_bridges(vec![circle.clone()], &data, 0.001).0.len(),
+            without_bridges(vec![circle.clone()], &data, 0.001, &Tolerances::default())
+                .0
+                .len(),
             1
         );
 
@@ -1009,7 +1003,12 @@ mod tests {
             .filter(|&&a| !(1.0..2.0).contains(&a))
             .map(|a| [0.3 * a.cos(), 0.3 * a.sin()])
             .collect();
-        assert_eq!(without_bridges(vec![circle], &data, 0.001).0.len(), 1);
+        assert_eq!(
+            without_bridges(vec![circle], &data, 0.001, &Tolerances::default())
+                .0
+                .len(),
+            1
+        );
     }
 
     /// The strokes drawing's bowl at sigma 0.007: a noisy line, and below it a noisy
@@ -1049,10 +1048,18 @@ mod tests {
             let index = crate::index::SegmentIndex::new(loops);
             data.iter().map(|&p| index.distance(p)).collect()
         };
-        let (kept, _) = without_bridges(vec![bowl.clone()], &data, tol);
+        let (kept, _) = without_bridges(vec![bowl.clone()], &data, tol, &Tolerances::default());
         assert_eq!(kept.len(), 1, "the bridge test alone keeps the bowl");
         let a = away(std::slice::from_ref(&bowl), &data);
-        let (kept, _) = without_joined_strokes(vec![bowl], &data, a, tol, sigma, hmin);
+        let (kept, _) = without_joined_strokes(
+            vec![bowl],
+            &data,
+            a,
+            tol,
+            sigma,
+            hmin,
+            &Tolerances::default(),
+        );
         assert!(kept.is_empty());
 
         let angles: Vec<f64> = (0..800)
@@ -1069,7 +1076,15 @@ mod tests {
         data.extend((0..40).map(|_| [rng.random_range(-0.5..0.5), rng.random_range(-0.5..0.5)]));
         let circle = circle_loop(0.3, 300);
         let a = away(std::slice::from_ref(&circle), &data);
-        let (kept, _) = without_joined_strokes(vec![circle], &data, a, tol, sigma, hmin);
+        let (kept, _) = without_joined_strokes(
+            vec![circle],
+            &data,
+            a,
+            tol,
+            sigma,
+            hmin,
+            &Tolerances::default(),
+        );
         assert_eq!(kept.len(), 1);
     }
 
@@ -1103,7 +1118,7 @@ mod tests {
         pts.extend(line([1.0, 0.01], [1.0, 1.0], 99));
         pts.extend(line([4.0, 0.0], [6.0, 0.0], 200));
         pts.extend(line([5.0, -1.0], [5.0, 1.0], 200));
-        let (lines, junctions) = strokes(&pts, 0.05);
+        let (lines, junctions) = strokes(&pts, 0.05, &Tolerances::default());
         assert_eq!(lines.len(), 7, "{lines:?}");
         assert!(lines.iter().all(|l| !l.closed));
         let mut degrees: Vec<usize> = junctions.iter().map(|j| j.polylines.len()).collect();
@@ -1144,7 +1159,7 @@ mod tests {
             let a = i as f64 * 0.005 / 0.2;
             [1.2 - 0.2 * a.cos(), 0.2 * a.sin()]
         }));
-        let (lines, junctions) = strokes(&pts, 0.025);
+        let (lines, junctions) = strokes(&pts, 0.025, &Tolerances::default());
         assert_eq!(lines.len(), 3, "{junctions:?}");
         assert_eq!(junctions.len(), 1);
         let off = dist(junctions[0].at, [1.0, 0.0]);
@@ -1162,7 +1177,7 @@ mod tests {
             .filter(|p| p[0].abs() > 0.025)
             .collect();
         pts.extend(line([0.0, -0.996], [0.0, 1.004], 200));
-        let (lines, junctions) = strokes(&pts, 0.05);
+        let (lines, junctions) = strokes(&pts, 0.05, &Tolerances::default());
         assert_eq!(lines.len(), 4, "{}", lines.len());
         assert_eq!(junctions.len(), 1, "{junctions:?}");
         // The arms are the smoothed chains, which lean by 1e-5 within 3 r of the
@@ -1179,7 +1194,7 @@ mod tests {
     fn a_stroke_runs_on_to_its_samples_past_a_gap_at_its_end() {
         let mut pts: Vec<Point> = (0..=100).map(|i| [0.004 * i as f64, 0.0]).collect();
         pts.extend([[0.412, 0.0], [0.416, 0.0]]);
-        let (lines, junctions) = strokes(&pts, 0.01);
+        let (lines, junctions) = strokes(&pts, 0.01, &Tolerances::default());
         assert_eq!(lines.len(), 1, "{lines:?}");
         assert!(junctions.is_empty());
         let ends = [lines[0].points[0][0], lines[0].points.last().unwrap()[0]];
@@ -1199,7 +1214,7 @@ mod tests {
             .into_iter()
             .filter(|p| !(0.47..0.53).contains(&p[0]))
             .collect();
-        let (lines, junctions) = strokes(&pts, 0.05);
+        let (lines, junctions) = strokes(&pts, 0.05, &Tolerances::default());
         assert_eq!(lines.len(), 1, "{lines:?}");
         assert!(junctions.is_empty());
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
@@ -1212,7 +1227,7 @@ mod tests {
             .iter()
             .map(|x| [x + noise.sample(&mut rng), noise.sample(&mut rng)])
             .collect();
-        let (lines, junctions) = strokes(&pts, 6.0 * 0.004);
+        let (lines, junctions) = strokes(&pts, 6.0 * 0.004, &Tolerances::default());
         assert_eq!(lines.len(), 1, "{junctions:?}");
         assert!(junctions.is_empty());
     }
@@ -1230,7 +1245,7 @@ mod tests {
             .filter(|&(i, _)| !(41..=45).contains(&i) && !(47..=51).contains(&i))
             .map(|(_, p)| p)
             .collect();
-        let (lines, junctions) = strokes(&pts, 0.05);
+        let (lines, junctions) = strokes(&pts, 0.05, &Tolerances::default());
         assert_eq!(lines.len(), 1, "{lines:?}");
         assert!(junctions.is_empty());
         let ends = [lines[0].points[0], *lines[0].points.last().unwrap()];
@@ -1245,7 +1260,7 @@ mod tests {
     fn a_stem_whose_foot_is_unsampled_stands_on_its_bar() {
         let mut pts = line([0.0, 0.0], [1.0, 0.0], 100);
         pts.extend(line([0.5, 0.06], [0.5, 0.6], 54));
-        let (lines, junctions) = strokes(&pts, 0.05);
+        let (lines, junctions) = strokes(&pts, 0.05, &Tolerances::default());
         assert_eq!(lines.len(), 3, "{lines:?}");
         assert_eq!(junctions.len(), 1, "{junctions:?}");
         assert_eq!(junctions[0].polylines.len(), 3);
@@ -1279,7 +1294,7 @@ mod tests {
             let mut pts = along([-0.5, 0.0], [0.5, 0.0], 600);
             pts.extend(along([0.25, 0.0], [0.25, -0.3], 180));
             pts.extend(along([-0.2, -0.065], [-0.2, -0.4], 200));
-            let (lines, junctions) = strokes(&pts, 6.0 * sigma);
+            let (lines, junctions) = strokes(&pts, 6.0 * sigma, &Tolerances::default());
             assert_eq!(lines.len(), 4, "seed {seed}: {junctions:?}");
             assert_eq!(junctions.len(), 1, "seed {seed}: {junctions:?}");
             assert_eq!(junctions[0].polylines.len(), 3, "seed {seed}");
@@ -1311,7 +1326,7 @@ mod tests {
             })
             .collect();
         pts.extend((0..20).map(|_| [rng.random::<f64>() * 2.0 - 1.0, -0.5]));
-        let (lines, junctions) = strokes(&pts, 0.03);
+        let (lines, junctions) = strokes(&pts, 0.03, &Tolerances::default());
         assert_eq!(lines.len(), 1, "{lines:?}");
         assert!(junctions.is_empty());
         // The thinned line is within 2 sigma of the arc (the fit over r = 6 sigma

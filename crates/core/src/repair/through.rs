@@ -19,22 +19,11 @@ use rayon::prelude::*;
 use crate::distance::DistanceField;
 use crate::geom::{add, dist, dot, norm, scale, sub, Point, Polyline, Sym2};
 
-/// Samples looked at round a vertex: several sides' worth, since where the sampling
-/// thins out on one side the nearest all crowd on the other.
-const NEAREST: usize = 24;
-/// The nearest samples whose principal axis is a vertex's tangent.
-const FRAME: usize = 4;
-/// Samples the circle goes through on either side of a vertex along that tangent: it
-/// is interpolated, never extrapolated past an end of the samples (a gap's edge, a
-/// stroke's end). The next nearest of either side makes a fifth.
-const EACH_SIDE: usize = 2;
-/// The largest slope of the fitted curve in a vertex's frame: steeper, the frame is not
-/// the samples' and is not to be trusted.
-const MAX_SLOPE: f64 = 1.0;
+use super::Tolerances;
 
 /// Moves every vertex of the closed polylines of `curves` onto the circle through the
-/// samples of `field` nearest it along the samples' tangent (two on either
-/// side, and one more), where they lie on that circle to within `fit_tol` and the move
+/// samples of `field` nearest it along the samples' tangent (`t.through_each_side` on
+/// either side, and one more), where they lie on that circle to within `fit_tol` and the move
 /// is shorter than `tol`, but for moves that would leave a step of over `tol / 4`
 /// next to a vertex that strays farther. Open polylines stay.
 /// Returns the indices of the polylines changed.
@@ -43,10 +32,11 @@ pub fn through_samples(
     field: &DistanceField,
     tol: f64,
     fit_tol: f64,
+    t: &Tolerances,
 ) -> Vec<usize> {
     let mut changed = Vec::new();
     if !(tol.is_finite() && tol > 0.0 && fit_tol.is_finite() && fit_tol > 0.0)
-        || field.points().len() < 2 * EACH_SIDE + 1
+        || field.points().len() < 2 * t.through_each_side + 1
     {
         return changed;
     }
@@ -58,7 +48,7 @@ pub fn through_samples(
         let mut to: Vec<To> = (0..pts.len())
             .into_par_iter()
             .map_init(Vec::new, |ids, i| {
-                match onto_circle(pts[i], field, fit_tol, ids) {
+                match onto_circle(pts[i], field, fit_tol, t, ids) {
                     Some(q) if dist(q, pts[i]) < tol => To::Onto(q),
                     Some(_) => To::Far,
                     None => To::Stay,
@@ -115,15 +105,22 @@ fn no_steps(pts: &[Point], to: &mut [To], step: f64) {
 
 /// The point nearest `p` of the circle through the samples nearest it, if they hold it
 /// as [`through_samples`] asks.
-fn onto_circle(p: Point, field: &DistanceField, fit_tol: f64, ids: &mut Vec<u32>) -> Option<Point> {
+fn onto_circle(
+    p: Point,
+    field: &DistanceField,
+    fit_tol: f64,
+    t: &Tolerances,
+    ids: &mut Vec<u32>,
+) -> Option<Point> {
+    let (frame, each_side, max_slope) = (t.through_frame, t.through_each_side, t.through_max_slope);
     // The frame is the samples' own, from the few nearest: the loop's tangent is not
     // to be trusted where it kinks round a sample it passes by.
-    field.nearest_k(p, NEAREST, ids);
-    let near = &ids[..ids.len().min(FRAME)];
-    if near.len() < FRAME {
+    field.nearest_k(p, t.through_nearest, ids);
+    let near = &ids[..ids.len().min(frame)];
+    if near.len() < frame {
         return None;
     }
-    let inv = 1.0 / FRAME as f64;
+    let inv = 1.0 / frame as f64;
     let centre = near.iter().fold([0.0, 0.0], |c, &i| {
         add(c, scale(field.points()[i as usize], inv))
     });
@@ -150,11 +147,11 @@ fn onto_circle(p: Point, field: &DistanceField, fit_tol: f64, ids: &mut Vec<u32>
             continue;
         }
         let side = if x < 0.0 { &mut before } else { &mut after };
-        if side.len() <= EACH_SIDE {
+        if side.len() <= each_side {
             side.push((x, y));
         }
     }
-    if before.len() < EACH_SIDE || after.len() < EACH_SIDE {
+    if before.len() < each_side || after.len() < each_side {
         return None;
     }
     // The two nearest on each side and a fifth: a sample far out on a sparse side would
@@ -164,14 +161,14 @@ fn onto_circle(p: Point, field: &DistanceField, fit_tol: f64, ids: &mut Vec<u32>
     // first; the other where the nearer's wall is not this one (by a corner, the next
     // sample on one side may lie round it).
     let far = |v: &(f64, f64)| v.0.hypot(v.1);
-    let core: Vec<(f64, f64)> = before[..EACH_SIDE]
+    let core: Vec<(f64, f64)> = before[..each_side]
         .iter()
-        .chain(&after[..EACH_SIDE])
+        .chain(&after[..each_side])
         .copied()
         .collect();
-    let mut fifths: Vec<(f64, f64)> = before[EACH_SIDE..]
+    let mut fifths: Vec<(f64, f64)> = before[each_side..]
         .iter()
-        .chain(&after[EACH_SIDE..])
+        .chain(&after[each_side..])
         .copied()
         .collect();
     fifths.sort_by(|u, v| far(u).total_cmp(&far(v)));
@@ -180,16 +177,18 @@ fn onto_circle(p: Point, field: &DistanceField, fit_tol: f64, ids: &mut Vec<u32>
         local.clear();
         local.extend_from_slice(&core);
         local.push(fifth);
-        let (x, y) = onto_fit(&mut local, fit_tol)?;
+        let (x, y) = onto_fit(&mut local, fit_tol, max_slope)?;
         Some(add(p, add(scale(t, x), scale(nrm, y))))
     })
 }
 
 /// The move from the frame's origin onto the circle (or line) through `local` (samples
-/// in the frame), if they lie on it to within `fit_tol`.
-fn onto_fit(local: &mut [(f64, f64)], fit_tol: f64) -> Option<(f64, f64)> {
+/// in the frame), if they lie on it to within `fit_tol` with a slope of at most
+/// `max_slope` in the frame (steeper, the frame is not the samples' and is not to be
+/// trusted).
+fn onto_fit(local: &mut [(f64, f64)], fit_tol: f64, max_slope: f64) -> Option<(f64, f64)> {
     let (a, b, c, off) = implicit_circle(local)?;
-    if b.abs() > MAX_SLOPE || off > fit_tol {
+    if b.abs() > max_slope || off > fit_tol {
         return None;
     }
     // Along grad f at the origin (through the circle's centre), f(s g) = c s² +
@@ -273,7 +272,10 @@ mod tests {
             closed: true,
             points: circle(r - 1.5e-3, 200, 0.3),
         }];
-        assert_eq!(through_samples(&mut curves, &field, 2e-3, 1e-4), [0]);
+        assert_eq!(
+            through_samples(&mut curves, &field, 2e-3, 1e-4, &Tolerances::default()),
+            [0]
+        );
         let off = off_circle(&curves[0].points, r);
         assert!(off < 1e-12, "{off:e}");
     }
@@ -317,7 +319,7 @@ mod tests {
             closed: true,
             points: points.clone(),
         }];
-        through_samples(&mut curves, &field, 2e-3, 1e-4);
+        through_samples(&mut curves, &field, 2e-3, 1e-4, &Tolerances::default());
         // Along each side, every vertex farther than two spacings from the corners
         // (nearer, the other wall's samples come within 45 degrees of the side, or one
         // side of the vertex holds a single sample of its wall).
@@ -348,7 +350,9 @@ mod tests {
             points: points.clone(),
         }];
         let field = DistanceField::new(&noisy).unwrap();
-        assert!(through_samples(&mut curves, &field, 2e-3, 1e-4).is_empty());
+        assert!(
+            through_samples(&mut curves, &field, 2e-3, 1e-4, &Tolerances::default()).is_empty()
+        );
         assert_eq!(curves[0].points, points);
     }
 
@@ -365,7 +369,7 @@ mod tests {
             closed: true,
             points: points.clone(),
         }];
-        through_samples(&mut curves, &field, 2e-3, 1e-4);
+        through_samples(&mut curves, &field, 2e-3, 1e-4, &Tolerances::default());
         for (p, q) in curves[0].points.iter().zip(&points) {
             if q[0] > 0.01 && q[0] < 0.08 {
                 assert!(p[1].abs() < 1e-12, "{p:?} from {q:?}");
@@ -398,7 +402,7 @@ mod tests {
             closed: true,
             points: points.clone(),
         }];
-        through_samples(&mut curves, &field, 2e-3, 1e-4);
+        through_samples(&mut curves, &field, 2e-3, 1e-4, &Tolerances::default());
         let moved: Vec<f64> = curves[0]
             .points
             .iter()
