@@ -619,8 +619,6 @@ fn export_with(
         ),
         None => {
             let field = &prepared.metric.field;
-            let support = crate::export::invariants::Support::new(field, prepared.reach);
-            let tol = 3.0 * sigma + 2.0 * hmin;
             let extent = BBox::of(&prepared.local).map_or(0.0, |b| {
                 at.len_to_data((b.max[0] - b.min[0]).max(b.max[1] - b.min[1]))
             });
@@ -640,8 +638,8 @@ fn export_with(
                     tolerances: &params.repair,
                 },
                 &crate::export::invariants::Cloud {
-                    distance: &|p| at.len_to_data(support.distance(at.to_local(p), tol)),
-                    tolerance: at.len_to_data(tol),
+                    distance: &|p| at.len_to_data(field.distance(at.to_local(p))),
+                    reach: at.len_to_data(3.0 * sigma + 2.0 * hmin + prepared.reach),
                     extent,
                     min_area: {
                         let s = at.len_to_data(1.0);

@@ -22,15 +22,13 @@ pub enum Warning {
         /// The accuracy bound `3 sigma + 2 hmin`, in data units.
         tolerance: f64,
     },
-    /// Curve stretches farther than `tolerance` from the samples and from the discs
-    /// between neighbouring samples were cut: no data support them (the invariant of
-    /// [`crate::export::invariants::supported`], over
-    /// [`crate::export::invariants::Support`]).
+    /// Curve stretches farther than `reach` from every sample were cut: no data
+    /// support them (the invariant of [`crate::export::invariants::supported`]).
     OffData {
         /// The length cut, in data units.
         length: f64,
-        /// The support distance: the accuracy bound `3 sigma + 2 hmin`.
-        tolerance: f64,
+        /// The support distance: the accuracy bound plus the neighbours' reach.
+        reach: f64,
     },
     /// Segments that crossed another were removed: curves are simple and disjoint
     /// ([`crate::export::invariants::uncrossed`]).
@@ -65,10 +63,9 @@ impl fmt::Display for Warning {
                 "only {:.0}% of the points lie within {tolerance:.3} of a curve",
                 100.0 * explained
             ),
-            Warning::OffData { length, tolerance } => write!(
+            Warning::OffData { length, reach } => write!(
                 f,
-                "cut {length:.3} of curve lying farther than {tolerance:.3} from the samples \
-                 and the gaps between neighbours"
+                "cut {length:.3} of curve lying farther than {reach:.3} from every sample"
             ),
             Warning::Crossings { removed } => {
                 write!(f, "removed {removed} segments where curves crossed")

@@ -7,20 +7,17 @@
 //! Both are checks on the output, not repairs of the method: on the shapes and scans the
 //! project's tables hold, they cut nothing.
 
-use std::sync::OnceLock;
-
-use crate::distance::DistanceField;
 use crate::geom::{dist, Point, Polyline};
 use crate::repair::strokes::Junction;
 use crate::warning::Warning;
 
 /// What [`enforce`] needs of a point cloud (lengths in data units).
 pub struct Cloud<'a> {
-    /// How far a point lies outside the data's sampling ([`Support::distance`]).
+    /// A point's distance to the nearest sample that is not an outlier.
     pub distance: &'a (dyn Fn(Point) -> f64 + Sync),
-    /// The support distance: a vertex whose `distance` exceeds it is off the data. The
-    /// accuracy bound `3 sigma + 2 hmin`.
-    pub tolerance: f64,
+    /// The support distance: the accuracy bound `3 sigma + 2 hmin` plus the neighbours'
+    /// reach.
+    pub reach: f64,
     /// The longer side of the samples' bounding box.
     pub extent: f64,
     /// Closed loops enclosing less are specks ([`super::ExportParams::min_area`]).
@@ -53,11 +50,11 @@ pub fn enforce(
                 .collect()
         })
         .collect();
-    let (polylines, cut) = supported(polylines, cloud.distance, cloud.tolerance);
+    let (polylines, cut) = supported(polylines, cloud.distance, cloud.reach);
     if cut > 0.0 {
         warnings.push(Warning::OffData {
             length: cut,
-            tolerance: cloud.tolerance,
+            reach: cloud.reach,
         });
     }
     let (polylines, removed) = uncrossed(polylines, cloud.min_area);
@@ -108,135 +105,19 @@ pub fn collapsed(polylines: &[Polyline], junctions: &[Junction], extent: f64) ->
     })
 }
 
-/// The region a point cloud's samples support a curve in: within the accuracy bound of
-/// a sample, or of the disc on the segment between two neighbouring samples as its
-/// diameter, which a curve crossing the gap between them may bow into. Neighbours are
-/// the samples' Delaunay edges no longer than the neighbours' reach (the scale at which
-/// outliers are told from the data, [`crate::distance::Neighbourhood`]): a curve bridges
-/// no wider gap. A curve from one sample to the other that turns by at most a half turn
-/// (a semicircle, the gap passes' arcs far less) stays in that disc; where the samples
-/// are dense the discs are the local spacing across, wherever the data's median spacing
-/// is. The Delaunay triangulation is built on the first query that needs it: a result
-/// whose every vertex is near a sample costs no triangulation.
-pub struct Support<'a> {
-    field: &'a DistanceField,
-    reach: f64,
-    edges: OnceLock<Neighbours>,
-}
-
-/// The samples' short Delaunay edges, per sample (compressed rows).
-struct Neighbours {
-    start: Vec<u32>,
-    to: Vec<u32>,
-}
-
-impl<'a> Support<'a> {
-    /// The support of `field`'s samples, neighbours within `reach` (in `field`'s units).
-    pub fn new(field: &'a DistanceField, reach: f64) -> Support<'a> {
-        Support {
-            field,
-            reach,
-            edges: OnceLock::new(),
-        }
-    }
-
-    /// How far `p` lies outside the samples' support, in `field`'s units: its distance
-    /// to the nearest sample, or less where it lies near a gap's disc, by the smallest
-    /// `d(p, m) - |ab| / 2` over neighbouring samples `a`, `b` with midpoint `m`. A
-    /// vertex is supported when this is within the accuracy bound.
-    pub fn distance(&self, p: Point, tol: f64) -> f64 {
-        let near = self.field.distance(p);
-        if near <= tol || !self.reach.is_finite() {
-            return near;
-        }
-        let edges = self
-            .edges
-            .get_or_init(|| Neighbours::of(self.field, self.reach));
-        let pts = self.field.points();
-        // An edge whose disc holds `p` within `tol` has its ends within `tol + reach` of
-        // it.
-        let mut ids = Vec::new();
-        self.field.within(p, tol + self.reach, &mut ids);
-        let mut best = near;
-        for &i in &ids {
-            let a = pts[i as usize];
-            let (s, e) = (edges.start[i as usize], edges.start[i as usize + 1]);
-            for &j in &edges.to[s as usize..e as usize] {
-                let b = pts[j as usize];
-                best = best.min(disc_distance(p, a, b));
-            }
-        }
-        best
-    }
-}
-
-impl Neighbours {
-    fn of(field: &DistanceField, reach: f64) -> Neighbours {
-        use spade::{DelaunayTriangulation, HasPosition, Point2, Triangulation};
-        struct Sample(Point2<f64>, u32);
-        impl HasPosition for Sample {
-            type Scalar = f64;
-            fn position(&self) -> Point2<f64> {
-                self.0
-            }
-        }
-        let pts = field.points();
-        let samples: Vec<Sample> = pts
-            .iter()
-            .enumerate()
-            .map(|(i, p)| Sample(Point2::new(p[0], p[1]), i as u32))
-            .collect();
-        // Samples spade cannot take (it merges none: the field's are distinct) leave the
-        // support at the samples themselves.
-        let pairs: Vec<(u32, u32)> = DelaunayTriangulation::<Sample>::bulk_load(samples)
-            .map(|dt| {
-                dt.undirected_edges()
-                    .map(|e| {
-                        let [a, b] = e.vertices();
-                        (a.data().1, b.data().1)
-                    })
-                    .filter(|&(a, b)| dist(pts[a as usize], pts[b as usize]) <= reach)
-                    .collect()
-            })
-            .unwrap_or_default();
-        let mut count = vec![0u32; pts.len() + 1];
-        for &(a, b) in &pairs {
-            count[a as usize + 1] += 1;
-            count[b as usize + 1] += 1;
-        }
-        for i in 0..pts.len() {
-            count[i + 1] += count[i];
-        }
-        let mut fill = count.clone();
-        let mut to = vec![0u32; 2 * pairs.len()];
-        for &(a, b) in &pairs {
-            to[fill[a as usize] as usize] = b;
-            fill[a as usize] += 1;
-            to[fill[b as usize] as usize] = a;
-            fill[b as usize] += 1;
-        }
-        Neighbours { start: count, to }
-    }
-}
-
-/// The distance from `p` to the disc on `ab` as its diameter (negative inside).
-fn disc_distance(p: Point, a: Point, b: Point) -> f64 {
-    dist(p, [0.5 * (a[0] + b[0]), 0.5 * (a[1] + b[1])]) - 0.5 * dist(a, b)
-}
-
-/// `polylines` with every stretch whose vertices lie farther than `tol` from the data
-/// (`distance` gives a vertex's distance, [`Support::distance`]) removed: a closed curve with such a stretch
+/// `polylines` with every stretch whose vertices lie farther than `reach` from the data
+/// (`distance` gives a vertex's distance) removed: a closed curve with such a stretch
 /// opens there, an open one splits. Pieces of fewer than two vertices go. Returns the
 /// kept pieces and the length removed.
 pub fn supported(
     polylines: Vec<Polyline>,
     distance: impl Fn(Point) -> f64,
-    tol: f64,
+    reach: f64,
 ) -> (Vec<Polyline>, f64) {
     let mut out = Vec::with_capacity(polylines.len());
     let mut removed = 0.0;
     for pl in polylines {
-        let ok: Vec<bool> = pl.points.iter().map(|&p| distance(p) <= tol).collect();
+        let ok: Vec<bool> = pl.points.iter().map(|&p| distance(p) <= reach).collect();
         if ok.iter().all(|&b| b) {
             out.push(pl);
             continue;
@@ -547,32 +428,6 @@ mod tests {
         assert!((removed - 3.0).abs() < 1e-12);
     }
 
-    /// A vertex in the gap between two samples is supported within the disc the gap is
-    /// the diameter of (plus the tolerance), and not beyond; samples farther apart than
-    /// the reach support only their own neighbourhoods.
-    #[test]
-    fn a_gap_supports_its_disc_and_no_more() {
-        // A sampled line with one gap of 0.4 between x = 0.3 and x = 0.7.
-        let mut pts: Vec<Point> = (0..=30).map(|i| [i as f64 * 0.01, 0.0]).collect();
-        pts.extend((70..=100).map(|i| [i as f64 * 0.01, 0.0]));
-        let field = DistanceField::new(&pts).unwrap();
-        let tol = 0.01;
-        let support = Support::new(&field, 0.5);
-        // Over the gap's middle, the disc reaches 0.2 from the chord, to rounding; by
-        // its ends, no farther than the samples' own spacing does.
-        assert!(support.distance([0.5, 0.0], tol) <= tol);
-        assert!((support.distance([0.5, 0.25], tol) - 0.05).abs() < 1e-12);
-        assert!(support.distance([0.5, 0.2 + 0.5 * tol], tol) <= tol);
-        assert!(support.distance([0.5, 0.2 + 2.0 * tol], tol) > tol);
-        // Along the samples, half the spacing: 0.005 off the chord.
-        assert!((support.distance([0.155, 0.02], tol) - 0.015).abs() < 1e-12);
-        // Square off the gap's end by 0.1 is outside its disc by 0.024.
-        assert!((support.distance([0.3, 0.1], tol) - (0.05f64.sqrt() - 0.2)).abs() < 1e-12);
-        // With a reach shorter than the gap, the gap's middle is 0.2 from every sample.
-        let short = Support::new(&field, 0.3);
-        assert!((short.distance([0.5, 0.0], tol) - 0.2).abs() < 1e-12);
-    }
-
     /// Two strokes crossing in an X: the shorter loses the segment through the
     /// crossing; two pieces meeting at a shared end, or touching, are left alone.
     #[test]
@@ -681,8 +536,7 @@ mod tests {
         /// Random point sets (a noisy circle or two among scattered points, or points
         /// anywhere), at sizes from 1e-6 to 1e6, through the whole reconstruction: the curves cross nowhere, have no
         /// zero-length segment, and every vertex lies within the support distance
-        /// `3 sigma + 2 hmin` of a sample that is not isolated, or of the disc between
-        /// two such samples within the neighbours' reach.
+        /// `3 sigma + 2 hmin + reach` of a sample that is not isolated.
         #[test]
         fn every_result_holds_the_invariants(
             circles in proptest::collection::vec(([0.2f64..0.8, 0.2f64..0.8], 0.05f64..0.3), 0..3),
@@ -716,30 +570,11 @@ mod tests {
                 .filter(|(_, &i)| !i)
                 .map(|(&p, _)| p)
                 .collect();
-            // The discs over every pair within reach: a superset of the Delaunay edges
-            // the library uses, so this checks the bound without its triangulation.
-            let tol = 3.0 * r.noise_estimate + 2.0 * r.stats.hmin;
-            let d = |p: Point| {
-                let near = inliers.iter().map(|&q| dist(p, q)).fold(f64::INFINITY, f64::min);
-                if near <= tol {
-                    return near;
-                }
-                let mut best = near;
-                for (i, &a) in inliers.iter().enumerate() {
-                    if dist(a, p) > tol + n.reach {
-                        continue;
-                    }
-                    for &b in &inliers[i + 1..] {
-                        if dist(a, b) <= n.reach {
-                            best = best.min(disc_distance(p, a, b));
-                        }
-                    }
-                }
-                best
-            };
+            let d = |p: Point| inliers.iter().map(|&q| dist(p, q)).fold(f64::INFINITY, f64::min);
+            let reach = 3.0 * r.noise_estimate + 2.0 * r.stats.hmin + n.reach;
             for pl in &r.polylines {
                 for &p in &pl.points {
-                    proptest::prop_assert!(d(p) <= tol * (1.0 + 1e-9), "{} > {tol}", d(p));
+                    proptest::prop_assert!(d(p) <= reach * (1.0 + 1e-9), "{} > {reach}", d(p));
                 }
                 let m = pl.points.len();
                 let segs = if pl.closed { m } else { m - 1 };

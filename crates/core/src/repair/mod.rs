@@ -169,8 +169,8 @@ pub struct Repaired {
 /// what the invariants need of the cloud. Mends them ([`mend`]: the passes, each
 /// deciding by `frame.tolerances`) and guarantees, whatever the passes made
 /// ([`crate::export::invariants::enforce`]):
-/// - every vertex within the accuracy bound of the data's support (a sample that is not
-///   an outlier, or the disc on a gap between neighbouring samples);
+/// - every vertex within the support distance of a sample that is not an outlier (the
+///   accuracy bound plus the neighbours' reach);
 /// - no two segments crossing: curves simple and disjoint but where pieces meet at a
 ///   junction's shared end;
 /// - no zero-length segment, no closed curve of fewer than three vertices;
