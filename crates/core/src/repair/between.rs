@@ -401,6 +401,24 @@ fn apart(a: &[Point], b: &[Point]) -> f64 {
 mod tests {
     use super::*;
 
+    /// [`between_samples`] with the default tolerances.
+    fn drawn(
+        curves: &mut [Polyline],
+        samples: &[Point],
+        tol: f64,
+        fit: f64,
+        step: f64,
+    ) -> Vec<usize> {
+        between_samples(
+            curves,
+            &field(samples),
+            tol,
+            fit,
+            step,
+            &Tolerances::default(),
+        )
+    }
+
     #[test]
     fn a_curve_meets_a_line_where_they_cross() {
         let circle = Curve::Circle {
@@ -466,17 +484,7 @@ mod tests {
             closed: true,
             points: points.clone(),
         }];
-        assert_eq!(
-            between_samples(
-                &mut curves,
-                &field(&samples),
-                4e-3,
-                2.5e-4,
-                1e-3,
-                &Tolerances::default()
-            ),
-            [0]
-        );
+        assert_eq!(drawn(&mut curves, &samples, 4e-3, 2.5e-4, 1e-3), [0]);
         let out = &curves[0].points;
         let worst = out.iter().map(|&p| off_square(p)).fold(0.0, f64::max);
         assert!(worst < 1e-12, "{worst:e}");
@@ -549,14 +557,7 @@ mod tests {
             closed: true,
             points,
         }];
-        between_samples(
-            &mut curves,
-            &field(&samples),
-            4e-3,
-            2.5e-4,
-            1e-3,
-            &Tolerances::default(),
-        );
+        drawn(&mut curves, &samples, 4e-3, 2.5e-4, 1e-3);
         for &p in &curves[0].points {
             let limit = if norm(p) < 0.01 { 2.5e-4 } else { 1e-12 };
             assert!(off(p) <= limit, "{p:?}: {:e}", off(p));
@@ -579,17 +580,7 @@ mod tests {
             points: circle(0.0485, 200, 0.3),
         }];
         let samples = circle(0.05, 31, 0.0);
-        assert_eq!(
-            between_samples(
-                &mut curves,
-                &field(&samples),
-                2e-3,
-                1e-4,
-                1e-3,
-                &Tolerances::default()
-            ),
-            [0]
-        );
+        assert_eq!(drawn(&mut curves, &samples, 2e-3, 1e-4, 1e-3), [0]);
         let worst = curves[0]
             .points
             .iter()
@@ -626,14 +617,7 @@ mod tests {
             closed: true,
             points: ellipse(1000, 0.995),
         }];
-        between_samples(
-            &mut curves,
-            &field(&samples),
-            4e-3,
-            1e-4,
-            1e-3,
-            &Tolerances::default(),
-        );
+        drawn(&mut curves, &samples, 4e-3, 1e-4, 1e-3);
         let worst = curves[0].points.iter().map(|&p| off(p)).fold(0.0, f64::max);
         assert!(worst <= 5e-5, "{worst:e}");
     }
@@ -663,14 +647,7 @@ mod tests {
             closed: true,
             points: points.clone(),
         }];
-        between_samples(
-            &mut curves,
-            &field(&samples),
-            4e-3,
-            1e-4,
-            1e-3,
-            &Tolerances::default(),
-        );
+        drawn(&mut curves, &samples, 4e-3, 1e-4, 1e-3);
         let out = &curves[0].points;
         for p in points.iter().filter(|p| norm(**p) > 0.31) {
             assert!(out.contains(p), "{p:?} moved");
@@ -715,14 +692,7 @@ mod tests {
             closed: true,
             points,
         }];
-        between_samples(
-            &mut curves,
-            &field(&samples),
-            4e-3,
-            2.5e-4,
-            1e-3,
-            &Tolerances::default(),
-        );
+        drawn(&mut curves, &samples, 4e-3, 2.5e-4, 1e-3);
         let off = |p: Point| {
             let to_arc = (norm(p) - r).abs();
             if p[1] <= 0.0 || p[0].abs() > r {
@@ -777,14 +747,7 @@ mod tests {
             closed: true,
             points,
         }];
-        between_samples(
-            &mut curves,
-            &field(&samples),
-            4e-3,
-            2.5e-4,
-            1e-3,
-            &Tolerances::default(),
-        );
+        drawn(&mut curves, &samples, 4e-3, 2.5e-4, 1e-3);
         // Between the bottom side's last sample and the cap's first, and between the
         // cap's last and the top side's first (short of the feet of the cap's samples,
         // past which the loop between them, which no run of five holds, stays).

@@ -848,6 +848,18 @@ fn in_cyclic(i: usize, (from, to): (usize, usize), n: usize) -> bool {
 mod tests {
     use super::*;
 
+    /// [`span_gaps`] on clean samples, tolerance 0.01 and step 0.005, default tolerances.
+    fn spanned(curves: &mut [Polyline], samples: &[Point]) -> Vec<usize> {
+        span_gaps(
+            curves,
+            &field(samples),
+            0.0,
+            0.01,
+            0.005,
+            &Tolerances::default(),
+        )
+    }
+
     fn circle(r: f64, n: usize, keep: impl Fn(f64) -> bool) -> Vec<Point> {
         (0..n)
             .map(|i| std::f64::consts::TAU * i as f64 / n as f64)
@@ -901,14 +913,7 @@ mod tests {
             points: loop_points,
         }];
         let before = curves[0].points.len();
-        let changed = span_gaps(
-            &mut curves,
-            &field(&samples),
-            0.0,
-            0.01,
-            0.005,
-            &Tolerances::default(),
-        );
+        let changed = spanned(&mut curves, &samples);
         assert_eq!(changed, [0]);
         let pl = &curves[0];
         assert!(pl.points.len() > before + 200, "{}", pl.points.len());
@@ -955,14 +960,7 @@ mod tests {
             points,
         }];
         assert!(off_circle(&curves[0].points, 1.0) > 0.029);
-        let changed = span_gaps(
-            &mut curves,
-            &field(&samples),
-            0.0,
-            0.01,
-            0.005,
-            &Tolerances::default(),
-        );
+        let changed = spanned(&mut curves, &samples);
         assert_eq!(changed, [0]);
         let across: Vec<Point> = curves[0]
             .points
@@ -998,15 +996,7 @@ mod tests {
                 points: other,
             },
         ];
-        assert!(span_gaps(
-            &mut curves,
-            &field(&samples),
-            0.0,
-            0.01,
-            0.005,
-            &Tolerances::default()
-        )
-        .is_empty());
+        assert!(spanned(&mut curves, &samples).is_empty());
         assert_eq!(curves[0].points, loop_points);
     }
 
@@ -1021,15 +1011,7 @@ mod tests {
             closed: true,
             points: points.clone(),
         }];
-        assert!(span_gaps(
-            &mut curves,
-            &field(&samples),
-            0.0,
-            0.01,
-            0.005,
-            &Tolerances::default()
-        )
-        .is_empty());
+        assert!(spanned(&mut curves, &samples).is_empty());
         assert_eq!(curves[0].points, points);
     }
 
@@ -1046,17 +1028,7 @@ mod tests {
             closed: true,
             points: circle(r, 2000, |a| !in_quarter(a)),
         }];
-        assert_eq!(
-            span_gaps(
-                &mut curves,
-                &field(&samples),
-                0.0,
-                0.01,
-                0.005,
-                &Tolerances::default()
-            ),
-            [0]
-        );
+        assert_eq!(spanned(&mut curves, &samples), [0]);
         let pl = &curves[0];
         // Within the sagitta of a step on the unit circle, 3e-6.
         let index = SegmentIndex::new(&curves);
@@ -1129,17 +1101,7 @@ mod tests {
             closed: true,
             points,
         }];
-        assert_eq!(
-            span_gaps(
-                &mut curves,
-                &field(&samples),
-                0.0,
-                0.01,
-                0.005,
-                &Tolerances::default()
-            ),
-            [0]
-        );
+        assert_eq!(spanned(&mut curves, &samples), [0]);
         let off = curves[0]
             .points
             .iter()
@@ -1161,17 +1123,7 @@ mod tests {
             closed: true,
             points,
         }];
-        assert_eq!(
-            span_gaps(
-                &mut curves,
-                &field(samples),
-                0.0,
-                0.01,
-                0.005,
-                &Tolerances::default()
-            ),
-            [0]
-        );
+        assert_eq!(spanned(&mut curves, samples), [0]);
         let to_corner = nearest(&curves[0].points, corner);
         assert!(to_corner < 1e-9, "{to_corner}");
         let off = curves[0].points.iter().map(|&p| off(p)).fold(0.0, f64::max);
@@ -1300,15 +1252,7 @@ mod tests {
             },
         ];
         let before = curves.clone();
-        assert!(span_gaps(
-            &mut curves,
-            &field(&samples),
-            0.0,
-            0.01,
-            0.005,
-            &Tolerances::default()
-        )
-        .is_empty());
+        assert!(spanned(&mut curves, &samples).is_empty());
         assert_eq!(curves, before);
     }
 

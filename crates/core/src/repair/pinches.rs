@@ -221,6 +221,20 @@ fn crosses(curves: &[Polyline], s1: (usize, Gap), s2: (usize, Gap), a: Point, b:
 mod tests {
     use super::*;
 
+    /// [`join_pinches`] on clean samples, tolerance 0.004 and step 0.002, default
+    /// tolerances.
+    fn joined(curves: &mut Vec<Polyline>, field: &DistanceField) -> Vec<(usize, usize)> {
+        join_pinches(
+            curves,
+            field,
+            0.0,
+            true,
+            0.004,
+            0.002,
+            &Tolerances::default(),
+        )
+    }
+
     /// Points from `a` to `b` at most `step` apart, `a` included and `b` not.
     fn segment(a: Point, b: Point, step: f64) -> Vec<Point> {
         let n = (dist(a, b) / step).ceil() as usize;
@@ -293,15 +307,7 @@ mod tests {
     fn a_band_pinched_where_both_walls_have_a_gap_is_one_loop() {
         let (samples, mut curves) = pinched_band();
         let field = DistanceField::new(&samples).unwrap();
-        let joins = join_pinches(
-            &mut curves,
-            &field,
-            0.0,
-            true,
-            0.004,
-            0.002,
-            &Tolerances::default(),
-        );
+        let joins = joined(&mut curves, &field);
         assert_eq!(joins, vec![(0, 1)]);
         assert_eq!(curves.len(), 1);
         let off = curves[0]
@@ -345,16 +351,7 @@ mod tests {
             })
             .collect();
         let before = curves.clone();
-        assert!(join_pinches(
-            &mut curves,
-            &field,
-            0.0,
-            true,
-            0.004,
-            0.002,
-            &Tolerances::default()
-        )
-        .is_empty());
+        assert!(joined(&mut curves, &field).is_empty());
         assert_eq!(curves, before);
     }
 
