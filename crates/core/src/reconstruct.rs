@@ -613,7 +613,7 @@ fn export_with(
         // at a corner their pieces may cross by a few millimetres: a junction, which
         // scans do not report yet, rather than an error.
         Some(_) => (
-            crate::export::well_formed(polylines, eps),
+            crate::repair::invariants::well_formed(polylines, eps),
             Vec::new(),
             Vec::new(),
         ),
@@ -637,7 +637,7 @@ fn export_with(
                     tolerance,
                     tolerances: &params.repair,
                 },
-                &crate::export::invariants::Cloud {
+                &crate::repair::invariants::Cloud {
                     distance: &|p| at.len_to_data(field.distance(at.to_local(p))),
                     reach: at.len_to_data(3.0 * sigma + 2.0 * hmin + prepared.reach),
                     extent,

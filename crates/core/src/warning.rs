@@ -23,7 +23,7 @@ pub enum Warning {
         tolerance: f64,
     },
     /// Curve stretches farther than `reach` from every sample were cut: no data
-    /// support them (the invariant of [`crate::export::invariants::supported`]).
+    /// support them (the invariant of [`crate::repair::invariants::supported`]).
     OffData {
         /// The length cut, in data units.
         length: f64,
@@ -31,7 +31,7 @@ pub enum Warning {
         reach: f64,
     },
     /// Segments that crossed another were removed: curves are simple and disjoint
-    /// ([`crate::export::invariants::uncrossed`]).
+    /// ([`crate::repair::invariants::uncrossed`]).
     Crossings {
         /// The segments removed.
         removed: usize,

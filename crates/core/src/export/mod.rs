@@ -4,7 +4,6 @@
 
 pub mod contour;
 pub mod fit;
-pub mod invariants;
 pub mod support;
 
 use crate::geom::{Placement, Polyline};
@@ -40,30 +39,6 @@ impl ExportParams {
             repair: self.repair.clone(),
         }
     }
-}
-
-/// Every result's curves, made well formed: no segment shorter than `eps` (the
-/// crossings of neighbouring triangles, and the joins of the passes after them, repeat
-/// a point within rounding), and no closed curve of fewer than three points (one
-/// segment walked there and back encloses nothing: it stays, open). A curve left with
-/// a single point is dropped. Nothing of a curve's course is lost.
-pub fn well_formed(polylines: Vec<Polyline>, eps: f64) -> Vec<Polyline> {
-    polylines
-        .into_iter()
-        .filter_map(|mut pl| {
-            pl.points.dedup_by(|b, a| crate::geom::dist(*a, *b) <= eps);
-            if pl.closed && pl.points.len() > 1 {
-                let (first, last) = (pl.points[0], pl.points[pl.points.len() - 1]);
-                if crate::geom::dist(first, last) <= eps {
-                    pl.points.pop();
-                }
-            }
-            if pl.closed && pl.points.len() < 3 {
-                pl.closed = false;
-            }
-            (pl.points.len() >= 2).then_some(pl)
-        })
-        .collect()
 }
 
 /// The export stage's kernel: the zero isoline of `u` on `mesh` (local coordinates)
@@ -125,40 +100,4 @@ pub fn curves(
         }
     }
     (polylines, features)
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    /// Repeated points go, a closed curve of two points opens, a curve of one point
-    /// goes; a proper loop and an open curve keep every point.
-    #[test]
-    fn curves_are_well_formed() {
-        let pl = |closed, points: &[[f64; 2]]| Polyline {
-            closed,
-            points: points.to_vec(),
-        };
-        let eps = 1e-9;
-        let out = well_formed(
-            vec![
-                pl(false, &[[0.0, 0.0], [1e-12, 0.0], [1.0, 0.0], [1.0, 1e-13]]),
-                pl(true, &[[2.0, 0.0], [2.05, 0.0], [2.0, 1e-15]]),
-                pl(true, &[[3.0, 0.0], [3.0, 0.0]]),
-                pl(true, &[[4.0, 0.0], [5.0, 0.0], [5.0, 1.0]]),
-                pl(false, &[[6.0, 0.0], [7.0, 0.0]]),
-            ],
-            eps,
-        );
-        assert_eq!(out.len(), 4);
-        assert_eq!(out[0], pl(false, &[[0.0, 0.0], [1.0, 0.0]]));
-        assert_eq!(out[1], pl(false, &[[2.0, 0.0], [2.05, 0.0]]));
-        assert_eq!(out[2], pl(true, &[[4.0, 0.0], [5.0, 0.0], [5.0, 1.0]]));
-        assert_eq!(out[3], pl(false, &[[6.0, 0.0], [7.0, 0.0]]));
-        for p in &out {
-            let n = p.points.len();
-            let segs = if p.closed { n } else { n - 1 };
-            assert!((0..segs).all(|i| crate::geom::dist(p.points[i], p.points[(i + 1) % n]) > eps));
-        }
-    }
 }

@@ -20,7 +20,7 @@ pub struct Cloud<'a> {
     pub reach: f64,
     /// The longer side of the samples' bounding box.
     pub extent: f64,
-    /// Closed loops enclosing less are specks ([`super::ExportParams::min_area`]).
+    /// Closed loops enclosing less are specks (the export's smallest loop).
     pub min_area: f64,
     /// Segments no longer than this are a repeated point.
     pub eps: f64,
@@ -29,7 +29,7 @@ pub struct Cloud<'a> {
 /// A point cloud's curves made to hold the invariants: within the support distance of
 /// its samples ([`supported`]), no two crossing ([`uncrossed`]: pieces crossing
 /// themselves split into loops, specks smaller than `min_area` dropped), and well formed
-/// ([`super::well_formed`]); each junction keeps the pieces its ends went to (cuts move no
+/// ([`well_formed`]); each junction keeps the pieces its ends went to (cuts move no
 /// vertex). Returns the warnings for what had to be cut, and [`collapsed`]'s.
 pub fn enforce(
     polylines: Vec<Polyline>,
@@ -61,7 +61,7 @@ pub fn enforce(
     if removed > 0 {
         warnings.push(Warning::Crossings { removed });
     }
-    let polylines = super::well_formed(polylines, cloud.eps);
+    let polylines = well_formed(polylines, cloud.eps);
     let junctions: Vec<Junction> = junctions
         .into_iter()
         .zip(ends)
@@ -83,6 +83,30 @@ pub fn enforce(
         .collect();
     warnings.extend(collapsed(&polylines, &junctions, cloud.extent));
     (polylines, junctions, warnings)
+}
+
+/// Every result's curves, made well formed: no segment shorter than `eps` (the
+/// crossings of neighbouring triangles, and the joins of the passes after them, repeat
+/// a point within rounding), and no closed curve of fewer than three points (one
+/// segment walked there and back encloses nothing: it stays, open). A curve left with
+/// a single point is dropped. Nothing of a curve's course is lost.
+pub fn well_formed(polylines: Vec<Polyline>, eps: f64) -> Vec<Polyline> {
+    polylines
+        .into_iter()
+        .filter_map(|mut pl| {
+            pl.points.dedup_by(|b, a| dist(*a, *b) <= eps);
+            if pl.closed && pl.points.len() > 1 {
+                let (first, last) = (pl.points[0], pl.points[pl.points.len() - 1]);
+                if dist(first, last) <= eps {
+                    pl.points.pop();
+                }
+            }
+            if pl.closed && pl.points.len() < 3 {
+                pl.closed = false;
+            }
+            (pl.points.len() >= 2).then_some(pl)
+        })
+        .collect()
 }
 
 /// Whether a point cloud's curves look collapsed: a star (one junction holding six or
@@ -392,6 +416,37 @@ fn uncross_pieces(polylines: Vec<Polyline>) -> (Vec<Polyline>, usize) {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Repeated points go, a closed curve of two points opens, a curve of one point
+    /// goes; a proper loop and an open curve keep every point.
+    #[test]
+    fn curves_are_well_formed() {
+        let pl = |closed, points: &[[f64; 2]]| Polyline {
+            closed,
+            points: points.to_vec(),
+        };
+        let eps = 1e-9;
+        let out = well_formed(
+            vec![
+                pl(false, &[[0.0, 0.0], [1e-12, 0.0], [1.0, 0.0], [1.0, 1e-13]]),
+                pl(true, &[[2.0, 0.0], [2.05, 0.0], [2.0, 1e-15]]),
+                pl(true, &[[3.0, 0.0], [3.0, 0.0]]),
+                pl(true, &[[4.0, 0.0], [5.0, 0.0], [5.0, 1.0]]),
+                pl(false, &[[6.0, 0.0], [7.0, 0.0]]),
+            ],
+            eps,
+        );
+        assert_eq!(out.len(), 4);
+        assert_eq!(out[0], pl(false, &[[0.0, 0.0], [1.0, 0.0]]));
+        assert_eq!(out[1], pl(false, &[[2.0, 0.0], [2.05, 0.0]]));
+        assert_eq!(out[2], pl(true, &[[4.0, 0.0], [5.0, 0.0], [5.0, 1.0]]));
+        assert_eq!(out[3], pl(false, &[[6.0, 0.0], [7.0, 0.0]]));
+        for p in &out {
+            let n = p.points.len();
+            let segs = if p.closed { n } else { n - 1 };
+            assert!((0..segs).all(|i| dist(p.points[i], p.points[(i + 1) % n]) > eps));
+        }
+    }
 
     fn open(points: &[[f64; 2]]) -> Polyline {
         Polyline {

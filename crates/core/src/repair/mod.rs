@@ -8,6 +8,7 @@
 pub mod between;
 pub mod corners;
 pub mod gaps;
+pub mod invariants;
 pub mod pinches;
 pub mod strokes;
 pub mod through;
@@ -168,7 +169,7 @@ pub struct Repaired {
 /// Takes the zero isoline's `curves` (data coordinates), the frame they came from and
 /// what the invariants need of the cloud. Mends them ([`mend`]: the passes, each
 /// deciding by `frame.tolerances`) and guarantees, whatever the passes made
-/// ([`crate::export::invariants::enforce`]):
+/// ([`invariants::enforce`]):
 /// - every vertex within the support distance of a sample that is not an outlier (the
 ///   accuracy bound plus the neighbours' reach);
 /// - no two segments crossing: curves simple and disjoint but where pieces meet at a
@@ -178,14 +179,9 @@ pub struct Repaired {
 ///
 /// with a warning for each invariant that had to cut, and one when the result looks
 /// collapsed.
-pub fn repair(
-    curves: Vec<Polyline>,
-    frame: &Frame<'_>,
-    cloud: &crate::export::invariants::Cloud<'_>,
-) -> Repaired {
+pub fn repair(curves: Vec<Polyline>, frame: &Frame<'_>, cloud: &invariants::Cloud<'_>) -> Repaired {
     let (polylines, junctions) = mend(curves, frame);
-    let (polylines, junctions, warnings) =
-        crate::export::invariants::enforce(polylines, junctions, cloud);
+    let (polylines, junctions, warnings) = invariants::enforce(polylines, junctions, cloud);
     Repaired {
         polylines,
         junctions,
