@@ -295,6 +295,11 @@ fn prepare_here(points: &[Point], scan: Option<&Scan>, params: &Params) -> Resul
         .validate()
         .map_err(config("solver parameters"))?;
     params.scan.validate().map_err(config("scan parameters"))?;
+    params
+        .export
+        .repair
+        .validate()
+        .map_err(config("export parameters"))?;
     // A point cloud's outliers (samples in clusters too small for a curve at the
     // neighbours' reach, `distance::Neighbourhood`) are reported as features and take no
     // part in the field, the mesh or the support. A scan's returns are judged along their
@@ -812,6 +817,11 @@ mod tests {
         };
         let e = reconstruct(&unit, &with(wide)).unwrap_err().to_string();
         assert!(e.contains("mesh.padding"), "{e}");
+        let mut export = ExportParams::default();
+        export.repair.between_run = 2;
+        let bad = Params::new(MeshParams::default(), SolverParams::default(), export);
+        let e = reconstruct(&unit, &bad).unwrap_err().to_string();
+        assert!(e.contains("export.repair.between_run = 2"), "{e}");
         let tiny: Vec<Point> = unit
             .iter()
             .map(|p| [p[0] * 1e-160, p[1] * 1e-160])

@@ -126,6 +126,66 @@ impl Default for Tolerances {
     }
 }
 
+impl Tolerances {
+    /// Every problem with these tolerances, keyed by their path (`export.repair.*`):
+    /// ratios and angles must be positive and finite, and every count at least what its
+    /// fit needs (a circle through three samples and one to test it, a frame's axis from
+    /// two, one sample on each side). Settings outside make a pass's fit undefined.
+    pub fn validate(&self) -> std::result::Result<(), Vec<String>> {
+        let mut problems = Vec::new();
+        for (key, v) in [
+            ("clean_fit", self.clean_fit),
+            ("max_move", self.max_move),
+            ("arc_max_turn", self.arc_max_turn),
+            ("arc_max_bulge", self.arc_max_bulge),
+            ("corner_min_turn", self.corner_min_turn),
+            ("corner_max_side_turn", self.corner_max_side_turn),
+            ("between_min_turn", self.between_min_turn),
+            ("between_max_side_turn", self.between_max_side_turn),
+            ("between_max_slope", self.between_max_slope),
+            ("through_max_slope", self.through_max_slope),
+            ("pinch_max_turn", self.pinch_max_turn),
+            ("stroke_along_cos", self.stroke_along_cos),
+            ("bridge_gaps", self.bridge_gaps),
+            ("joined_window", self.joined_window),
+        ] {
+            crate::error::check_positive(&mut problems, &format!("export.repair.{key}"), Some(v));
+        }
+        for (key, v, least) in [
+            ("arc_min_fit", self.arc_min_fit, 3),
+            ("between_run", self.between_run, 4),
+            ("through_frame", self.through_frame, 2),
+            ("through_each_side", self.through_each_side, 1),
+            (
+                "through_nearest",
+                self.through_nearest,
+                2 * self.through_each_side + 1,
+            ),
+            ("stroke_fit", self.stroke_fit, 3),
+            ("stroke_links", self.stroke_links, 1),
+            ("bridge_left_behind", self.bridge_left_behind, 1),
+            ("bridge_context", self.bridge_context, 1),
+        ] {
+            if v < least {
+                problems.push(format!(
+                    "export.repair.{key} = {v}: must be at least {least}"
+                ));
+            }
+        }
+        if self.stroke_along_cos > 1.0 {
+            problems.push(format!(
+                "export.repair.stroke_along_cos = {}: a cosine, at most 1",
+                self.stroke_along_cos
+            ));
+        }
+        if problems.is_empty() {
+            Ok(())
+        } else {
+            Err(problems)
+        }
+    }
+}
+
 /// What [`mend`] needs of the frame besides its curves (lengths in the local units of
 /// the frame's placement unless said otherwise).
 #[derive(Clone, Copy, Debug)]
@@ -337,6 +397,26 @@ mod tests {
                 [c[0] + r * a.cos(), c[1] + r * a.sin()]
             })
             .collect()
+    }
+
+    /// The defaults are valid; a count below what its fit needs and a non-finite ratio
+    /// are each named.
+    #[test]
+    fn tolerances_outside_their_range_are_named() {
+        assert_eq!(Tolerances::default().validate(), Ok(()));
+        let t = Tolerances {
+            through_frame: 0,
+            clean_fit: f64::NAN,
+            ..Default::default()
+        };
+        let problems = t.validate().unwrap_err();
+        assert_eq!(problems.len(), 2, "{problems:?}");
+        assert!(problems
+            .iter()
+            .any(|p| p.contains("export.repair.through_frame = 0")));
+        assert!(problems
+            .iter()
+            .any(|p| p.contains("export.repair.clean_fit = NaN")));
     }
 
     /// A loop of radius 0.008 whose side lies on two samples of a wall 0.006 apart (as
