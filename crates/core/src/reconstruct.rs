@@ -644,7 +644,9 @@ fn export_with(
                 },
                 &crate::repair::invariants::Cloud {
                     distance: &|p| at.len_to_data(field.distance(at.to_local(p))),
-                    reach: at.len_to_data(3.0 * sigma + 2.0 * hmin + prepared.reach),
+                    // A curve across the widest gap the strokes join (the neighbours'
+                    // reach) lies within half of it of the samples at its two ends.
+                    reach: at.len_to_data(3.0 * sigma + 2.0 * hmin + 0.5 * prepared.reach),
                     extent,
                     min_area: {
                         let s = at.len_to_data(1.0);

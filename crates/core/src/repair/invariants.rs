@@ -15,8 +15,9 @@ use crate::warning::Warning;
 pub struct Cloud<'a> {
     /// A point's distance to the nearest sample that is not an outlier.
     pub distance: &'a (dyn Fn(Point) -> f64 + Sync),
-    /// The support distance: the accuracy bound `3 sigma + 2 hmin` plus the neighbours'
-    /// reach.
+    /// The support distance: the accuracy bound `3 sigma + 2 hmin` plus half the
+    /// neighbours' reach (a curve across the widest gap the strokes join lies within
+    /// half of it of the samples at the gap's ends).
     pub reach: f64,
     /// The longer side of the samples' bounding box.
     pub extent: f64,
@@ -58,10 +59,16 @@ pub fn enforce(
         });
     }
     let (polylines, removed) = uncrossed(polylines, cloud.min_area);
-    if removed > 0 {
-        warnings.push(Warning::Crossings { removed });
+    // Dropping a point within `eps` of the one before it moves a segment's end by as
+    // much, and where that end lay on another segment (a crossing point the split
+    // above inserted), the segment now crosses it: the crossings left are removed
+    // last, which deletes segments and adds no point.
+    let (polylines, late) = uncross_pieces(well_formed(polylines, cloud.eps));
+    if removed + late > 0 {
+        warnings.push(Warning::Crossings {
+            removed: removed + late,
+        });
     }
-    let polylines = well_formed(polylines, cloud.eps);
     let junctions: Vec<Junction> = junctions
         .into_iter()
         .zip(ends)
@@ -129,10 +136,15 @@ pub fn collapsed(polylines: &[Polyline], junctions: &[Junction], extent: f64) ->
     })
 }
 
-/// `polylines` with every stretch whose vertices lie farther than `reach` from the data
-/// (`distance` gives a vertex's distance) removed: a closed curve with such a stretch
-/// opens there, an open one splits. Pieces of fewer than two vertices go. Returns the
-/// kept pieces and the length removed.
+/// `polylines` with every stretch farther than `reach` from the data (`distance` gives
+/// a point's distance) removed: a closed curve with such a stretch opens there, an open
+/// one splits. Vertices are checked, and so are points every half `reach` along each
+/// segment between two kept vertices: a long straight segment (a spoke across a
+/// drawing, a chord over a bay) can leave the data between ends that lie on it. Such a
+/// segment is cut back to its last points within `reach` on either side. `distance`
+/// moves by at most the step along a segment, so every point kept lies within
+/// `1.25 reach`. Pieces of fewer than two vertices go. Returns the kept pieces and the
+/// length removed.
 pub fn supported(
     polylines: Vec<Polyline>,
     distance: impl Fn(Point) -> f64,
@@ -140,25 +152,60 @@ pub fn supported(
 ) -> (Vec<Polyline>, f64) {
     let mut out = Vec::with_capacity(polylines.len());
     let mut removed = 0.0;
+    let step = 0.5 * reach;
     for pl in polylines {
+        let n = pl.points.len();
         let ok: Vec<bool> = pl.points.iter().map(|&p| distance(p) <= reach).collect();
-        if ok.iter().all(|&b| b) {
+        let segs = match (pl.closed, n) {
+            (_, 0 | 1) => 0,
+            (true, _) => n,
+            (false, _) => n - 1,
+        };
+        // The walk: each vertex with whether it is kept, and where a segment between
+        // two kept vertices leaves the data, its last supported points either side of
+        // an unkept mark.
+        let mut walk: Vec<(Point, bool)> = Vec::with_capacity(n);
+        for i in 0..n {
+            walk.push((pl.points[i], ok[i]));
+            let j = (i + 1) % n;
+            if i >= segs || !ok[i] || !ok[j] {
+                continue;
+            }
+            let (a, b) = (pl.points[i], pl.points[j]);
+            let m = (dist(a, b) / step).ceil() as usize;
+            let at = |k: usize| {
+                let t = k as f64 / m as f64;
+                if k == m {
+                    b
+                } else {
+                    [a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1])]
+                }
+            };
+            let off: Vec<usize> = (1..m).filter(|&k| distance(at(k)) > reach).collect();
+            if let (Some(&first), Some(&last)) = (off.first(), off.last()) {
+                walk.push((at(first - 1), true));
+                walk.push((at(first), false));
+                walk.push((at(last + 1), true));
+            }
+        }
+        if walk.iter().all(|w| w.1) {
             out.push(pl);
             continue;
         }
         let before = pl.length();
-        let n = pl.points.len();
-        // A closed curve is walked from a vertex off the data, so each kept stretch is
+        let len = walk.len();
+        // A closed curve is walked from a mark off the data, so each kept stretch is
         // one open piece.
         let start = if pl.closed {
-            ok.iter().position(|&b| !b).unwrap_or(0)
+            walk.iter().position(|w| !w.1).unwrap_or(0)
         } else {
             0
         };
-        let steps = if pl.closed { n + 1 } else { n };
+        let steps = if pl.closed { len + 1 } else { len };
         let mut kept = 0.0;
         let mut cur: Vec<Point> = Vec::new();
         let mut flush = |cur: &mut Vec<Point>, out: &mut Vec<Polyline>| {
+            cur.dedup();
             if cur.len() >= 2 {
                 let piece = Polyline {
                     closed: false,
@@ -171,9 +218,9 @@ pub fn supported(
             }
         };
         for k in 0..steps {
-            let i = (start + k) % n;
-            if ok[i] {
-                cur.push(pl.points[i]);
+            let (p, keep) = walk[(start + k) % len];
+            if keep {
+                cur.push(p);
             } else {
                 flush(&mut cur, &mut out);
             }
@@ -483,6 +530,48 @@ mod tests {
         assert!((removed - 3.0).abs() < 1e-12);
     }
 
+    /// A spoke whose two ends lie on data but whose middle crosses empty space is cut
+    /// back to the stretches near its ends; every point kept lies within 1.25 times the
+    /// reach (the samples along a segment are half a reach apart), and the length
+    /// removed is the spoke's less what is kept.
+    #[test]
+    fn a_segment_across_empty_space_is_cut_between_supported_ends() {
+        let data: Vec<Point> = (0..=4)
+            .map(|i| [i as f64 * 0.05, 0.0])
+            .chain((0..=4).map(|i| [2.0 - i as f64 * 0.05, 0.0]))
+            .collect();
+        let d = |p: Point| {
+            data.iter()
+                .map(|&q| dist(p, q))
+                .fold(f64::INFINITY, f64::min)
+        };
+        let reach = 0.1;
+        let (out, removed) = supported(vec![open(&[[0.0, 0.0], [2.0, 0.0]])], d, reach);
+        assert_eq!(out.len(), 2);
+        let kept: f64 = out.iter().map(Polyline::length).sum();
+        assert!((kept + removed - 2.0).abs() < 1e-12);
+        assert!(kept > 2.0 * 0.2 && kept <= 2.0 * 0.3 + 1e-12, "{kept}");
+        for pl in &out {
+            for w in pl.points.windows(2) {
+                for k in 0..=100 {
+                    let t = k as f64 / 100.0;
+                    let p = [w[0][0] + t * (w[1][0] - w[0][0]), 0.0];
+                    assert!(d(p) <= 1.25 * reach + 1e-12, "{p:?}");
+                }
+            }
+        }
+        // A closed loop whose chord closes it across the gap opens there.
+        let ring = Polyline {
+            closed: true,
+            points: vec![[0.0, 0.0], [0.2, 0.0], [1.8, 0.0], [2.0, 0.0]],
+        };
+        let (out, _) = supported(vec![ring], d, reach);
+        assert!(out.iter().all(|pl| !pl.closed));
+        // Along the data, nothing is cut.
+        let (out, removed) = supported(vec![open(&[[0.0, 0.0], [0.2, 0.0]])], d, reach);
+        assert_eq!((out.len(), removed), (1, 0.0));
+    }
+
     /// Two strokes crossing in an X: the shorter loses the segment through the
     /// crossing; two pieces meeting at a shared end, or touching, are left alone.
     #[test]
@@ -498,6 +587,39 @@ mod tests {
         let touching = open(&[[0.3, 0.0], [0.3, -1.0]]);
         let (out, removed) = uncrossed(vec![long.clone(), t, touching], 0.0);
         assert_eq!((out.len(), removed), (3, 0));
+    }
+
+    /// A repeated point dropped where its twin lies on another curve moves a segment's
+    /// end across that curve: the result still crosses nowhere.
+    #[test]
+    fn dropping_a_repeated_point_leaves_no_crossing() {
+        let wall = open(&[[0.0, -1.0], [0.0, 1.0]]);
+        // Its second point is within eps before the third, which lies on the wall.
+        let bent = open(&[[-1.0, 1.0], [-1e-13, 0.0], [0.0, 0.0], [1.0, -1.0]]);
+        assert!(crossing_pairs(&segments(&[wall.clone(), bent.clone()])).is_empty());
+        assert_eq!(
+            crossing_pairs(&segments(&well_formed(
+                vec![wall.clone(), bent.clone()],
+                1e-9
+            )))
+            .len(),
+            1
+        );
+        let cloud = Cloud {
+            distance: &|_| 0.0,
+            reach: 1.0,
+            extent: 2.0,
+            min_area: 0.0,
+            eps: 1e-9,
+        };
+        let (out, _, warnings) = enforce(vec![wall, bent], Vec::new(), &cloud);
+        assert!(crossing_pairs(&segments(&out)).is_empty(), "{out:?}");
+        assert!(
+            warnings
+                .iter()
+                .any(|w| matches!(w, Warning::Crossings { removed: 1 })),
+            "{warnings:?}"
+        );
     }
 
     /// A figure eight (a closed curve crossing itself) becomes its two loops, touching
@@ -590,8 +712,9 @@ mod tests {
         #![proptest_config(proptest::prelude::ProptestConfig::with_cases(12))]
         /// Random point sets (a noisy circle or two among scattered points, or points
         /// anywhere), at sizes from 1e-6 to 1e6, through the whole reconstruction: the curves cross nowhere, have no
-        /// zero-length segment, and every vertex lies within the support distance
-        /// `3 sigma + 2 hmin + reach` of a sample that is not isolated.
+        /// zero-length segment, every vertex lies within the support distance
+        /// `3 sigma + 2 hmin + reach / 2` of a sample that is not isolated, and every
+        /// point of a segment within 1.25 times that.
         #[test]
         fn every_result_holds_the_invariants(
             circles in proptest::collection::vec(([0.2f64..0.8, 0.2f64..0.8], 0.05f64..0.3), 0..3),
@@ -626,13 +749,22 @@ mod tests {
                 .map(|(&p, _)| p)
                 .collect();
             let d = |p: Point| inliers.iter().map(|&q| dist(p, q)).fold(f64::INFINITY, f64::min);
-            let reach = 3.0 * r.noise_estimate + 2.0 * r.stats.hmin + n.reach;
+            let reach = 3.0 * r.noise_estimate + 2.0 * r.stats.hmin + 0.5 * n.reach;
             for pl in &r.polylines {
                 for &p in &pl.points {
                     proptest::prop_assert!(d(p) <= reach * (1.0 + 1e-9), "{} > {reach}", d(p));
                 }
                 let m = pl.points.len();
                 let segs = if pl.closed { m } else { m - 1 };
+                // Along the segments, within the step the check samples them at.
+                for i in 0..segs {
+                    let (a, b) = (pl.points[i], pl.points[(i + 1) % m]);
+                    for k in 1..8 {
+                        let t = k as f64 / 8.0;
+                        let p = [a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1])];
+                        proptest::prop_assert!(d(p) <= 1.25 * reach * (1.0 + 1e-9), "{} > 1.25 {reach}", d(p));
+                    }
+                }
                 for i in 0..segs {
                     proptest::prop_assert!(pl.points[i] != pl.points[(i + 1) % m]);
                 }
