@@ -93,6 +93,7 @@ pub use map::{Key as TileKey, Map, MapParams, MapScores, MapStats, MemoryStore, 
 pub use mesh::Mesh;
 pub use reconstruct::{reconstruct, reconstruct_scan, reconstruct_warm, Params, Reconstruction};
 pub use repair::strokes::Junction;
+pub use repair::Tolerances as RepairTolerances;
 pub use scan::{FreeSpace, LaserScan, Scan, ScanParams, MAX_BEAMS};
 pub use stats::{StageMs, Stats, WindowStats};
 pub use stream::{Stream, StreamFrame};

@@ -224,6 +224,10 @@ pub struct ExportConfig {
     pub simplify: Option<f64>,
     /// Closed loops enclosing less area are dropped (default pi (3 hmin)^2; 0 keeps all).
     pub min_area: Option<f64>,
+    /// `[export.repair]`: the point-cloud repair passes' tolerances, each a multiple of
+    /// `hmin`, a count of samples, an angle or a ratio (docs/method.md, "The repair
+    /// stage"); unset ones keep their defaults.
+    pub repair: Option<isoline_core::RepairTolerances>,
 }
 
 /// A deserialisation error of an already-parsed TOML value as `prefix.key: message`
@@ -313,6 +317,10 @@ impl ExportConfig {
         let mut p = ExportParams::default();
         p.simplify = simplify;
         p.min_area = self.min_area;
+        if let Some(t) = &self.repair {
+            t.validate()?;
+            p.repair = t.clone();
+        }
         Ok(p)
     }
 }
@@ -483,6 +491,27 @@ mod tests {
             e.contains("scan.min_run = 0") && e.contains("scan.incidence_limit = 95"),
             "{e}"
         );
+        let e = Config::parse(
+            "[export.repair]\nthrough_frame = 0\nclean_fit = -1\n",
+            "r.toml",
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(
+            e.contains("export.repair.through_frame") && e.contains("export.repair.clean_fit"),
+            "{e}"
+        );
+        let c = Config::parse("[export.repair]\nclean_fit = 0.5\n", "ok.toml").unwrap();
+        let repair = &c.params().export.repair;
+        assert_eq!(repair.clean_fit, 0.5);
+        assert_eq!(
+            repair.through_frame,
+            isoline_core::RepairTolerances::default().through_frame
+        );
+        let e = Config::parse("[export.repair]\ncleanfit = 0.5\n", "u.toml")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("cleanfit"), "{e}");
         let e = Config::parse("[solver]\nalhpa = 1\n", "f.toml")
             .unwrap_err()
             .to_string();

@@ -43,6 +43,8 @@ const MIN_LEN: usize = 8192;
 
 /// Time-stepping scheme.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(rename_all = "kebab-case"))]
 pub enum Scheme {
     /// Forward Euler at the stability bound `dt <= m_i / (d_i sum_j |K_ij|)`: by
     /// Gershgorin no eigenvalue of `D M^-1 K` exceeds `max_i d_i sum_j |K_ij| / m_i`. With
@@ -174,6 +176,8 @@ struct Progress {
 
 /// Why the iteration stopped.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(rename_all = "snake_case"))]
 pub enum StopReason {
     /// Eq. 11 holds: every data point within `eps` of the zero level set.
     #[default]

@@ -24,6 +24,11 @@ use strokes::Junction;
 /// bounds (vertices per arc, pairs per frame) are not tolerances: they are constants of
 /// their pass, each a bound on cost that no result of the tables reaches.
 #[derive(Clone, Debug, PartialEq)]
+#[cfg_attr(
+    feature = "serde",
+    derive(serde::Deserialize),
+    serde(default, deny_unknown_fields)
+)]
 #[non_exhaustive]
 pub struct Tolerances {
     /// Samples lying on circles to within this many `hmin` are clean: the mending
