@@ -332,6 +332,9 @@ pub struct MetricField {
     pub noise_estimate: f64,
     /// The residual over windows that see one wall: at most `noise_estimate`.
     pub one_wall_noise: f64,
+    /// The share of the noise measurement's windows that see a curve
+    /// ([`crate::mesh::metric::NoiseScale::curve_share`]); 1 for a scan's runs.
+    pub curve_share: f64,
     /// The points' bounding box.
     pub bbox: BBox,
     /// Margin around the bounding box, as a fraction of its diagonal.
@@ -403,6 +406,7 @@ impl MetricField {
             params: metric_params,
             noise_estimate: noise,
             one_wall_noise: noise_scale.one_wall,
+            curve_share: noise_scale.curve_share,
             bbox,
             padding: params.padding,
             max_passes: params.max_passes,
@@ -469,6 +473,7 @@ impl MetricField {
             },
             noise_estimate: 0.0,
             one_wall_noise: 0.0,
+            curve_share: 1.0,
             bbox,
             padding: params.padding,
             max_passes: params.max_passes,

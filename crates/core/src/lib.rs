@@ -91,7 +91,9 @@ pub use index::SegmentIndex;
 pub use levelset::{Init, LinearSolver, Scheme, Settle, SolverParams, Start, StopReason};
 pub use map::{Key as TileKey, Map, MapParams, MapScores, MapStats, MemoryStore, TileStore};
 pub use mesh::Mesh;
-pub use reconstruct::{reconstruct, reconstruct_scan, reconstruct_warm, Params, Reconstruction};
+pub use reconstruct::{
+    reconstruct, reconstruct_scan, reconstruct_warm, Params, Reconstruction, AREA_SHARE,
+};
 pub use repair::strokes::Junction;
 pub use repair::Tolerances as RepairTolerances;
 pub use scan::{FreeSpace, LaserScan, Scan, ScanParams, MAX_BEAMS};

@@ -45,6 +45,14 @@ pub enum Warning {
         /// side).
         length: (f64, f64),
     },
+    /// The points fill an area rather than sample a curve: at every scale up to a
+    /// sixteenth of their extent, fewer than [`crate::AREA_SHARE`] of the noise
+    /// measurement's windows see one (strokes hatched closer than the sampling
+    /// resolves, scattered points). No curve is drawn; the points are features.
+    Area {
+        /// The share of the windows that see a curve, in `[0, 1]`.
+        curve_share: f64,
+    },
 }
 
 impl fmt::Display for Warning {
@@ -75,6 +83,12 @@ impl fmt::Display for Warning {
                 "the curves look collapsed: {} of {} ends meet at one junction, length {:.3} \
                  against the data's extent {:.3}",
                 ends.0, ends.1, length.0, length.1
+            ),
+            Warning::Area { curve_share } => write!(
+                f,
+                "the points fill an area: {:.1}% of the windows they were measured in see a \
+                 curve; no curve drawn, the points are features",
+                100.0 * curve_share
             ),
         }
     }

@@ -352,8 +352,10 @@ pub fn consistent_noise(
             window: 0.0,
             neighbours: 0.0,
             one_wall: noise,
+            curve_share: 1.0,
         };
     }
+    let mut curve_share = 1.0;
     let step = n.div_ceil(NOISE_CENTRES).max(1);
     let centres: Vec<usize> = (0..n).step_by(step).collect();
     let mut radii: Vec<f64> = centres
@@ -404,16 +406,16 @@ pub fn consistent_noise(
         // grows until it spans four times the median residual.
         let extent = crate::geom::BBox::of(field.points())
             .map_or(0.0, |b| (b.max[0] - b.min[0]).max(b.max[1] - b.min[1]));
-        let grown = own_windows(field, &centre_pts, r, extent / LOCAL_WINDOWS);
+        let r_max = extent / LOCAL_WINDOWS;
+        let grown = own_windows(field, &centre_pts, r, r_max);
+        curve_share = grown.len() as f64 / centre_pts.len() as f64;
         if grown.is_empty() {
-            for _ in 0..12 {
-                let want = NOISE_WINDOW * noise;
-                if want <= 1.05 * r {
-                    break;
-                }
-                r = want;
-                noise = median_residual(&fits_within(field, &centre_pts, r));
-            }
+            // No window up to the largest allowed sees a curve: the samples fill an
+            // area at every local scale, and no noise can be measured. The bound holds
+            // at the largest window's reach: a noise above a 64th of the extent would
+            // have been measured.
+            r = r_max;
+            noise = noise.min(r_max / NOISE_WINDOW);
         } else {
             let mid = grown.len() / 2;
             let mut res: Vec<f64> = grown.iter().map(|g| g.0).collect();
@@ -427,6 +429,7 @@ pub fn consistent_noise(
         window: r,
         neighbours: knn,
         one_wall: one_wall.map_or(noise, |w| w.min(noise)),
+        curve_share,
     }
 }
 
@@ -445,6 +448,11 @@ pub struct NoiseScale {
     /// span it, and a clean shape with bays of about their reach measures as noisy. At
     /// most `noise`.
     pub one_wall: f64,
+    /// The share of the centres whose own window sees a curve (holds enough samples
+    /// and spans four times its residual) when the `k` neighbours' windows did not; 1
+    /// when those did. Samples that fill an area (strokes hatched closer than the
+    /// sampling resolves, scattered points) give almost none.
+    pub curve_share: f64,
 }
 
 /// A frame fitted to the sheet of samples through `center`: `pts` are its nearest
@@ -756,6 +764,28 @@ mod tests {
             (0.8..=1.2).contains(&ratio),
             "{ratio} (k-NN {knn}, {scale:?})"
         );
+        // The strokes drawn apart are four fifths of the drawing's length: their
+        // windows see a curve, far more than the share an area gives by chance.
+        assert!(scale.curve_share > 0.3, "{scale:?}");
+    }
+
+    /// Points scattered over an area (and strokes hatched closer than the sampling
+    /// resolves look the same) sample no curve at any scale: a window holds samples
+    /// spread over its whole disc, whose residual is a fixed share of its radius, so
+    /// almost no window spans four times its residual, and the noise is bounded by the
+    /// largest window's: a 64th of the extent, where the windows stop.
+    #[test]
+    fn points_that_fill_an_area_see_no_curve_and_bound_the_noise() {
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(11);
+        for n in [1_000, 4_000] {
+            let pts: Vec<Point> = (0..n)
+                .map(|_| [rng.random::<f64>(), rng.random::<f64>()])
+                .collect();
+            let (_, _, scale) = measured_noise(&pts);
+            assert!(scale.curve_share < crate::AREA_SHARE, "{n}: {scale:?}");
+            assert!(scale.noise <= 1.0 / 64.0 + 1e-12, "{n}: {scale:?}");
+        }
     }
 
     /// Two parallel walls 0.08 apart sampled every 0.01 with sigma = 0.007: the 32
