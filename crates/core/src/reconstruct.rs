@@ -308,8 +308,8 @@ fn prepare_here(points: &[Point], scan: Option<&Scan>, params: &Params) -> Resul
         .repair
         .validate()
         .map_err(config("export parameters"))?;
-    // A point cloud's outliers (samples in clusters too small for a curve at the
-    // neighbours' reach, `distance::Neighbourhood`) are reported as features and take no
+    // A point cloud's outliers (samples in clusters too small for a curve, linked at a
+    // few sampling spacings, `distance::Neighbourhood`) are reported as features and take no
     // part in the field, the mesh or the support. A scan's returns are judged along their
     // runs instead (`scan`). Where nearly every sample is isolated there is no curve to
     // keep them from, and they stay.
