@@ -208,32 +208,6 @@ pub const ISOLATION_SPACINGS: f64 = 6.0;
 /// that curve's sample to find its tangent.
 const CONTINUE_NEAREST: usize = 8;
 
-/// The unit direction along which `pts` spread most (the principal axis of their
-/// covariance), or `None` for fewer than two or no spread.
-fn principal_axis(pts: impl Iterator<Item = Point>) -> Option<Point> {
-    let pts: Vec<Point> = pts.collect();
-    if pts.len() < 2 {
-        return None;
-    }
-    let n = pts.len() as f64;
-    let c = [
-        pts.iter().map(|p| p[0]).sum::<f64>() / n,
-        pts.iter().map(|p| p[1]).sum::<f64>() / n,
-    ];
-    let (mut sxx, mut sxy, mut syy) = (0.0, 0.0, 0.0);
-    for p in &pts {
-        let (x, y) = (p[0] - c[0], p[1] - c[1]);
-        sxx += x * x;
-        sxy += x * y;
-        syy += y * y;
-    }
-    if sxx + syy <= 0.0 {
-        return None;
-    }
-    let a = 0.5 * (2.0 * sxy).atan2(sxx - syy);
-    Some([a.cos(), a.sin()])
-}
-
 /// The scale at which a point set's samples are neighbours, and which samples are
 /// isolated (outliers): those in a cluster of fewer than [`MIN_CLUSTER`] samples
 /// linked by steps of at most [`ISOLATION_SPACINGS`] spacings that lie off the curve
@@ -324,10 +298,12 @@ impl Neighbourhood {
                 // lie farther than the link and would turn it.
                 field.nearest_k(pts[q], CONTINUE_NEAREST, buf);
                 buf.retain(|&j| !small[j as usize] && dist(pts[q], pts[j as usize]) <= link);
-                match principal_axis(buf.iter().map(|&j| pts[j as usize])) {
-                    Some(t) => (d[0] * t[0] + d[1] * t[1]).abs() < FRAC_1_SQRT_2 * len,
-                    None => true,
+                let (_, spread) = crate::geom::principal(buf.iter().map(|&j| pts[j as usize]));
+                if buf.len() < 2 || spread.trace() <= 0.0 {
+                    return true;
                 }
+                let (_, _, t) = spread.eigen();
+                (d[0] * t[0] + d[1] * t[1]).abs() < FRAC_1_SQRT_2 * len
             })
             .collect();
         let isolated = points

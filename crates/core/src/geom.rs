@@ -295,6 +295,19 @@ pub struct Sym2 {
     pub yy: f64,
 }
 
+/// The centroid of `pts` and their covariance (unnormalized): its eigenvector of the
+/// larger eigenvalue ([`Sym2::eigen`]) is their principal axis.
+pub fn principal(pts: impl Iterator<Item = Point> + Clone) -> (Point, Sym2) {
+    let (n, sum) = pts.clone().fold((0.0, [0.0, 0.0]), |(n, s), q| {
+        (n + 1.0, [s[0] + q[0], s[1] + q[1]])
+    });
+    let c = [sum[0] / n, sum[1] / n];
+    let cov = pts.fold(Sym2::default(), |cov, q| {
+        cov.plus(Sym2::outer([q[0] - c[0], q[1] - c[1]]))
+    });
+    (c, cov)
+}
+
 impl Sym2 {
     /// `s * I`.
     pub fn iso(s: f64) -> Sym2 {

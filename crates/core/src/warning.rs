@@ -30,10 +30,13 @@ pub enum Warning {
         /// The support distance: the accuracy bound plus the neighbours' reach.
         reach: f64,
     },
-    /// Segments that crossed another were removed: curves are simple and disjoint
+    /// Curves crossed: a curve crossing itself was split into its loops, and curves
+    /// crossing each other were split where they cross, meeting there at a junction
+    /// (or, for a crossing that dropping a repeated point made, lost a segment).
+    /// Curves are simple and meet only at shared ends
     /// ([`crate::repair::invariants::uncrossed`]).
     Crossings {
-        /// The segments removed.
+        /// The crossings undone.
         removed: usize,
     },
     /// The curves look collapsed: one junction holds most of the strokes' ends (a star
@@ -76,7 +79,7 @@ impl fmt::Display for Warning {
                 "cut {length:.3} of curve lying farther than {reach:.3} from every sample"
             ),
             Warning::Crossings { removed } => {
-                write!(f, "removed {removed} segments where curves crossed")
+                write!(f, "split curves at {removed} crossings")
             }
             Warning::Collapsed { ends, length } => write!(
                 f,

@@ -99,21 +99,10 @@ pub(crate) fn fit_line(pts: &[Point], band: f64) -> Option<(Point, Point)> {
     if pts.len() < 4 {
         return None;
     }
-    let n = pts.len() as f64;
-    let c = [
-        pts.iter().map(|q| q[0]).sum::<f64>() / n,
-        pts.iter().map(|q| q[1]).sum::<f64>() / n,
-    ];
-    let (mut sxx, mut sxy, mut syy) = (0.0, 0.0, 0.0);
-    for q in pts {
-        let d = sub(*q, c);
-        sxx += d[0] * d[0];
-        sxy += d[0] * d[1];
-        syy += d[1] * d[1];
-    }
     // The direction is the principal axis; the normal is perpendicular to it.
-    let angle = 0.5 * (2.0 * sxy).atan2(sxx - syy);
-    let normal = [-angle.sin(), angle.cos()];
+    let (c, spread) = crate::geom::principal(pts.iter().copied());
+    let (_, _, t) = spread.eigen();
+    let normal = [-t[1], t[0]];
     pts.iter()
         .all(|&q| dot(sub(q, c), normal).abs() <= band)
         .then_some((c, normal))

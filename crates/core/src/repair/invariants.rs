@@ -58,7 +58,7 @@ pub fn enforce(
             reach: cloud.reach,
         });
     }
-    let (polylines, removed) = uncrossed(polylines, cloud.min_area);
+    let (polylines, removed, crossings) = uncrossed(polylines, cloud.min_area);
     // Dropping a point within `eps` of the one before it moves a segment's end by as
     // much, and where that end lay on another segment (a crossing point the split
     // above inserted), the segment now crosses it: the crossings left are removed
@@ -69,8 +69,25 @@ pub fn enforce(
             removed: removed + late,
         });
     }
+    // Where two pieces crossed they now meet, each ending at the crossing point (or
+    // within `eps` of it, once repeated points are dropped).
+    let ends: Vec<Vec<Point>> = ends
+        .into_iter()
+        .chain(crossings.iter().map(|&x| {
+            polylines
+                .iter()
+                .filter(|pl| !pl.closed)
+                .flat_map(|pl| [pl.points[0], pl.points[pl.points.len() - 1]])
+                .filter(|&e| dist(e, x) <= cloud.eps)
+                .collect()
+        }))
+        .collect();
     let junctions: Vec<Junction> = junctions
         .into_iter()
+        .chain(crossings.iter().map(|&at| Junction {
+            at,
+            polylines: Vec::new(),
+        }))
         .zip(ends)
         .filter_map(|(j, ends)| {
             let members: Vec<usize> = polylines
@@ -267,17 +284,17 @@ fn cross(a: Point, b: Point, c: Point, d: Point) -> bool {
 /// loops, an open one into the open rest and the loop), the crossing point a vertex of
 /// both: they touch there and cross nowhere. A loop enclosing less than `min_area` is a
 /// speck (a twist a pass left at a corner) and goes, as the export stage's specks do.
-/// Of two pieces crossing each other, the shorter loses its segment through the
-/// crossing, splitting there; removing a segment crosses nothing new, so one pass
-/// leaves none. Returns the pieces and the number of crossings undone.
-pub fn uncrossed(polylines: Vec<Polyline>, min_area: f64) -> (Vec<Polyline>, usize) {
+/// Pieces crossing each other are split where they cross and meet there
+/// ([`split_at_crossings`]). Returns the pieces, the number of crossings undone and the
+/// points where pieces crossed each other (the junctions that made).
+pub fn uncrossed(polylines: Vec<Polyline>, min_area: f64) -> (Vec<Polyline>, usize, Vec<Point>) {
     let mut untwisted = 0;
     let mut simple = Vec::with_capacity(polylines.len());
     for pl in polylines {
         untwisted += untwist(pl, min_area, &mut simple);
     }
-    let (out, cut) = uncross_pieces(simple);
-    (out, untwisted + cut)
+    let (out, split, points) = split_at_crossings(simple);
+    (out, untwisted + split, points)
 }
 
 /// `pl` split at its self-crossings into simple pieces, pushed onto `out` (specks
@@ -380,6 +397,86 @@ fn crossing_pairs(segs: &[(usize, usize, Point, Point)]) -> Vec<(u32, u32)> {
     pairs.sort_unstable();
     pairs.dedup();
     pairs
+}
+
+/// Pieces crossing each other, split where they cross: the crossing point becomes a
+/// vertex of both, and each piece ends there, so they meet at a junction (an X of two
+/// strokes, or a T whose foot overshot the bar) and cross nowhere. Both pieces lie on
+/// the data (the support invariant holds before), so neither loses anything of its
+/// course: deleting the shorter one's segment through the crossing instead left its
+/// end some `hmin` short of the other, two pieces where the drawing has one. Returns
+/// the pieces, the number of crossings and the crossing points.
+fn split_at_crossings(polylines: Vec<Polyline>) -> (Vec<Polyline>, usize, Vec<Point>) {
+    let segs = segments(&polylines);
+    let pairs = crossing_pairs(&segs);
+    if pairs.is_empty() {
+        return (polylines, 0, Vec::new());
+    }
+    // Each segment's crossing points, by their parameter along it.
+    let mut at: Vec<Vec<(f64, Point)>> = vec![Vec::new(); segs.len()];
+    let mut points = Vec::with_capacity(pairs.len());
+    for &(s, t) in &pairs {
+        let (p, q) = (&segs[s as usize], &segs[t as usize]);
+        let x = intersection(p.2, p.3, q.2, q.3);
+        let along = |a: Point, b: Point| {
+            let d = [b[0] - a[0], b[1] - a[1]];
+            ((x[0] - a[0]) * d[0] + (x[1] - a[1]) * d[1]) / (d[0] * d[0] + d[1] * d[1])
+        };
+        at[s as usize].push((along(p.2, p.3), x));
+        at[t as usize].push((along(q.2, q.3), x));
+        points.push(x);
+    }
+    let mut out = Vec::with_capacity(polylines.len() + 2 * pairs.len());
+    let mut first = 0;
+    for pl in polylines {
+        let n = pl.points.len();
+        let m = match (pl.closed, n) {
+            (_, 0 | 1) => 0,
+            (true, _) => n,
+            (false, _) => n - 1,
+        };
+        let cuts = &mut at[first..first + m];
+        first += m;
+        if cuts.iter().all(Vec::is_empty) {
+            out.push(pl);
+            continue;
+        }
+        // The piece's course with the crossing points in it, and where it splits.
+        let mut course: Vec<Point> = Vec::with_capacity(n + 2 * cuts.len());
+        let mut splits: Vec<usize> = Vec::new();
+        for (i, c) in cuts.iter_mut().enumerate() {
+            course.push(pl.points[i]);
+            c.sort_by(|a, b| a.0.total_cmp(&b.0));
+            for &(_, x) in c.iter() {
+                splits.push(course.len());
+                course.push(x);
+            }
+        }
+        if !pl.closed {
+            course.push(pl.points[n - 1]);
+        }
+        // A closed piece is opened at its first split and walked round to it again.
+        let (course, splits) = if pl.closed {
+            let s0 = splits[0];
+            let len = course.len();
+            let turned: Vec<Point> = (0..=len).map(|k| course[(s0 + k) % len]).collect();
+            let splits: Vec<usize> = splits.iter().map(|&s| (s + len - s0) % len).collect();
+            (turned, splits)
+        } else {
+            (course, splits)
+        };
+        let mut start = 0;
+        for &s in splits.iter().chain(std::iter::once(&(course.len() - 1))) {
+            if s > start {
+                out.push(Polyline {
+                    closed: false,
+                    points: course[start..=s].to_vec(),
+                });
+            }
+            start = s;
+        }
+    }
+    (out, pairs.len(), points)
 }
 
 /// Pieces crossing each other: of each pair, the shorter piece's segment goes.
@@ -572,20 +669,54 @@ mod tests {
         assert_eq!((out.len(), removed), (1, 0.0));
     }
 
-    /// Two strokes crossing in an X: the shorter loses the segment through the
-    /// crossing; two pieces meeting at a shared end, or touching, are left alone.
+    /// A cloud every point lies on (distance 0), of extent 2, `eps` 1e-9.
+    fn on_data() -> Cloud<'static> {
+        fn zero(_: Point) -> f64 {
+            0.0
+        }
+        Cloud {
+            distance: &zero,
+            reach: 1.0,
+            extent: 2.0,
+            min_area: 0.0,
+            eps: 1e-9,
+        }
+    }
+
+    /// Two strokes crossing in an X are split where they cross: four pieces ending at
+    /// the crossing point, nothing of either course lost, and through `enforce` a
+    /// junction of the four. A loop crossed by a stroke opens there. Two pieces
+    /// meeting at a shared end, or touching, are left alone.
     #[test]
-    fn crossings_are_cut_and_junctions_kept() {
+    fn crossings_become_junctions_and_touching_pieces_are_kept() {
         let long = open(&[[-1.0, 0.0], [0.0, 0.0], [1.0, 0.0]]);
         let short = open(&[[0.5, -0.5], [0.5, 0.5], [0.5, 0.7]]);
-        let (out, removed) = uncrossed(vec![long.clone(), short], 0.0);
-        assert_eq!(removed, 1);
-        assert_eq!(out[0], long);
-        assert_eq!(out.len(), 2);
-        assert_eq!(out[1].points, vec![[0.5, 0.5], [0.5, 0.7]]);
+        let (out, removed, at) = uncrossed(vec![long.clone(), short.clone()], 0.0);
+        assert_eq!((removed, at), (1, vec![[0.5, 0.0]]));
+        assert_eq!(out.len(), 4);
+        let length: f64 = out.iter().map(Polyline::length).sum();
+        assert!((length - (long.length() + short.length())).abs() < 1e-12);
+        assert!(out
+            .iter()
+            .all(|pl| pl.points[0] == [0.5, 0.0] || pl.points[pl.points.len() - 1] == [0.5, 0.0]));
+        assert!(crossing_pairs(&segments(&out)).is_empty());
+        let cloud = on_data();
+        let (out, junctions, _) = enforce(vec![long.clone(), short], Vec::new(), &cloud);
+        assert_eq!(out.len(), 4);
+        assert_eq!(junctions.len(), 1);
+        assert_eq!(junctions[0].polylines.len(), 4);
+        let ring = Polyline {
+            closed: true,
+            points: vec![[0.2, -0.5], [0.8, -0.5], [0.8, 0.5], [0.2, 0.5]],
+        };
+        let (out, removed, _) = uncrossed(vec![ring.clone(), long.clone()], 0.0);
+        assert_eq!((removed, out.len()), (2, 5));
+        assert!(out.iter().all(|pl| !pl.closed));
+        let length: f64 = out.iter().map(Polyline::length).sum();
+        assert!((length - (ring.length() + long.length())).abs() < 1e-12);
         let t = open(&[[0.0, 0.0], [0.0, 1.0]]);
         let touching = open(&[[0.3, 0.0], [0.3, -1.0]]);
-        let (out, removed) = uncrossed(vec![long.clone(), t, touching], 0.0);
+        let (out, removed, _) = uncrossed(vec![long.clone(), t, touching], 0.0);
         assert_eq!((out.len(), removed), (3, 0));
     }
 
@@ -605,13 +736,7 @@ mod tests {
             .len(),
             1
         );
-        let cloud = Cloud {
-            distance: &|_| 0.0,
-            reach: 1.0,
-            extent: 2.0,
-            min_area: 0.0,
-            eps: 1e-9,
-        };
+        let cloud = on_data();
         let (out, _, warnings) = enforce(vec![wall, bent], Vec::new(), &cloud);
         assert!(crossing_pairs(&segments(&out)).is_empty(), "{out:?}");
         assert!(
@@ -630,7 +755,7 @@ mod tests {
             closed: true,
             points: vec![[0.0, 0.0], [1.0, 1.0], [1.0, 0.0], [0.0, 1.0]],
         };
-        let (out, removed) = uncrossed(vec![eight], 0.01);
+        let (out, removed, _) = uncrossed(vec![eight], 0.01);
         assert_eq!(removed, 1);
         assert_eq!(out.len(), 2);
         for pl in &out {
@@ -652,7 +777,7 @@ mod tests {
                 [0.0, 1.0],
             ],
         };
-        let (out, removed) = uncrossed(vec![twisted], 0.01);
+        let (out, removed, _) = uncrossed(vec![twisted], 0.01);
         assert_eq!(removed, 1);
         assert_eq!(out.len(), 1);
         assert!(out[0].closed);

@@ -16,7 +16,7 @@ use crate::disjoint::root;
 
 use super::Tolerances;
 use crate::distance::DistanceField;
-use crate::geom::{cross, dist, dot, scale, sub, Point, Polyline, Sym2};
+use crate::geom::{cross, dist, dot, scale, sub, Point, Polyline};
 
 /// Where strokes meet.
 #[derive(Clone, Debug, PartialEq)]
@@ -344,10 +344,10 @@ fn without_joined_strokes(
                         .collect();
                     let beyond = within.iter().filter(|&&q| dist(q, e) >= r);
                     let (c, cov) = if beyond.clone().count() >= 2 {
-                        principal(beyond.copied())
+                        crate::geom::principal(beyond.copied())
                     } else if within.len() >= 2 {
                         // A short chain, straight from a junction.
-                        principal(within.iter().copied())
+                        crate::geom::principal(within.iter().copied())
                     } else {
                         return None;
                     };
@@ -447,24 +447,12 @@ fn thin(field: &DistanceField, r: f64, t: &Tolerances) -> Vec<Option<Point>> {
             if buf.len() < 4 {
                 return None;
             }
-            let (c, cov) = principal(buf.iter().map(|&i| pts[i as usize]));
+            let (c, cov) = crate::geom::principal(buf.iter().map(|&i| pts[i as usize]));
             let t = cov.eigen().2;
             let s = (p[0] - c[0]) * t[0] + (p[1] - c[1]) * t[1];
             Some([c[0] + s * t[0], c[1] + s * t[1]])
         })
         .collect()
-}
-
-/// The centroid of `pts` and their covariance (unnormalized).
-fn principal(pts: impl Iterator<Item = Point> + Clone) -> (Point, Sym2) {
-    let (n, sum) = pts.clone().fold((0.0, [0.0, 0.0]), |(n, s), q| {
-        (n + 1.0, [s[0] + q[0], s[1] + q[1]])
-    });
-    let c = [sum[0] / n, sum[1] / n];
-    let cov = pts.fold(Sym2::default(), |cov, q| {
-        cov.plus(Sym2::outer([q[0] - c[0], q[1] - c[1]]))
-    });
-    (c, cov)
 }
 
 /// The minimum spanning forest of the moved samples (Kruskal) over each one's
@@ -548,7 +536,7 @@ fn spanning_tree(
             tree.within(e, 2.0 * r, &mut line);
         }
         (line.len() >= 2).then(|| {
-            principal(line.iter().map(|&i| nodes[i as usize]))
+            crate::geom::principal(line.iter().map(|&i| nodes[i as usize]))
                 .1
                 .eigen()
                 .2
@@ -851,7 +839,7 @@ fn crossing(at: Point, arms: &[&[Point]], r: f64, t: &Tolerances) -> Option<Poin
     let out: Vec<Point> = parts
         .iter()
         .map(|p| {
-            let (c, cov) = principal(p.iter().copied());
+            let (c, cov) = crate::geom::principal(p.iter().copied());
             let t = cov.eigen().2;
             if (c[0] - at[0]) * t[0] + (c[1] - at[1]) * t[1] < 0.0 {
                 [-t[0], -t[1]]
