@@ -809,8 +809,7 @@ mod tests {
     /// Points that fill an area get no curve, and say so: every one of them is a
     /// feature and the only warning is [`Warning::Area`]. Strokes hatched closer than
     /// the sampling resolves (81 lines 0.01 apart, 1,500 samples, so 0.04 apart along
-    /// a line) are such an area, and so are scattered points; a noisy circle among
-    /// them is not.
+    /// a line) are such an area, and so are scattered points; a noisy circle is not.
     #[test]
     fn points_that_fill_an_area_are_features_not_curves() {
         use rand::{Rng, SeedableRng};
