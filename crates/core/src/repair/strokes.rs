@@ -44,7 +44,7 @@ pub fn with_strokes(
     t: &Tolerances,
 ) -> (Vec<Polyline>, Vec<Junction>) {
     // `away`: each sample's distance to the curves (none: infinite).
-    let find = |away: Vec<f64>| {
+    let find = |away: Vec<f64>| -> (Vec<Polyline>, Vec<Junction>, f64) {
         let (loose, away): (Vec<Point>, Vec<f64>) = data
             .iter()
             .copied()
@@ -52,7 +52,7 @@ pub fn with_strokes(
             .filter(|&(_, d)| d > tol)
             .unzip();
         let Ok(field) = DistanceField::new(&loose) else {
-            return (Vec::new(), Vec::new());
+            return (Vec::new(), Vec::new(), 0.0);
         };
         let delta = crate::distance::tube_radius(&field, 2.0 * hmin);
         let r = (2.0 * delta).max(6.0 * sigma);
@@ -64,11 +64,12 @@ pub fn with_strokes(
             .filter(|&(_, d)| d > r)
             .map(|(p, _)| p)
             .collect();
-        strokes(&loose, r, t)
+        let (lines, junctions) = strokes(&loose, r, t);
+        (lines, junctions, r)
     };
     let nowhere = || vec![f64::INFINITY; data.len()];
     if !enclosed {
-        let (lines, junctions) = find(nowhere());
+        let (lines, junctions, _) = find(nowhere());
         if !lines.is_empty() {
             return (lines, junctions);
         }
@@ -93,17 +94,193 @@ pub fn with_strokes(
         }
     }
     if closed.is_empty() {
-        return find(nowhere());
+        let (lines, junctions, _) = find(nowhere());
+        return (lines, junctions);
     }
     let away = away.unwrap_or_else(|| distances(&closed));
-    let (lines, mut junctions) = find(away);
-    let offset = closed.len();
-    for j in &mut junctions {
-        j.polylines.iter_mut().for_each(|i| *i += offset);
+    let (lines, junctions, r) = find(away);
+    attached(closed, lines, junctions, data, r)
+}
+
+/// The loops `closed` and the strokes `lines` (with their `junctions`, indices into
+/// `lines`) as one set of curves, each stroke's free end that stops short of a loop
+/// joined to it: the strokes are drawn from the samples farther than `r` from every
+/// loop, so a stroke that runs into a loop (a T's foot on a counter, a bar crossing a
+/// stem that the level set wrapped) stops about `r` short of it, and the samples it
+/// left to the loop fill the gap. An end joins its nearest point on the loops when that
+/// is within `2 r` (the strokes' own reach across a gap) and every point of the join
+/// lies within `r / 2` of a sample, as the spanning tree at scale `r` would have linked
+/// them, and the join crosses no stroke (it cannot cross a loop: nothing of them is
+/// nearer the end). A loop is split into open pieces where strokes join it, and each
+/// joining point is a junction of those pieces and the strokes. Junction indices are
+/// into the returned curves.
+fn attached(
+    closed: Vec<Polyline>,
+    mut lines: Vec<Polyline>,
+    mut junctions: Vec<Junction>,
+    data: &[Point],
+    r: f64,
+) -> (Vec<Polyline>, Vec<Junction>) {
+    // (stroke, at its start, loop, segment of the loop, parameter on it, joining point)
+    let mut joins: Vec<(usize, bool, usize, usize, f64, Point)> = Vec::new();
+    if !lines.is_empty() && r > 0.0 {
+        if let Ok(samples) = DistanceField::new(data) {
+            let loops = crate::index::SegmentIndex::new(&closed);
+            let strokes = crate::index::SegmentIndex::new(&lines);
+            let owner = |seg: usize| {
+                // The loop whose segments hold `seg`: the last that starts at or before it.
+                (0..closed.len())
+                    .rev()
+                    .find(|&k| loops.start(k) <= seg)
+                    .unwrap_or(0)
+            };
+            for (j, line) in lines.iter().enumerate() {
+                if line.closed || line.points.len() < 2 {
+                    continue;
+                }
+                for start in [true, false] {
+                    let e = if start {
+                        line.points[0]
+                    } else {
+                        line.points[line.points.len() - 1]
+                    };
+                    let free = !junctions
+                        .iter()
+                        .any(|jn| jn.polylines.contains(&j) && dist(jn.at, e) <= 1e-9 * r);
+                    if !free {
+                        continue;
+                    }
+                    let Some((d, seg, s)) = loops.nearest(e) else {
+                        continue;
+                    };
+                    if d > 2.0 * r {
+                        continue;
+                    }
+                    let (a, b) = loops.segments()[seg];
+                    let q = [a[0] + s * (b[0] - a[0]), a[1] + s * (b[1] - a[1])];
+                    let steps = ((d / (0.25 * r)).ceil() as usize).max(1);
+                    let held = (0..=steps).all(|i| {
+                        let u = i as f64 / steps as f64;
+                        let p = [e[0] + u * (q[0] - e[0]), e[1] + u * (q[1] - e[1])];
+                        samples.distance(p) <= 0.5 * r
+                    });
+                    if !held || crosses_a_stroke(&strokes, e, q, d) {
+                        continue;
+                    }
+                    let k = owner(seg);
+                    joins.push((j, start, k, seg - loops.start(k), s, q));
+                }
+            }
+        }
     }
-    let mut curves = closed;
+    // Strokes first, run on to their joining points.
+    for &(j, start, _, _, _, q) in &joins {
+        let pts = &mut lines[j].points;
+        let e = if start { pts[0] } else { pts[pts.len() - 1] };
+        if dist(e, q) > 0.0 {
+            if start {
+                pts.insert(0, q);
+            } else {
+                pts.push(q);
+            }
+        }
+    }
+    // Then each joined loop cut at its joining points into open pieces, which start and
+    // end there.
+    let mut curves: Vec<Polyline> = Vec::with_capacity(closed.len() + lines.len());
+    let mut meets: Vec<(Point, Vec<usize>)> = Vec::new();
+    let meeting = |at: Point, piece: usize, meets: &mut Vec<(Point, Vec<usize>)>| match meets
+        .iter_mut()
+        .find(|m| m.0 == at)
+    {
+        Some(m) => m.1.push(piece),
+        None => meets.push((at, vec![piece])),
+    };
+    for (k, pl) in closed.into_iter().enumerate() {
+        let mut cuts: Vec<(usize, f64, Point)> = joins
+            .iter()
+            .filter(|jn| jn.2 == k)
+            .map(|jn| (jn.3, jn.4, jn.5))
+            .collect();
+        if cuts.is_empty() {
+            curves.push(pl);
+            continue;
+        }
+        cuts.sort_by(|x, y| x.0.cmp(&y.0).then(x.1.total_cmp(&y.1)));
+        cuts.dedup_by(|x, y| x.2 == y.2);
+        // The loop's points walked once round from just after the first cut, with every
+        // cut point in place: runs between consecutive cuts are the pieces.
+        let n = pl.points.len();
+        let mut walk: Vec<(Point, bool)> = Vec::with_capacity(n + cuts.len() + 1);
+        let (first_seg, _, first_at) = cuts[0];
+        walk.push((first_at, true));
+        let mut c = 1;
+        for step in 1..=n {
+            let seg = (first_seg + step) % n;
+            let v = pl.points[seg];
+            // Cuts on the segment before `v` (segment `seg - 1`), in order along it.
+            let prev = (seg + n - 1) % n;
+            while c < cuts.len() && cuts[c].0 == prev {
+                walk.push((cuts[c].2, true));
+                c += 1;
+            }
+            walk.push((v, false));
+        }
+        // Cuts on the first cut's own segment past it close the walk.
+        while c < cuts.len() {
+            walk.push((cuts[c].2, true));
+            c += 1;
+        }
+        walk.push((first_at, true));
+        let mut piece: Vec<Point> = Vec::new();
+        for (p, cut) in walk {
+            if piece.last() != Some(&p) {
+                piece.push(p);
+            }
+            if cut && piece.len() > 1 {
+                let (a, b) = (piece[0], p);
+                let idx = curves.len();
+                curves.push(Polyline {
+                    closed: false,
+                    points: std::mem::take(&mut piece),
+                });
+                meeting(a, idx, &mut meets);
+                if b != a {
+                    meeting(b, idx, &mut meets);
+                }
+                piece.push(p);
+            }
+        }
+    }
+    let offset = curves.len();
+    for jn in &mut junctions {
+        jn.polylines.iter_mut().for_each(|i| *i += offset);
+    }
+    for &(j, _, _, _, _, q) in &joins {
+        meeting(q, offset + j, &mut meets);
+    }
     curves.extend(lines);
+    junctions.extend(meets.into_iter().map(|(at, mut polylines)| {
+        polylines.sort_unstable();
+        polylines.dedup();
+        Junction { at, polylines }
+    }));
     (curves, junctions)
+}
+
+/// Whether the segment `e q` (of length `d`) crosses a segment of the strokes indexed by
+/// `strokes`; touching at an end is no crossing. Every point of `e q` lies within `d / 2`
+/// of its middle, so only strokes that come that near can cross it.
+fn crosses_a_stroke(strokes: &crate::index::SegmentIndex, e: Point, q: Point, d: f64) -> bool {
+    let m = [0.5 * (e[0] + q[0]), 0.5 * (e[1] + q[1])];
+    if strokes.distance(m) > 0.5 * d {
+        return false;
+    }
+    strokes.segments().iter().any(|&(a, b)| {
+        let (d1, d2) = (cross(sub(q, e), sub(a, e)), cross(sub(q, e), sub(b, e)));
+        let (d3, d4) = (cross(sub(b, a), sub(e, a)), cross(sub(b, a), sub(q, a)));
+        d1 * d2 < 0.0 && d3 * d4 < 0.0
+    })
 }
 
 /// The samples [`without_joined_strokes`] thins for a loop, at most.
@@ -1074,6 +1251,61 @@ mod tests {
             &Tolerances::default(),
         );
         assert_eq!(kept.len(), 1);
+    }
+
+    /// A ring of radius 0.3 with a stem above and one below, all sampled every 0.005, at
+    /// `r = 0.025`: the stems' strokes stop 0.03 short of the ring (as strokes drawn from
+    /// the samples farther than `r` from it do) and run on to it, cutting the ring into
+    /// two pieces that meet each stem at a junction. A third stroke whose samples stop
+    /// 0.045 (under `2 r`) short of the ring, across empty space, is left free.
+    #[test]
+    fn strokes_that_stop_short_of_a_loop_run_on_to_it_across_their_samples() {
+        let r = 0.025;
+        let ring = circle_loop(0.3, 400);
+        let mut data = ring.points.clone();
+        data.extend(line([0.0, 0.3], [0.0, 0.8], 100));
+        data.extend(line([0.0, -0.3], [0.0, -0.8], 100));
+        data.extend(line([0.345, 0.0], [0.8, 0.0], 91));
+        let lines = vec![
+            Polyline {
+                closed: false,
+                points: line([0.0, 0.33], [0.0, 0.8], 10),
+            },
+            Polyline {
+                closed: false,
+                points: line([0.0, -0.8], [0.0, -0.33], 10),
+            },
+            Polyline {
+                closed: false,
+                points: line([0.345, 0.0], [0.8, 0.0], 10),
+            },
+        ];
+        let (curves, junctions) = attached(vec![ring], lines, Vec::new(), &data, r);
+        assert_eq!(curves.len(), 5, "{curves:?}");
+        assert!(curves.iter().all(|c| !c.closed));
+        // The pieces are the ring's two halves: the polygon's length, 2 pi 0.3 to 1e-4.
+        let length =
+            |pl: &Polyline| -> f64 { pl.points.windows(2).map(|w| dist(w[0], w[1])).sum() };
+        let ring_length: f64 = curves[..2].iter().map(length).sum();
+        assert!(
+            (ring_length - std::f64::consts::TAU * 0.3).abs() < 1e-4,
+            "{ring_length}"
+        );
+        assert_eq!(junctions.len(), 2, "{junctions:?}");
+        for j in &junctions {
+            let mut members = j.polylines.clone();
+            members.sort_unstable();
+            let stem = if j.at[1] > 0.0 { 2 } else { 3 };
+            assert_eq!(members, vec![0, 1, stem], "{j:?}");
+            // On the ring's polygon, which lies within its sagitta (1.9e-4) of the circle.
+            assert!(dist(j.at, [0.0, 0.3f64.copysign(j.at[1])]) < 2e-4, "{j:?}");
+            for &k in &j.polylines {
+                let pl = &curves[k];
+                let end = [pl.points[0], pl.points[pl.points.len() - 1]];
+                assert!(end.contains(&j.at), "{k}: {pl:?}");
+            }
+        }
+        assert_eq!(curves[4].points[0], [0.345, 0.0], "the free stroke moved");
     }
 
     /// The closed polyline of `n` points on the circle of radius `r` about the origin.
