@@ -331,14 +331,25 @@ fn latest_skips_stale_frames_and_records_each_one() {
     let dir = tempfile::tempdir().unwrap();
     // Replayed as fast as it reads, the stream outruns the stages by far: with one-frame
     // queues and the `latest` policy they drop the frames that went stale meanwhile.
-    let input = fixture("ellipse-stream-20.ndjson");
+    // The fixture's frames five times over (100, numbered on), so that the reader, even
+    // when a loaded machine holds it back for a while, still outruns the stages.
+    let text = std::fs::read_to_string(fixture("ellipse-stream-20.ndjson")).unwrap();
+    let mut frames = String::new();
+    for (k, line) in text.lines().cycle().take(100).enumerate() {
+        let mut v: Value = serde_json::from_str(line).unwrap();
+        v["frame"] = k.into();
+        v["t"] = (0.1 * k as f64).into();
+        frames.push_str(&format!("{v}\n"));
+    }
+    let input = dir.path().join("frames.ndjson");
+    std::fs::write(&input, frames).unwrap();
     let (recs, stderr) = replay(
         dir.path(),
         &input,
         "",
         "[pipeline]\nqueue = 1\npolicy = \"latest\"",
     );
-    assert_eq!(frame_ids(&recs), (0..20).collect::<Vec<_>>());
+    assert_eq!(frame_ids(&recs), (0..100).collect::<Vec<_>>());
     let skipped: Vec<&Value> = recs.iter().filter(|r| r["skipped"] == true).collect();
     assert!(!skipped.is_empty(), "nothing skipped: {stderr}");
     for r in &skipped {
@@ -346,7 +357,7 @@ fn latest_skips_stale_frames_and_records_each_one() {
         assert!(r.get("polylines").is_none());
     }
     // The newest frame is never stale.
-    assert!(recs[19]["polylines"].is_array());
+    assert!(recs[99]["polylines"].is_array());
     assert!(
         stderr.contains(&format!("{} skipped", skipped.len())),
         "{stderr}"
