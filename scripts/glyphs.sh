@@ -26,12 +26,7 @@ if [ ! -d /usr/share/hershey-fonts ] || [ ! -d /usr/share/fonts/truetype/dejavu 
   $sudo apt-get update -qq
   DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq fonts-dejavu-core hershey-fonts-data > /dev/null
 fi
-py=.tools/glyphs/bin/python
-if ! "$py" -c "import fontTools, numpy, scipy" 2> /dev/null; then
-  rm -rf .tools/glyphs
-  python3 -m venv .tools/glyphs
-  .tools/glyphs/bin/pip install --quiet --disable-pip-version-check fonttools numpy scipy
-fi
+need_numpy
 rm -rf "$out"
 grid=()
 [ "${GRID:-0}" = 1 ] && grid=(--grid)

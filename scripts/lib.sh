@@ -37,3 +37,14 @@ need_otr2() {
     g++ -O2 -std=c++17 -o "$otr" scripts/cgal/otr2.cpp -lgmp -lmpfr
   fi
 }
+
+# A Python with numpy and scipy (and fontTools, for the glyphs) as $py: the virtual
+# environment .tools/glyphs, made when missing.
+need_numpy() {
+  py=.tools/glyphs/bin/python
+  if ! "$py" -c "import fontTools, numpy, scipy" 2> /dev/null; then
+    rm -rf .tools/glyphs
+    python3 -m venv .tools/glyphs
+    .tools/glyphs/bin/pip install --quiet --disable-pip-version-check fonttools numpy scipy
+  fi
+}

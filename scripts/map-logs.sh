@@ -4,7 +4,8 @@
 # world-frame map (target/map-logs/NAME.svg, .geojson and the run's summary .json), the
 # beam streams (odometry poses) also with each scan aligned onto the map, to show what
 # drift does and what the alignment does about it;
-# then one table row a run from the summaries.
+# then one table row a run from the summaries, and how the returns spread about each
+# map by range (scripts/map-spread.py, numpy and scipy in .tools/glyphs).
 # Usage: ISOLINE_REAL=DIR scripts/map-logs.sh
 set -euo pipefail
 . "$(dirname "$0")/lib.sh"
@@ -40,3 +41,11 @@ for path in sys.argv[1:]:
           f"| {ms['reconstruct']:.2f} / {ms['fuse']:.2f} ({s['cpu_ms_per_scan']:.1f}) "
           f"| {s['peak_memory_bytes']/1e6:.0f} MB | {t['resident']+t['stored']} ({t['bytes_bound']/1e6:.0f} MB) |")
 PY
+# How each map's returns spread about it by range, and what one curve per half metre of
+# wall could hold at best (scripts/map-spread.py).
+need_numpy
+for gz in "$real"/*.gz; do
+  name=$(basename "$gz" .gz); name=${name%.log}; name=${name%.ndjson}
+  echo "$name:"
+  "$py" scripts/map-spread.py "$gz" "$dir/$name.geojson"
+done

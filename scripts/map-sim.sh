@@ -23,7 +23,7 @@ for scene in $scenes; do
   "$bin" synth "$scene" --frames 1 --noise 0.01 -o "$dir/$scene-1.ndjson" \
     --truth "$dir/$scene-truth.json"
   tags=("$scene")
-  # The long drive again with memory for 200 tiles (59 MB), fewer than it sees: tiles
+  # The long drive again with memory for 200 tiles (72 MB), fewer than it sees: tiles
   # leave for the disk and come back on the second lap.
   [ "$scene" = loop ] && [ "$quick" = 0 ] && {
     printf '[map]\nmax_tiles = 200\n' > "$dir/spill.toml"; tags+=(loop-spill); }

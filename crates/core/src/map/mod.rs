@@ -93,6 +93,11 @@ pub struct MapParams {
     /// them. Scan-to-map alignment drifts as odometry does where the map ahead is
     /// new (docs/method.md): use it for poses worse than the drift.
     pub align: bool,
+    /// Standard deviation of the poses' heading error, radians: a wall a scan's curve
+    /// puts at range `r` is off by about `r` times it across, so the scan's signed
+    /// distance there counts with weight `s^2 / (s^2 + (r heading_noise)^2)` (`s` its
+    /// range noise). 0 weighs every scan alike.
+    pub heading_noise: f64,
 }
 
 impl Default for MapParams {
@@ -106,6 +111,9 @@ impl Default for MapParams {
             max_range: 20.0,
             max_tiles: 512,
             align: false,
+            // SLAM-corrected poses: the median correction the refinement's alignment
+            // makes between consecutive scans of the corrected logs is 0.5 degrees.
+            heading_noise: 0.5_f64.to_radians(),
         }
     }
 }
@@ -122,6 +130,12 @@ impl MapParams {
         positive(&mut problems, "cell", self.cell);
         positive(&mut problems, "hit_tolerance", self.hit_tolerance);
         positive(&mut problems, "max_range", self.max_range);
+        if !(self.heading_noise.is_finite() && (0.0..=0.5).contains(&self.heading_noise)) {
+            problems.push(format!(
+                "map.heading_noise = {}: must be 0 to 0.5 radians",
+                self.heading_noise
+            ));
+        }
         if !(4..=1024).contains(&self.tile) {
             problems.push(format!("map.tile = {}: must be 4 to 1024", self.tile));
         }
@@ -214,9 +228,9 @@ pub struct Map {
     scans: u64,
     spills: u64,
     /// The scan being fused: its signed distances, nearest first (reused).
-    scratch: FxHashMap<(i64, i64), f32>,
+    scratch: FxHashMap<(i64, i64), (f32, f32)>,
     /// The same, by tile (reused).
-    cells: Vec<(Key, usize, f32)>,
+    cells: Vec<(Key, usize, f32, f32)>,
     score: score::Tally,
 }
 
@@ -312,7 +326,7 @@ impl Map {
                 points: c.points.iter().map(|&p| to_world(pose, p)).collect(),
             })
             .collect();
-        self.fuse_curves(&world, 3.0 * noise + 2.0 * self.params.cell)?;
+        self.fuse_curves(&world, 3.0 * noise + 2.0 * self.params.cell, origin, noise)?;
         // The scores judge the map by the returns where the scan's own pose puts them,
         // whatever the alignment made of it (a map true only to itself scores badly).
         let placed = if given == pose {
@@ -622,9 +636,22 @@ impl Map {
     }
 
     /// The signed distance to the scan's `curves` (world coordinates) fused into every
-    /// sample within `trunc` of them. Near an open curve's end the distance has no sign
-    /// to give (the wall may go on unseen): samples nearest an end are left alone.
-    fn fuse_curves(&mut self, curves: &[Polyline], trunc: f64) -> Result<()> {
+    /// sample within `trunc` of them, weighed by how far the scan's heading error moves
+    /// a curve at that range from the sensor at `origin` against the scan's range
+    /// `noise` (`MapParams::heading_noise`): a weighted average, so that the walls lie
+    /// where the scans that saw them from near put them. Near an open curve's end the
+    /// distance has no sign to give (the wall may go on unseen): samples nearest an end
+    /// are left alone.
+    fn fuse_curves(
+        &mut self,
+        curves: &[Polyline],
+        trunc: f64,
+        origin: Point,
+        noise: f64,
+    ) -> Result<()> {
+        let heading = self.params.heading_noise;
+        // A curve is no sharper than the lattice that holds it.
+        let spread = noise.max(0.25 * self.params.cell);
         let cell = self.params.cell;
         let mut scratch = std::mem::take(&mut self.scratch);
         scratch.clear();
@@ -674,14 +701,16 @@ impl Map {
                         }
                         let side = d[0] * w[1] - d[1] * w[0];
                         let sd = if side > 0.0 { dist } else { -dist } as f32;
+                        let across = crate::geom::dist(p, origin) * heading;
+                        let weight = (1.0 / (1.0 + (across / spread).powi(2))) as f32;
                         scratch
                             .entry((i, j))
-                            .and_modify(|v| {
-                                if sd.abs() < v.abs() {
-                                    *v = sd;
+                            .and_modify(|v: &mut (f32, f32)| {
+                                if sd.abs() < v.0.abs() {
+                                    *v = (sd, weight);
                                 }
                             })
-                            .or_insert(sd);
+                            .or_insert((sd, weight));
                     }
                 }
             }
@@ -690,9 +719,9 @@ impl Map {
         // Tile by tile, so each tile is looked up once.
         let mut cells = std::mem::take(&mut self.cells);
         cells.clear();
-        cells.extend(scratch.drain().map(|((i, j), sd)| {
+        cells.extend(scratch.drain().map(|((i, j), (sd, weight))| {
             let (key, k) = locate(i, j, side);
-            (key, k, sd)
+            (key, k, sd, weight)
         }));
         cells.sort_unstable_by_key(|c| c.0);
         for run in cells.chunk_by(|a, b| a.0 == b.0) {
@@ -700,9 +729,11 @@ impl Map {
             self.load(key)?;
             let t = self.tiles.get_mut(&key).expect("loaded above");
             t.seen = self.scans;
-            for &(_, k, sd) in run {
+            for &(_, k, sd, weight) in run {
                 let w = t.weight[k];
-                t.sdf[k] += (sd - t.sdf[k]) / (f32::from(w.min(cap)) + 1.0);
+                let total = t.evidence[k].min(f32::from(cap));
+                t.sdf[k] += weight * (sd - t.sdf[k]) / (total + weight);
+                t.evidence[k] = total + weight;
                 t.weight[k] = w.saturating_add(1).min(cap);
             }
         }

@@ -253,7 +253,85 @@ fn parameters_that_cannot_hold_a_scan_are_refused() {
             hit_tolerance: f64::NAN,
             ..MapParams::default()
         },
+        MapParams {
+            heading_noise: -0.01,
+            ..MapParams::default()
+        },
+        MapParams {
+            heading_noise: f64::INFINITY,
+            ..MapParams::default()
+        },
     ] {
         assert!(bad.validate().is_err(), "{bad:?}");
     }
+}
+
+/// A wall along `y = 2`, seen twice from 1 m (curves on it) and twice from 12 m by a
+/// scan whose heading error put its curve 6 cm off (what 0.29 degrees does at that
+/// range). With the default heading noise (0.5 degrees) and 1 cm of range noise the
+/// near scans weigh `1 / (1 + 0.87^2)` and the far ones `1 / (1 + 10.4^2)`, so the
+/// wall is the weighted average: 0.95 mm off the near scans' line, where the plain
+/// average (heading noise 0) puts it at 3 cm. The lattice interpolates the average
+/// linearly between samples whose weights differ by their 3 cm in range: to 0.2 mm.
+#[test]
+fn a_wall_lies_where_the_scans_that_saw_it_from_near_put_it() {
+    let wall_scan = |sensor: Point, wall: f64| -> (Scan, Vec<Polyline>) {
+        let (start, step) = (45f64.to_radians(), 0.5f64.to_radians());
+        let ranges: Vec<Option<f64>> = (0..181)
+            .map(|k| {
+                let a = start + k as f64 * step;
+                Some((wall - sensor[1]) / a.sin())
+            })
+            .collect();
+        let scan = Scan::from_laser(&LaserScan {
+            origin: [0.0, 0.0],
+            angle_min: start,
+            angle_increment: step,
+            ranges: &ranges,
+            range_min: 0.05,
+            range_max: 30.0,
+        })
+        .unwrap();
+        // The free side (towards the sensor, below) on the curve's left: it runs to -x.
+        let dy = wall - sensor[1];
+        let curve = Polyline {
+            closed: false,
+            points: vec![[dy, dy], [0.0, dy], [-dy, dy]],
+        };
+        (scan, vec![curve])
+    };
+    let wall_at = |heading_noise: f64| -> f64 {
+        let params = MapParams {
+            heading_noise,
+            ..MapParams::default()
+        };
+        let mut map = Map::new(params, Box::new(MemoryStore::default())).unwrap();
+        for (sensor, wall) in [([0.0, 1.0], 2.0), ([0.0, -10.0], 2.06)] {
+            let (scan, curves) = wall_scan(sensor, wall);
+            for _ in 0..2 {
+                map.insert(&scan, [sensor[0], sensor[1], 0.0], &curves, 0.01)
+                    .unwrap();
+            }
+        }
+        let (curves, _) = map.finish().unwrap();
+        // Where the map's curve crosses x = 0 (it is simplified: no vertex need lie there).
+        curves
+            .iter()
+            .flat_map(|c| c.points.windows(2))
+            .find(|w| (w[0][0] >= 0.0) != (w[1][0] >= 0.0))
+            .map(|w| {
+                let t = w[0][0] / (w[0][0] - w[1][0]);
+                w[0][1] + t * (w[1][1] - w[0][1])
+            })
+            .unwrap_or_else(|| panic!("no wall across x = 0: {curves:?}"))
+    };
+    let (near, far) = (
+        1.0 / (1.0 + 0.87f64.powi(2)),
+        1.0 / (1.0 + 10.44f64.powi(2)),
+    );
+    let weighted = 2.0 + 0.06 * far / (near + far);
+    let y = wall_at(0.5f64.to_radians());
+    assert!((y - weighted).abs() < 2e-4, "{y} against {weighted}");
+    let y = wall_at(0.0);
+    assert!((y - 2.03).abs() < 2e-4, "{y} against 2.03");
 }

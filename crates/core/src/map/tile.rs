@@ -18,6 +18,9 @@ pub(crate) struct Tile {
     pub through: Vec<u16>,
     /// The last scan that voted at the sample, so a scan votes once.
     pub stamp: Vec<u32>,
+    /// The weight behind `sdf`: each scan's share, by its heading error at the sample's
+    /// range (`MapParams::heading_noise`), summed and capped like `weight`.
+    pub evidence: Vec<f32>,
     /// The last scan that touched the tile (least recently seen tiles leave memory).
     pub seen: u64,
 }
@@ -32,22 +35,24 @@ impl Tile {
             hits: vec![0; n],
             through: vec![0; n],
             stamp: vec![u32::MAX; n],
+            evidence: vec![0.0; n],
             seen: 0,
         }
     }
 
     /// Bytes a tile of `side` samples a side holds.
     pub fn bytes(side: usize) -> usize {
-        side * side * (4 + 2 + 4 + 2 + 2 + 4) + std::mem::size_of::<Tile>()
+        side * side * (4 + 2 + 4 + 4 + 2 + 2 + 4) + std::mem::size_of::<Tile>()
     }
 
     /// The tile as bytes for a [`TileStore`](super::TileStore), little-endian.
     pub fn to_bytes(&self) -> Vec<u8> {
         let n = self.sdf.len();
-        let mut out = Vec::with_capacity(8 + n * 18);
+        let mut out = Vec::with_capacity(8 + n * 22);
         out.extend_from_slice(&self.seen.to_le_bytes());
         out.extend(self.sdf.iter().flat_map(|v| v.to_le_bytes()));
         out.extend(self.weight.iter().flat_map(|v| v.to_le_bytes()));
+        out.extend(self.evidence.iter().flat_map(|v| v.to_le_bytes()));
         out.extend(self.occ.iter().flat_map(|v| v.to_le_bytes()));
         out.extend(self.hits.iter().flat_map(|v| v.to_le_bytes()));
         out.extend(self.through.iter().flat_map(|v| v.to_le_bytes()));
@@ -58,7 +63,7 @@ impl Tile {
     /// The tile [`Tile::to_bytes`] wrote, or `None` when `bytes` is not one of `side`.
     pub fn from_bytes(bytes: &[u8], side: usize) -> Option<Tile> {
         let n = side * side;
-        if bytes.len() != 8 + n * 18 {
+        if bytes.len() != 8 + n * 22 {
             return None;
         }
         let (seen, mut rest) = bytes.split_at(8);
@@ -79,6 +84,7 @@ impl Tile {
         };
         let sdf = f32s(take(4));
         let weight = u16s(take(2));
+        let evidence = f32s(take(4));
         let occ = f32s(take(4));
         let hits = u16s(take(2));
         let through = u16s(take(2));
@@ -95,6 +101,7 @@ impl Tile {
             hits,
             through,
             stamp,
+            evidence,
             seen: u64::from_le_bytes(s),
         })
     }
@@ -156,6 +163,7 @@ mod tests {
         let mut t = Tile::new(4);
         t.sdf[3] = -0.25;
         t.weight[5] = 7;
+        t.evidence[6] = 0.125;
         t.occ[15] = 3.5;
         t.hits[0] = 2;
         t.through[1] = 9;
