@@ -602,8 +602,8 @@ fn export_with(
     let u: Vec<f64> = solved.u.iter().map(|&x| at.len_to_data(x)).collect();
     let scan = scan_analysis.map(|a| {
         // The returns' noise band does not narrow with the mesh: a mesh finer than the
-        // noise (refinement over frames meshes at half of it) keeps the tolerance of
-        // one at the noise, or returns in the band's tails would count as unexplained.
+        // noise (a configured `hmin` below it) keeps the tolerance of one at the noise,
+        // or returns in the band's tails would count as unexplained.
         let sigma = a.scales.noise;
         (a, 2.0 * sigma + hmin.max(sigma), 3.0 * sigma + 2.0 * hmin)
     });
