@@ -111,8 +111,9 @@ impl Default for MapParams {
             max_range: 20.0,
             max_tiles: 512,
             align: false,
-            // SLAM-corrected poses: the median correction the refinement's alignment
-            // makes between consecutive scans of the corrected logs is 0.5 degrees.
+            // SLAM-corrected poses are off by about this much in the median frame
+            // (docs/method.md, refinement); half of it gives the same maps within a
+            // point of static returns.
             heading_noise: 0.5_f64.to_radians(),
         }
     }
