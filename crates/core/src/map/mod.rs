@@ -327,7 +327,11 @@ impl Map {
                 points: c.points.iter().map(|&p| to_world(pose, p)).collect(),
             })
             .collect();
-        self.fuse_curves(&world, 3.0 * noise + 2.0 * self.params.cell, origin, noise)?;
+        // Only what the beams counted: a curve past `max_range` (a scanner's "no return"
+        // reported as its largest range draws an arc there) is no wall the votes saw,
+        // and would reach tiles beyond the ones a scan may touch.
+        let reach = within(&world, origin, self.params.max_range);
+        self.fuse_curves(&reach, 3.0 * noise + 2.0 * self.params.cell, origin, noise)?;
         // The scores judge the map by the returns where the scan's own pose puts them,
         // whatever the alignment made of it (a map true only to itself scores badly).
         let placed = if given == pose {
@@ -935,6 +939,70 @@ fn incidence_cosines(scan: &Scan) -> Vec<f64> {
             ((dir[0] * chord[1] - dir[1] * chord[0]) / len).abs()
         })
         .collect()
+}
+
+/// The stretches of `curves` within `r` of `o`, each cut where it crosses the circle;
+/// a closed curve that leaves the disc comes out as open pieces.
+fn within(curves: &[Polyline], o: Point, r: f64) -> Vec<Polyline> {
+    let inside = |p: Point| crate::geom::dist(p, o) <= r;
+    // Where the segment from `a` (inside) to `b` (outside) leaves the disc.
+    let exit = |a: Point, b: Point| -> Point {
+        let (d, f) = ([b[0] - a[0], b[1] - a[1]], [a[0] - o[0], a[1] - o[1]]);
+        let (qa, qb, qc) = (
+            d[0] * d[0] + d[1] * d[1],
+            2.0 * (f[0] * d[0] + f[1] * d[1]),
+            f[0] * f[0] + f[1] * f[1] - r * r,
+        );
+        let t = if qa > 0.0 {
+            ((-qb + (qb * qb - 4.0 * qa * qc).max(0.0).sqrt()) / (2.0 * qa)).clamp(0.0, 1.0)
+        } else {
+            0.0
+        };
+        [a[0] + t * d[0], a[1] + t * d[1]]
+    };
+    let mut out = Vec::new();
+    for c in curves {
+        if c.points.iter().all(|&p| inside(p)) {
+            out.push(c.clone());
+            continue;
+        }
+        let n = c.points.len();
+        // A closed curve is walked from a point outside, so that no stretch wraps round.
+        let start = if c.closed {
+            c.points.iter().position(|&p| !inside(p)).unwrap_or(0)
+        } else {
+            0
+        };
+        let steps = if c.closed { n + 1 } else { n };
+        let mut piece: Vec<Point> = Vec::new();
+        let mut prev: Option<Point> = None;
+        for k in 0..steps {
+            let p = c.points[(start + k) % n];
+            match (prev, inside(p)) {
+                (Some(q), true) if !inside(q) => piece.push(exit(p, q)),
+                (Some(q), false) if inside(q) => {
+                    piece.push(exit(q, p));
+                    out.push(Polyline {
+                        closed: false,
+                        points: std::mem::take(&mut piece),
+                    });
+                }
+                _ => {}
+            }
+            if inside(p) {
+                piece.push(p);
+            }
+            prev = Some(p);
+        }
+        if piece.len() >= 2 {
+            out.push(Polyline {
+                closed: false,
+                points: piece,
+            });
+        }
+    }
+    out.retain(|pl| pl.points.len() >= 2);
+    out
 }
 
 #[cfg(test)]

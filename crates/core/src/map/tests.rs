@@ -335,3 +335,71 @@ fn a_wall_lies_where_the_scans_that_saw_it_from_near_put_it() {
     let y = wall_at(0.0);
     assert!((y - 2.03).abs() < 2e-4, "{y} against 2.03");
 }
+
+/// A curve is cut where it leaves the disc: an open line from the centre out to 30
+/// ends on the circle of 20; a closed circle of radius 10 about (15, 0) keeps the arc
+/// inside, whose two ends lie on the circle, as one open piece.
+#[test]
+fn curves_are_cut_to_the_beams_reach() {
+    let line = Polyline {
+        closed: false,
+        points: (0..=30).map(|k| [k as f64, 0.0]).collect(),
+    };
+    let cut = within(&[line], [0.0, 0.0], 20.0);
+    assert_eq!(cut.len(), 1);
+    assert_eq!(cut[0].points.first(), Some(&[0.0, 0.0]));
+    assert!(crate::geom::dist(*cut[0].points.last().unwrap(), [20.0, 0.0]) < 1e-12);
+    let ring = Polyline {
+        closed: true,
+        points: (0..64)
+            .map(|k| {
+                let a = std::f64::consts::TAU * k as f64 / 64.0;
+                [15.0 + 10.0 * a.cos(), 10.0 * a.sin()]
+            })
+            .collect(),
+    };
+    let cut = within(&[ring], [0.0, 0.0], 20.0);
+    assert_eq!(cut.len(), 1, "{cut:?}");
+    let r = |p: &Point| crate::geom::dist(*p, [0.0, 0.0]);
+    assert!(cut[0].points.iter().all(|p| r(p) <= 20.0 + 1e-9));
+    for end in [cut[0].points[0], *cut[0].points.last().unwrap()] {
+        assert!((r(&end) - 20.0).abs() < 1e-9, "{end:?}");
+    }
+}
+
+/// A scanner that reports "no return" as 50 m draws an arc there; the map counts beams
+/// up to `max_range` (20 m), so the arc is no wall of the map and opens no tile beyond
+/// the ones a scan may touch.
+#[test]
+fn curves_past_the_beams_reach_stay_out_of_the_map() {
+    let (start, step) = (-90f64.to_radians(), 1f64.to_radians());
+    let ranges: Vec<Option<f64>> = (0..181).map(|_| Some(50.0)).collect();
+    let scan = Scan::from_laser(&LaserScan {
+        origin: [0.0, 0.0],
+        angle_min: start,
+        angle_increment: step,
+        ranges: &ranges,
+        range_min: 0.05,
+        range_max: 80.0,
+    })
+    .unwrap();
+    let arc = Polyline {
+        closed: false,
+        points: (0..181)
+            .rev()
+            .map(|k| {
+                let a = start + k as f64 * step;
+                [50.0 * a.cos(), 50.0 * a.sin()]
+            })
+            .collect(),
+    };
+    let params = MapParams::default();
+    let mut map = Map::new(params, Box::new(MemoryStore::default())).unwrap();
+    for _ in 0..3 {
+        map.insert(&scan, [0.0, 0.0, 0.0], std::slice::from_ref(&arc), 0.01)
+            .unwrap();
+    }
+    assert!(map.stats().tiles_resident <= params.tiles_per_scan());
+    let (curves, _) = map.finish().unwrap();
+    assert!(curves.is_empty(), "{curves:?}");
+}
