@@ -53,16 +53,21 @@ impl Scene {
                 best.is_finite().then(|| best + noise.sample(rng))
             })
             .collect();
-        Scan::from_laser(&LaserScan {
-            origin: [0.0, 0.0],
-            angle_min: start,
-            angle_increment: step,
-            ranges: &ranges,
-            range_min: 0.05,
-            range_max: 10.0,
-        })
-        .unwrap()
+        laser(start, step, &ranges, 10.0)
     }
+}
+
+/// A scan at the origin with beams from `start` every `step`, ranges up to `range_max`.
+fn laser(start: f64, step: f64, ranges: &[Option<f64>], range_max: f64) -> Scan {
+    Scan::from_laser(&LaserScan {
+        origin: [0.0, 0.0],
+        angle_min: start,
+        angle_increment: step,
+        ranges,
+        range_min: 0.05,
+        range_max,
+    })
+    .unwrap()
 }
 
 fn ray_segment(o: Point, d: Point, p: Point, q: Point) -> Option<f64> {
@@ -283,15 +288,7 @@ fn a_wall_lies_where_the_scans_that_saw_it_from_near_put_it() {
                 Some((wall - sensor[1]) / a.sin())
             })
             .collect();
-        let scan = Scan::from_laser(&LaserScan {
-            origin: [0.0, 0.0],
-            angle_min: start,
-            angle_increment: step,
-            ranges: &ranges,
-            range_min: 0.05,
-            range_max: 30.0,
-        })
-        .unwrap();
+        let scan = laser(start, step, &ranges, 30.0);
         // The free side (towards the sensor, below) on the curve's left: it runs to -x.
         let dy = wall - sensor[1];
         let curve = Polyline {
@@ -374,15 +371,7 @@ fn curves_are_cut_to_the_beams_reach() {
 fn curves_past_the_beams_reach_stay_out_of_the_map() {
     let (start, step) = (-90f64.to_radians(), 1f64.to_radians());
     let ranges: Vec<Option<f64>> = (0..181).map(|_| Some(50.0)).collect();
-    let scan = Scan::from_laser(&LaserScan {
-        origin: [0.0, 0.0],
-        angle_min: start,
-        angle_increment: step,
-        ranges: &ranges,
-        range_min: 0.05,
-        range_max: 80.0,
-    })
-    .unwrap();
+    let scan = laser(start, step, &ranges, 80.0);
     let arc = Polyline {
         closed: false,
         points: (0..181)
