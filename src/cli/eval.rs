@@ -331,13 +331,15 @@ fn run_without_truth(a: &Args) -> Result<()> {
     super::print(&format!("{out}\n"))
 }
 
-/// The mean distance to `curves` (frame `key`'s) of the next scan's returns in the
-/// same stream within `tol` of them: the next scan placed in this frame by the two
-/// poses, then laid onto this frame's returns by the alignment refinement uses
-/// ([`isoline_core::align_returns`]; poses are off by more than the noise). Returns
-/// the curves never saw, so a curve fitted to its own frame's noise gains nothing
-/// here: the score falls as the curves come nearer the walls. `None` without a next
-/// scan, poses, or returns within `tol`.
+/// The mean distance to `curves` (frame `key`'s), capped at `tol`, of the next scan's
+/// returns in the same stream that lie within `tol` of this frame's returns: the next
+/// scan placed in this frame by the two poses, then laid onto this frame's returns by
+/// the alignment refinement uses ([`isoline_core::align_returns`]; poses are off by
+/// more than the noise). Returns the curves never saw, so a curve fitted to its own
+/// frame's noise gains nothing here: the score falls as the curves come nearer the
+/// walls. Which returns count depends on the two scans alone, not on the curves
+/// scored: a mean over the returns within `tol` of the curves would reward curves that
+/// explain fewer of them. `None` without a next scan, poses, or returns within `tol`.
 fn held_out(
     posed: &std::collections::BTreeMap<(Option<String>, u64), (&isoline_core::Scan, Pose)>,
     key: &(Option<String>, u64),
@@ -359,10 +361,21 @@ fn held_out(
     let [x, y, theta] = isoline_core::align_returns(&placed, scan, &Default::default());
     let (s, c) = theta.sin_cos();
     let index = isoline_core::SegmentIndex::new(curves);
+    let own = isoline_core::SegmentIndex::new(
+        &scan
+            .returns()
+            .into_iter()
+            .map(|p| Polyline {
+                closed: false,
+                points: vec![p],
+            })
+            .collect::<Vec<_>>(),
+    );
     let near: Vec<f64> = placed
         .iter()
-        .map(|p| index.distance([c * p[0] - s * p[1] + x, s * p[0] + c * p[1] + y]))
-        .filter(|&d| d <= tol)
+        .map(|p| [c * p[0] - s * p[1] + x, s * p[0] + c * p[1] + y])
+        .filter(|&q| own.distance(q) <= tol)
+        .map(|q| index.distance(q).min(tol))
         .collect();
     (!near.is_empty()).then(|| near.iter().sum::<f64>() / near.len() as f64)
 }

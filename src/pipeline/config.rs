@@ -273,8 +273,8 @@ pub const DEFAULT_MAX_STREAMS: usize = 256;
 /// Default of `pipeline.max_state_bytes`: 4 GiB for every stream's window together.
 pub const DEFAULT_MAX_STATE_BYTES: usize = 4 << 30;
 
-/// The most frames `pipeline.accumulate` may keep: each holds a mesh, a level set, its
-/// scan's analysis and indices (about 0.9 MB for a 1,080-beam scan); the windows' bytes
+/// The most frames `pipeline.accumulate` may keep: each holds its curves, its returns
+/// and an index (about 0.17 MB for a 1,080-beam scan); the windows' bytes
 /// are bounded by `pipeline.max_state_bytes` whatever the frames.
 pub const MAX_ACCUMULATE: usize = 100;
 /// Default of `pipeline.stream_idle`.

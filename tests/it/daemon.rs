@@ -663,12 +663,13 @@ fn refinement_windows_hold_their_byte_budget() {
     }
     let input = d.join("in.ndjson");
     std::fs::write(&input, text).unwrap();
-    // 16 MiB for 4 streams: 4 MiB a window, a few frames of a 1,080-beam scan.
+    // 2 MiB for 4 streams: 512 KiB a window, about three frames of a 1,080-beam scan
+    // (its curves, subdivided, and its returns).
     let (recs, _) = replay(
         d,
         &input,
         "",
-        "[pipeline]\naccumulate = 10\nmax_streams = 4\nmax_state_bytes = 16777216\n",
+        "[pipeline]\naccumulate = 10\nmax_streams = 4\nmax_state_bytes = 2097152\n",
     );
     assert_eq!(recs.len(), 10);
     let windows: Vec<&Value> = recs
@@ -681,7 +682,7 @@ fn refinement_windows_hold_their_byte_budget() {
         .collect();
     assert_eq!(windows.len(), 10);
     for w in &windows {
-        assert!(w["bytes"].as_u64().unwrap() <= 4 << 20, "{w}");
+        assert!(w["bytes"].as_u64().unwrap() <= 512 << 10, "{w}");
     }
     let most = windows
         .iter()

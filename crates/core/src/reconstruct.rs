@@ -483,14 +483,15 @@ pub fn export(prepared: &Prepared, adapted: AdaptedMesh, solved: Solved) -> Reco
 }
 
 /// The export stage with refinement over frames (`crate::fusion`): the frame (a
-/// scan taken at `pose`) joins its stream's `window`, and its level set is replaced by
-/// the average of the window's that agree with it, on its mesh. The record stays in the
-/// frame's coordinates.
+/// scan taken at `pose`) is exported as it would be alone, joins its stream's `window`,
+/// and its curves are moved to the average of the window's curves that agree with
+/// them. The record stays in the frame's coordinates; its mesh and level set are the
+/// frame's own.
 #[allow(clippy::too_many_arguments)]
 pub fn export_refined(
     prepared: &Prepared,
     adapted: AdaptedMesh,
-    mut solved: Solved,
+    solved: Solved,
     frame: u64,
     t: Option<f64>,
     pose: crate::geom::Pose,
@@ -498,87 +499,110 @@ pub fn export_refined(
     limits: &crate::fusion::WindowLimits,
 ) -> Reconstruction {
     on_pool(move || {
-        use crate::geom::to_world;
+        use crate::geom::{to_sensor, to_world};
+        use rayon::prelude::*;
         let Some(scan) = &prepared.scan else {
             return export_with(prepared, None, adapted, solved, None);
         };
         let t0 = Instant::now();
+        let mut r = export_with(prepared, Some(scan), adapted, solved, None);
+        let single_ms = t0.elapsed().as_secs_f64() * 1e3;
         let at = prepared.placement;
-        let world = |p: Point| to_world(pose, at.to_data(p));
-        let mut mesh = adapted.mesh.clone();
-        mesh.coords.iter_mut().for_each(|c| *c = world(*c));
-        let mut u: Vec<f64> = solved.u.iter().map(|&x| at.len_to_data(x)).collect();
-        let analysis = scan.transformed(&world, pose[2], &|x| at.len_to_data(x));
-        let tol = at.len_to_data(2.0 * scan.scales.noise + adapted.params.hmin);
+        let sigma = at.len_to_data(scan.scales.noise);
+        let hmin = r.stats.hmin;
+        let tol = 2.0 * sigma + hmin.max(sigma);
+        let bound = 3.0 * sigma + 2.0 * hmin;
+        let runs: Vec<Vec<Point>> = scan
+            .run_points()
+            .into_iter()
+            .map(|run| run.into_iter().map(|p| at.to_data(p)).collect())
+            .collect();
+        let own_returns: Vec<Point> = runs.iter().flatten().copied().collect();
+        let world = |p: Point| to_world(pose, p);
+        let curves_world: Vec<Polyline> = r
+            .polylines
+            .iter()
+            .map(|c| Polyline {
+                closed: c.closed,
+                points: c.points.iter().map(|&p| world(p)).collect(),
+            })
+            .collect();
         window.push(
-            crate::fusion::View::new(frame, t, mesh, u.clone(), analysis, tol),
+            crate::fusion::View::new(
+                frame,
+                t,
+                &curves_world,
+                own_returns.iter().map(|&p| world(p)).collect(),
+                sigma,
+                tol,
+            ),
             limits,
         );
-        let newest = window.views().last().expect("the frame just pushed");
-        let own_u = solved.u.clone();
-        let evidence = window.fuse(&newest.mesh.coords, &mut u);
-        solved.u = u.iter().map(|&x| at.len_to_local(x)).collect();
-        // The invariant: a refined frame explains every return its own level set explains
+        let (moved, evidence) = window.refined();
+        let local = |c: Polyline| Polyline {
+            closed: c.closed,
+            points: c.points.into_iter().map(|p| to_sensor(pose, p)).collect(),
+        };
+        let eps = 1e-9 * at.len_to_data(prepared.diag);
+        let moved =
+            crate::repair::invariants::well_formed(moved.into_iter().map(local).collect(), eps);
+        let evidence: Vec<Point> = evidence.into_iter().map(|p| to_sensor(pose, p)).collect();
+        // The invariant: a refined frame explains every return its own curves explain
         // (within the accuracy bound `3 sigma + 2 hmin`), and fits the window's returns
         // (its own and the older frames', as the alignment placed them) at least as well
-        // as its own level set does: the mean of their distances to it, capped at the
-        // bound so that returns no curve explains weigh alike. Where the window fails
-        // either (a pose error the alignment did not catch, a scene that changed) the
-        // frame keeps its own level set.
-        let bound = 3.0 * scan.scales.noise + 2.0 * adapted.params.hmin;
-        let own_returns: Vec<Point> = scan.run_points().into_iter().flatten().collect();
-        let to_local = |p: Point| at.to_local(crate::geom::to_sensor(pose, p));
-        let window_returns: Vec<Point> = evidence.into_iter().map(to_local).collect();
-        // One location pass for both sets: a band's walks that stop at a gap retry from a
-        // vertex index, built once.
-        let all: Vec<Point> = own_returns.iter().chain(&window_returns).copied().collect();
-        let located = crate::fem::locate::locate_all(&adapted.mesh, &all);
-        let (own_at, window_at) = located.split_at(own_returns.len());
-        let inside: Vec<&crate::fem::locate::Location> = window_at
-            .iter()
-            .zip(&window_returns)
-            .filter(|(l, &p)| crate::fem::locate::gap(&adapted.mesh, l, p) <= 1e-3 * bound)
-            .map(|(l, _)| l)
-            .collect();
-        let fit = |u: &[f64]| {
-            let d =
-                |l: &crate::fem::locate::Location| l.interpolate(&adapted.mesh, u).abs().min(bound);
-            let explained = own_at.iter().filter(|l| d(l) < bound).count();
-            let sum: f64 = own_at.iter().chain(inside.iter().copied()).map(d).sum();
-            (explained, sum)
+        // as its own curves do: the mean of their distances, capped at the bound so that
+        // returns no curve explains weigh alike. Where the window fails either (a pose
+        // error the alignment did not catch, a scene that changed) the frame keeps its
+        // own curves.
+        let (own_index, moved_index) = (
+            crate::index::SegmentIndex::new(&r.polylines),
+            crate::index::SegmentIndex::new(&moved),
+        );
+        let keeps_own = own_returns
+            .par_iter()
+            .all(|&p| own_index.distance(p) > bound || moved_index.distance(p) <= bound);
+        let capped = |index: &crate::index::SegmentIndex| -> f64 {
+            own_returns
+                .par_iter()
+                .chain(evidence.par_iter())
+                .map(|&p| index.distance(p).min(bound))
+                .sum()
         };
-        let ((fused_explained, fused_sum), (own_explained, own_sum)) =
-            (fit(&solved.u), fit(&own_u));
-        let fused = fused_explained >= own_explained && fused_sum <= own_sum;
-        if !fused {
-            solved.u = own_u;
+        // A window of the frame alone has nothing to fuse: the frame is as it was.
+        let alone = window.len() == 1;
+        let fused =
+            !alone && keeps_own && capped(&moved_index) <= capped(&own_index) * (1.0 + 1e-12);
+        if !alone {
+            r.stats.start = if fused {
+                crate::levelset::Start::Fused
+            } else {
+                crate::levelset::Start::Fallback
+            };
+            r.stats.warm_start = fused;
+            r.stats.cold_fallback = !fused;
         }
-        solved.start = if fused {
-            crate::levelset::Start::Fused
-        } else {
-            crate::levelset::Start::Fallback
-        };
-        // A curve ends where its run's last return is; each frame's is off by its own
-        // noise, and the median over the window much less (a frame that keeps its own level
-        // set keeps its own ends too).
-        let mut own = scan.clone();
-        let local = |p: Point| at.to_local(crate::geom::to_sensor(pose, p));
-        for pl in own.support.iter_mut().filter(|pl| fused && !pl.closed) {
-            let n = pl.points.len();
-            for i in [0, n.saturating_sub(1)] {
-                if let Some(m) = window.median_end(world(pl.points[i]), 2.0 * tol) {
-                    pl.points[i] = local(m);
-                }
-            }
+        if fused {
+            let data: Vec<Point> = prepared.local.iter().map(|&q| at.to_data(q)).collect();
+            let fit = crate::export::fit::fit(&data, &moved, bound);
+            let supported = runs
+                .iter()
+                .map(Vec::len)
+                .filter(|&n| n >= prepared.params.scan.min_run)
+                .sum();
+            r.features = crate::export::support::unexplained(&runs, &moved, bound);
+            r.warnings = crate::export::fit::warnings(supported, &moved, &fit, bound);
+            r.stats.explained = fit.explained;
+            r.stats.fit_p90 = fit.p90.is_finite().then_some(fit.p90);
+            r.stats.unexplained = Some(r.features.iter().map(|f| f.returns).sum());
+            r.polylines = moved;
         }
-        let stats = WindowStats {
+        r.stats.window = Some(WindowStats {
             frames: window.len(),
             points: window.points(),
             bytes: window.bytes(),
-        };
+        });
         // The fusion is part of the export stage's time.
-        let mut r = export_with(prepared, Some(&own), adapted, solved, Some(stats));
-        let fusion = t0.elapsed().as_secs_f64() * 1e3 - r.stats.ms.export;
+        let fusion = t0.elapsed().as_secs_f64() * 1e3 - single_ms;
         r.stats.ms.export += fusion.max(0.0);
         r.stats.ms.total += fusion.max(0.0);
         r

@@ -196,7 +196,7 @@ impl Stream {
         };
         reconstruct::renormalize(&adapted.mesh, &mut solved);
         if self.warm {
-            // The frame's own level set, not the fused one: each frame is fused once.
+            // The frame's own level set: refinement moves the curves, not the level set.
             let kept = prepared.level_set(&adapted, &solved);
             self.level_set.keep(kept, f.pose);
         }

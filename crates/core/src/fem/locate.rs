@@ -209,12 +209,6 @@ pub(crate) struct VertexIndex {
 }
 
 impl VertexIndex {
-    /// Bytes the index holds: a point and an item per vertex, about as much again for
-    /// the tree's stems and buckets.
-    pub(crate) fn bytes(&self) -> usize {
-        self.tree.size() * 2 * 24
-    }
-
     /// The index of `mesh`'s vertices; `None` for a mesh without any.
     pub(crate) fn new(mesh: &Mesh) -> Option<VertexIndex> {
         if mesh.coords.is_empty()
@@ -239,12 +233,6 @@ impl VertexIndex {
             .execute()
             .item as usize;
         locate(mesh, p, mesh.vert_tri[v])
-    }
-
-    /// `p`'s location, or `None` when it lies farther than `slack` outside the mesh.
-    pub(crate) fn locate_within(&self, mesh: &Mesh, p: Point, slack: f64) -> Option<Location> {
-        let l = self.locate(mesh, p);
-        (gap(mesh, &l, p) <= slack).then_some(l)
     }
 }
 

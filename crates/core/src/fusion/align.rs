@@ -139,16 +139,6 @@ impl Surface {
         }
     }
 
-    /// Its returns, run after run in bearing order.
-    pub fn points(&self) -> &[Point] {
-        &self.points
-    }
-
-    /// Bytes it holds, roughly.
-    pub fn bytes(&self) -> usize {
-        self.points.len() * (2 * std::mem::size_of::<Point>() + 1 + 24)
-    }
-
     /// The nearest return to `q` within `gate`, if it is an inner one: its position
     /// and normal.
     fn partner(&self, q: Point, gate: f64) -> Option<(Point, Point)> {

@@ -647,47 +647,6 @@ impl Analysis {
         }
     }
 
-    /// The analysis in other coordinates: points mapped by `f`, a similarity that turns
-    /// by `turn` and maps lengths by `len`.
-    pub fn transformed(
-        &self,
-        f: &impl Fn(Point) -> Point,
-        turn: f64,
-        len: &impl Fn(f64) -> f64,
-    ) -> Analysis {
-        let turned = |angles: &[f64]| angles.iter().map(|a| a + turn).collect::<Vec<_>>();
-        Analysis {
-            scan: Scan {
-                origin: f(self.scan.origin),
-                angles: turned(&self.scan.angles),
-                ranges: self.scan.ranges.iter().map(|&r| len(r)).collect(),
-                range_max: len(self.scan.range_max),
-                ..self.scan.clone()
-            },
-            runs: self.runs.clone(),
-            scales: Scales {
-                noise: len(self.scales.noise),
-                noise_estimate: self.scales.noise_estimate.map(len),
-                spacing: len(self.scales.spacing),
-            },
-            free: FreeSpace {
-                origin: f(self.free.origin),
-                angles: turned(&self.free.angles),
-                reach: self.free.reach.iter().map(|&r| len(r)).collect(),
-                ..self.free.clone()
-            },
-            support: self
-                .support
-                .iter()
-                .map(|pl| Polyline {
-                    closed: pl.closed,
-                    points: pl.points.iter().map(|&p| f(p)).collect(),
-                })
-                .collect(),
-            refine: self.refine,
-        }
-    }
-
     /// The mesh parameters for this scan from the configured ones: sizes from the sensor.
     /// Far from the sensor the beams are sparse, but the noise is the range noise
     /// everywhere: `hmin` resolves the noise band, or where the beams are denser than
