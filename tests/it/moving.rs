@@ -300,10 +300,9 @@ fn refinement_over_frames_averages_the_noise_down() {
 /// up to 0.1 rad a frame): every frame has curves, the last frame's, taken into the
 /// world by its pose, lie within 3 sigma + 2 hmin (5 cm) of the scene's walls, and the
 /// curves stray from the walls at most 0.7 as far as a single frame's (the static
-/// scanner's bound, 0.6, plus the chained alignment's error: a frame's walls are laid
-/// onto the newest through up to nine alignments, each off by a fraction of a
-/// millimetre; an alignment biased by a millimetre, as a point-to-line ICP on the
-/// returns' own zigzag is, leaves 0.9).
+/// scanner's bound, 0.6, plus the alignments' error: each older frame is laid onto the
+/// newest by its own alignment, off by a fraction of a millimetre; an alignment biased
+/// by a millimetre, as a point-to-line ICP on the returns' own zigzag is, leaves 0.9).
 #[test]
 fn refinement_on_a_moving_scanner_stays_on_the_walls() {
     let dir = tempfile::tempdir().unwrap();
