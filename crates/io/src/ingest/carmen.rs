@@ -5,8 +5,14 @@
 //!
 //! Old-style `FLASER`/`RLASER` lines do not say their beams' geometry: as CARMEN's own
 //! reader, 180 or 181 beams are 1 degree apart, 360 or 361 half a degree, 400 or 401 a
-//! quarter, and any other count spans 180 degrees; the sweep starts at -90 degrees and
-//! returns reach at most [`FLASER_RANGE_MAX`] (SICK scanners report 81.9 m for none).
+//! quarter, and any other count spans 180 degrees; the sweep starts at -90 degrees.
+//! Returns reach less than the laser's maximum range as the log declares it
+//! (`PARAM robot_front_laser_max` and `robot_rear_laser_max`, CARMEN's own
+//! parameters), and at most [`FLASER_RANGE_MAX`] (SICK scanners report 81.9 m for
+//! none). The readings SICK LMS scanners log in millimetre mode for no return, dazzle
+//! and other errors, 32.759 to 32.767 m ([`SICK_MM_CODES`], the top of the 15-bit range
+//! in millimetres), are no returns either: a log of the Örebro corridors holds 968 of
+//! them, which would otherwise draw arcs 32.76 m from the sensor.
 
 use std::io::{BufRead, Seek};
 use std::path::Path;
@@ -17,6 +23,42 @@ use crate::format::FrameRecord;
 
 /// Old-style laser lines: ranges at or beyond this are no returns, metres.
 pub const FLASER_RANGE_MAX: f64 = 80.0;
+
+/// The SICK LMS error codes of millimetre mode (`0x7FF7..=0x7FFF` mm), in metres: no
+/// returns. A true reading there is lost with them: one beam in a scan, at 32.76 m.
+pub const SICK_MM_CODES: std::ops::RangeInclusive<f64> = 32.759..=32.767;
+
+/// What a log's `PARAM` lines say of its lasers' reach, metres.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct LaserReach {
+    /// `robot_front_laser_max`: the `FLASER` laser's maximum range.
+    pub front: Option<f64>,
+    /// `robot_rear_laser_max`: the `RLASER` laser's.
+    pub rear: Option<f64>,
+}
+
+impl LaserReach {
+    /// Takes in a `PARAM` line's fields after the keyword, if it names a reach (a
+    /// positive, finite number of metres).
+    fn read_param(&mut self, fields: &str) {
+        let mut w = fields.split_whitespace();
+        let (Some(name), Some(value)) = (w.next(), w.next()) else {
+            return;
+        };
+        let Some(v) = value
+            .parse::<f64>()
+            .ok()
+            .filter(|v| v.is_finite() && *v > 0.0)
+        else {
+            return;
+        };
+        match name {
+            "robot_front_laser_max" => self.front = Some(v),
+            "robot_rear_laser_max" => self.rear = Some(v),
+            _ => {}
+        }
+    }
+}
 
 /// The longest line read; a longer one is an error record, not memory.
 pub const MAX_LINE_BYTES: usize = 1 << 20;
@@ -105,6 +147,14 @@ fn old_increment(n: usize) -> f64 {
 /// Parses one laser line (its fields after the keyword) into a frame record; `None`
 /// for lines that are not laser messages.
 pub fn parse_line(line: &str) -> Option<std::result::Result<FrameRecord, String>> {
+    parse_line_with(line, &LaserReach::default())
+}
+
+/// [`parse_line`] for a log whose `PARAM` lines declared `reach`.
+pub fn parse_line_with(
+    line: &str,
+    reach: &LaserReach,
+) -> Option<std::result::Result<FrameRecord, String>> {
     let mut words = line.split_whitespace();
     let key = words.next()?;
     let stream = match key {
@@ -176,7 +226,12 @@ pub fn parse_line(line: &str) -> Option<std::result::Result<FrameRecord, String>
                 .collect::<std::result::Result<Vec<f64>, String>>()?;
             angle_min = -std::f64::consts::FRAC_PI_2;
             increment = old_increment(n);
-            range_max = FLASER_RANGE_MAX;
+            let declared = if key == "RLASER" {
+                reach.rear
+            } else {
+                reach.front
+            };
+            range_max = declared.map_or(FLASER_RANGE_MAX, |m| m.min(FLASER_RANGE_MAX));
             pose = [num("x")?, num("y")?, num("theta")?];
             for what in ["odom_x", "odom_y", "odom_theta"] {
                 num(what)?;
@@ -190,7 +245,12 @@ pub fn parse_line(line: &str) -> Option<std::result::Result<FrameRecord, String>
             ranges: Some(
                 ranges
                     .into_iter()
-                    .map(|r| (r > 0.0 && r < range_max).then_some(r))
+                    .map(|r| {
+                        let code = key != "ROBOTLASER1"
+                            && (SICK_MM_CODES.start() - 1e-6..=SICK_MM_CODES.end() + 1e-6)
+                                .contains(&r);
+                        (r > 0.0 && r < range_max && !code).then_some(r)
+                    })
                     .collect(),
             ),
             angle_min: Some(angle_min),
@@ -227,6 +287,7 @@ pub fn read_carmen_with<T>(
     let mut frames = 0u64;
     let mut first = true;
     let mut not_carmen = None;
+    let mut reach = LaserReach::default();
     super::bounded_lines(reader, path, MAX_LINE_BYTES, |line_no, line| {
         let bad = |message: String| BadFrame {
             stream: None,
@@ -249,7 +310,11 @@ pub fn read_carmen_with<T>(
             ));
             return false;
         }
-        let Some(parsed) = parse_line(text) else {
+        if let Some(fields) = text.strip_prefix("PARAM ") {
+            reach.read_param(fields);
+            return true;
+        }
+        let Some(parsed) = parse_line_with(text, &reach) else {
             return true;
         };
         let stream: &'static str = match text.split_whitespace().next() {
@@ -323,6 +388,36 @@ mod tests {
             let e = parse_line(bad).unwrap().unwrap_err();
             assert!(e.contains(what), "{bad}: {e}");
         }
+    }
+
+    /// A log's declared reach bounds its returns, per laser, and SICK's millimetre-mode
+    /// error codes are no returns.
+    #[test]
+    fn declared_reach_and_error_codes_are_no_returns() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("run.log");
+        std::fs::write(
+            &path,
+            "PARAM robot_front_laser_max 50 host 0
+PARAM robot_rear_laser_max 120 host 0
+             FLASER 4 49.9 50.0 32.763 32.7 1 2 0.5 1 2 0.5 12.5 host 0.1
+             RLASER 4 49.9 50.0 81.9 32.767 1 2 0.5 1 2 0.5 12.5 host 0.1
+",
+        )
+        .unwrap();
+        let mut ranges = Vec::new();
+        read_carmen_with(
+            &path,
+            |rec| Ok(rec.ranges.unwrap()),
+            |r| {
+                ranges.push(r.unwrap());
+                true
+            },
+        )
+        .unwrap();
+        assert_eq!(ranges[0], [Some(49.9), None, None, Some(32.7)]);
+        // A declared reach beyond the SICK codes' 80 m keeps them out.
+        assert_eq!(ranges[1], [Some(49.9), Some(50.0), None, None]);
     }
 
     /// Logs are recognised by their lines, gzip-compressed or not, whatever their
