@@ -538,6 +538,18 @@ pub fn export_refined(
             ),
             limits,
         );
+        // A window of the frame alone has nothing to fuse: the frame is as it was.
+        if window.len() == 1 {
+            r.stats.window = Some(WindowStats {
+                frames: 1,
+                points: window.points(),
+                bytes: window.bytes(),
+            });
+            let fusion = t0.elapsed().as_secs_f64() * 1e3 - single_ms;
+            r.stats.ms.export += fusion.max(0.0);
+            r.stats.ms.total += fusion.max(0.0);
+            return r;
+        }
         let (moved, evidence) = window.refined();
         let local = |c: Polyline| Polyline {
             closed: c.closed,
@@ -568,19 +580,14 @@ pub fn export_refined(
                 .map(|&p| index.distance(p).min(bound))
                 .sum()
         };
-        // A window of the frame alone has nothing to fuse: the frame is as it was.
-        let alone = window.len() == 1;
-        let fused =
-            !alone && keeps_own && capped(&moved_index) <= capped(&own_index) * (1.0 + 1e-12);
-        if !alone {
-            r.stats.start = if fused {
-                crate::levelset::Start::Fused
-            } else {
-                crate::levelset::Start::Fallback
-            };
-            r.stats.warm_start = fused;
-            r.stats.cold_fallback = !fused;
-        }
+        let fused = keeps_own && capped(&moved_index) <= capped(&own_index) * (1.0 + 1e-12);
+        r.stats.start = if fused {
+            crate::levelset::Start::Fused
+        } else {
+            crate::levelset::Start::Fallback
+        };
+        r.stats.warm_start = fused;
+        r.stats.cold_fallback = !fused;
         if fused {
             let data: Vec<Point> = prepared.local.iter().map(|&q| at.to_data(q)).collect();
             let fit = crate::export::fit::fit(&data, &moved, bound);
