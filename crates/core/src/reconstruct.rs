@@ -555,32 +555,59 @@ pub fn export_refined(
             closed: c.closed,
             points: c.points.into_iter().map(|p| to_sensor(pose, p)).collect(),
         };
-        let eps = 1e-9 * at.len_to_data(prepared.diag);
-        let moved =
-            crate::repair::invariants::well_formed(moved.into_iter().map(local).collect(), eps);
+        let moved: Vec<Polyline> = moved.into_iter().map(local).collect();
         let evidence: Vec<Point> = evidence.into_iter().map(|p| to_sensor(pose, p)).collect();
-        // The invariant: a refined frame explains every return its own curves explain
-        // (within the accuracy bound `3 sigma + 2 hmin`), and fits the window's returns
-        // (its own and the older frames', as the alignment placed them) at least as well
-        // as its own curves do: the mean of their distances, capped at the bound so that
-        // returns no curve explains weigh alike. Where the window fails either (a pose
-        // error the alignment did not catch, a scene that changed) the frame keeps its
-        // own curves.
-        let (own_index, moved_index) = (
-            crate::index::SegmentIndex::new(&r.polylines),
-            crate::index::SegmentIndex::new(&moved),
-        );
-        let keeps_own = own_returns
-            .par_iter()
-            .all(|&p| own_index.distance(p) > bound || moved_index.distance(p) <= bound);
-        let capped = |index: &crate::index::SegmentIndex| -> f64 {
-            own_returns
-                .par_iter()
-                .chain(evidence.par_iter())
-                .map(|&p| index.distance(p).min(bound))
-                .sum()
+        // The invariant, curve by curve: a refined curve explains every return its own
+        // curve explains (within the accuracy bound `3 sigma + 2 hmin`), and fits the
+        // window's returns nearest its own curve (the frame's and the older frames', as
+        // the alignment placed them) at least as well: the sum of their distances, capped
+        // at the bound so that returns no curve explains weigh alike. Where the window
+        // fails either (a pose error the alignment did not catch, a scene that changed)
+        // that curve stays as the frame drew it.
+        let own_index = crate::index::SegmentIndex::new(&r.polylines);
+        let moved_index: Vec<crate::index::SegmentIndex> = moved
+            .iter()
+            .map(|c| crate::index::SegmentIndex::new(std::slice::from_ref(c)))
+            .collect();
+        let starts: Vec<usize> = (0..r.polylines.len()).map(|k| own_index.start(k)).collect();
+        // Per curve: whether it lost an own return, and the capped sums, own and moved.
+        let per_return = |p: Point, own: bool| {
+            let (d, seg, _) = own_index.nearest(p)?;
+            let k = starts.partition_point(|&s| s <= seg) - 1;
+            let m = moved_index[k].distance(p);
+            Some((
+                k,
+                own && d <= bound && m > bound,
+                d.min(bound),
+                m.min(bound),
+            ))
         };
-        let fused = keeps_own && capped(&moved_index) <= capped(&own_index) * (1.0 + 1e-12);
+        let mut lost = vec![false; moved.len()];
+        let mut sums = vec![(0.0, 0.0); moved.len()];
+        let found: Vec<_> = own_returns
+            .par_iter()
+            .map(|&p| per_return(p, true))
+            .chain(evidence.par_iter().map(|&p| per_return(p, false)))
+            .collect();
+        for (k, l, d, m) in found.into_iter().flatten() {
+            lost[k] |= l;
+            sums[k].0 += d;
+            sums[k].1 += m;
+        }
+        let keep: Vec<bool> = (0..moved.len())
+            .map(|k| !lost[k] && sums[k].1 <= sums[k].0 * (1.0 + 1e-12))
+            .collect();
+        let fused = keep.iter().any(|&k| k);
+        let eps = 1e-9 * at.len_to_data(prepared.diag);
+        let moved = crate::repair::invariants::well_formed(
+            moved
+                .into_iter()
+                .zip(&keep)
+                .zip(&r.polylines)
+                .map(|((m, &k), own)| if k { m } else { own.clone() })
+                .collect(),
+            eps,
+        );
         r.stats.start = if fused {
             crate::levelset::Start::Fused
         } else {
