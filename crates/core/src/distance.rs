@@ -108,25 +108,24 @@ impl DistanceField {
 
     /// How many data points lie within distance `r` of `q`.
     pub fn count_within(&self, q: Point, r: f64) -> usize {
+        let mut n = 0;
         self.tree
             .query(&q)
             .within::<SquaredEuclidean<f64>>(r * r)
             .unsorted()
-            .execute()
-            .len()
+            .visit(|_| n += 1);
+        n
     }
 
     /// Indices of the data points within distance `r` of `q`, in no order, appended to
     /// `out` after clearing it.
     pub fn within(&self, q: Point, r: f64, out: &mut Vec<u32>) {
         out.clear();
-        let found = self
-            .tree
+        self.tree
             .query(&q)
             .within::<SquaredEuclidean<f64>>(r * r)
             .unsorted()
-            .execute();
-        out.extend(found.iter().map(|n| n.item));
+            .visit(|n| out.push(n.item));
     }
 
     /// Indices of the `k` nearest data points to `q`, nearest first (fewer when the set

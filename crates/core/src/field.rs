@@ -438,20 +438,25 @@ impl MetricField {
         let field = DistanceField::new(&points)?;
         let n = field.points().len();
         let hmin = params.hmin.unwrap_or(scale / 1000.0);
-        let mut windows: Vec<Vec<u32>> = vec![Vec::new(); n];
+        // Each field point's window as a span of the chains' ids laid end to end (a
+        // point on two chains keeps the last), flattened in field order.
+        let ids: Vec<u32> = points.iter().map(|&p| field.nearest(p).index).collect();
+        let mut spans = vec![(0usize, 0usize); n];
+        let mut base = 0;
         for chain in chains {
-            let ids: Vec<u32> = chain.iter().map(|&p| field.nearest(p).index).collect();
-            for (i, &id) in ids.iter().enumerate() {
+            let len = chain.len();
+            for i in 0..len {
                 let lo = i.saturating_sub(window);
-                let hi = (i + window + 1).min(ids.len());
-                windows[id as usize] = ids[lo..hi].to_vec();
+                let hi = (i + window + 1).min(len);
+                spans[ids[base + i] as usize] = (base + lo, base + hi);
             }
+            base += len;
         }
         let mut chain_offsets = Vec::with_capacity(n + 1);
-        let mut chain_neighbours = Vec::new();
+        let mut chain_neighbours = Vec::with_capacity(spans.iter().map(|s| s.1 - s.0).sum());
         chain_offsets.push(0);
-        for w in windows {
-            chain_neighbours.extend(w);
+        for (lo, hi) in spans {
+            chain_neighbours.extend_from_slice(&ids[lo..hi]);
             chain_offsets.push(chain_neighbours.len() as u32);
         }
         let ms = t0.elapsed().as_secs_f64() * 1e3;

@@ -116,19 +116,18 @@ impl SegmentIndex {
         let (d2, t) = point_segment_dist2(q, s.0, s.1);
         let mut best = (d2, i, t);
         let r = d2.sqrt() + self.half_piece * (1.0 + 1e-9);
-        let found = tree
-            .query(&q)
+        // Visited, not collected: a query per export sample must not allocate.
+        tree.query(&q)
             .within::<SquaredEuclidean<f64>>(r * r)
             .unsorted()
-            .execute();
-        for c in found {
-            let i = self.piece_seg[c.item as usize] as usize;
-            let s = self.segs[i];
-            let (d2, t) = point_segment_dist2(q, s.0, s.1);
-            if d2 < best.0 || (d2 == best.0 && i < best.1) {
-                best = (d2, i, t);
-            }
-        }
+            .visit(|c| {
+                let i = self.piece_seg[c.item as usize] as usize;
+                let s = self.segs[i];
+                let (d2, t) = point_segment_dist2(q, s.0, s.1);
+                if d2 < best.0 || (d2 == best.0 && i < best.1) {
+                    best = (d2, i, t);
+                }
+            });
         Some((best.0.sqrt(), best.1, best.2))
     }
 }

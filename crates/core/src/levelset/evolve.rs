@@ -170,7 +170,7 @@ pub fn solve(
         // replaced by a cold one (robust measures: a maximum would follow outliers).
         let prev_spread = at.len_to_local(prev.spread);
         let worse = attempt.report.near < prev.near - 0.03
-            || attempt.report.spread > 2.0 * prev_spread.max(frame.criteria.settle_width);
+            || attempt.report.spread > 2.0 * prev_spread.max(frame.settle_width);
         if worse {
             tracing::info!(
                 near = attempt.report.near,
@@ -221,8 +221,11 @@ struct Frame<'a> {
     data: Vec<Location>,
     settings: SolverSettings,
     warm_patience: usize,
-    tube_radius: f64,
-    criteria: WarmCriteria,
+    /// The tube start's radius, from the data's spacing: only a cold start from the
+    /// data and the warm decision read it, so a scan's free-space start never pays its
+    /// nearest-neighbour search over every return.
+    tube_radius: std::sync::OnceLock<f64>,
+    settle_width: f64,
 }
 
 /// The start of one attempt: the level set, and what it changes in the settings.
@@ -264,7 +267,9 @@ impl<'a> Frame<'a> {
         // Each sample's walk starts at the vertex nearest it among those it is nearest
         // to (the field's points are in x order, so the previous sample's triangle can be
         // across the mesh); a sample nearest to no vertex starts at one of its
-        // neighbours'.
+        // neighbours': the nearest sample that is some vertex's nearest (data denser
+        // than the mesh, a dense scan's, has many such samples; one tree of those answers
+        // each without a search of its own).
         let mut closest = vec![(f64::INFINITY, INVALID); pts.len()];
         for (v, (&j, &d)) in nearest.iter().zip(&dist).enumerate() {
             let c = &mut closest[j as usize];
@@ -272,22 +277,37 @@ impl<'a> Frame<'a> {
                 *c = (d, v as u32);
             }
         }
+        let reached: Vec<u32> = closest
+            .iter()
+            .filter(|c| c.1 != INVALID)
+            .map(|c| c.1)
+            .collect();
+        let reached_tree = (reached.len() < pts.len())
+            .then(|| {
+                let at: Vec<crate::Point> = closest
+                    .iter()
+                    .zip(pts)
+                    .filter(|(c, _)| c.1 != INVALID)
+                    .map(|(_, &p)| p)
+                    .collect();
+                kiddo::ImmutableKdTree::<f64, 2>::new_from_slice(&at).ok()
+            })
+            .flatten();
         let start = |j: usize| -> Option<u32> {
             let v = closest[j].1;
             if v != INVALID {
                 return Some(v);
             }
-            let mut near = Vec::with_capacity(8);
-            kd.nearest_k(pts[j], 8, &mut near);
-            near.iter()
-                .map(|&k| closest[k as usize].1)
-                .find(|&v| v != INVALID)
+            let tree = reached_tree.as_ref()?;
+            let k = tree
+                .query(&pts[j])
+                .nearest_one::<kiddo::SquaredEuclidean<f64>>()
+                .execute()
+                .item;
+            reached.get(k as usize).copied()
         };
         let data = crate::fem::locate::locate_from(mesh, pts, start);
         let settings = params.resolve(diag, hmin);
-        let tube_radius = params
-            .tube
-            .unwrap_or_else(|| crate::distance::tube_radius(kd, 2.0 * hmin));
         Frame {
             field,
             adapted,
@@ -300,14 +320,26 @@ impl<'a> Frame<'a> {
             warm_patience: params
                 .warm_patience
                 .unwrap_or((settings.patience / 2).max(1)),
-            criteria: WarmCriteria {
-                settle_width: 4.0 * adapted.noise_estimate + 4.0 * hmin,
-                tube_radius,
-                eps: settings.eps,
-                median_settle: params.settle == Settle::Median,
-            },
-            tube_radius,
+            settle_width: 4.0 * adapted.noise_estimate + 4.0 * hmin,
+            tube_radius: params
+                .tube
+                .map_or_else(std::sync::OnceLock::new, |t| t.into()),
             settings,
+        }
+    }
+
+    fn tube_radius(&self) -> f64 {
+        *self.tube_radius.get_or_init(|| {
+            crate::distance::tube_radius(&self.field.field, 2.0 * self.adapted.params.hmin)
+        })
+    }
+
+    fn criteria(&self) -> WarmCriteria {
+        WarmCriteria {
+            settle_width: self.settle_width,
+            tube_radius: self.tube_radius(),
+            eps: self.settings.eps,
+            median_settle: self.params.settle == Settle::Median,
         }
     }
 
@@ -351,7 +383,7 @@ impl<'a> Frame<'a> {
         // free space's boundary), as a settle that moves it leaves it: a final
         // renormalization would march it again for nothing.
         let renormalized = settled || matches!(start, Start::FreeSpace(_));
-        (report.spread, report.near) = spread(mesh, &self.data, &u, self.criteria.settle_width);
+        (report.spread, report.near) = spread(mesh, &self.data, &u, self.settle_width);
         Attempt {
             u,
             report,
@@ -370,7 +402,7 @@ impl<'a> Frame<'a> {
         let mut settings = self.settings.clone();
         let warm = match start {
             Start::Warm(prev) if prev.enclosed => {
-                warm_start(prev, at, mesh, &self.data, &self.criteria)
+                warm_start(prev, at, mesh, &self.data, &self.criteria())
             }
             _ => None,
         };
@@ -390,10 +422,7 @@ impl<'a> Frame<'a> {
         let (u, enclosed) = match start {
             // The settle and the export look no farther from the curve than the
             // settle's width, and refinement than its tolerance, within it.
-            Start::FreeSpace(free) => (
-                init::free_space(mesh, free, self.criteria.settle_width),
-                true,
-            ),
+            Start::FreeSpace(free) => (init::free_space(mesh, free, self.settle_width), true),
             _ => self.cold_start(&mut settings, fm),
         };
         Started {
@@ -418,7 +447,7 @@ impl<'a> Frame<'a> {
                 &self.dist,
                 &self.nearest,
                 2.0 * hmin,
-                4.0 * self.tube_radius,
+                4.0 * self.tube_radius(),
             )
         });
         let oriented = medial
@@ -426,7 +455,7 @@ impl<'a> Frame<'a> {
                 crate::levelset::orient::oriented_offsets(
                     kd,
                     noise,
-                    2.0 * noise + self.tube_radius,
+                    2.0 * noise + self.tube_radius(),
                     &mesh.coords,
                 )
             })
@@ -437,11 +466,11 @@ impl<'a> Frame<'a> {
             &self.space,
             &self.dist,
             kd.points(),
-            self.tube_radius,
+            self.tube_radius(),
             corridor.as_ref(),
             oriented.as_deref().map(|offsets| init::Oriented {
                 offsets,
-                clean: noise < self.tube_radius / 8.0,
+                clean: noise < self.tube_radius() / 8.0,
             }),
             params.margin * self.diag,
             fm,
@@ -454,7 +483,7 @@ impl<'a> Frame<'a> {
         }
         if params.init == Init::Tube {
             // The pinned vertices must lie inside the starting curve, or nothing moves.
-            settings.tube = settings.tube.min(0.5 * self.tube_radius);
+            settings.tube = settings.tube.min(0.5 * self.tube_radius());
         }
         (start.u, enclosed)
     }
@@ -470,7 +499,7 @@ impl<'a> Frame<'a> {
             &self.data,
             &self.nearest,
             u,
-            self.criteria.settle_width,
+            self.settle_width,
         );
         report.residual = settled.residual;
         report.mean_residual = settled.mean;
