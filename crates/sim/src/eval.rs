@@ -39,6 +39,26 @@ fn samples(polylines: &[Polyline], step: f64) -> Vec<(Point, f64)> {
     out
 }
 
+/// The midpoints of `polylines` cut into pieces of at most `step`, each with its
+/// length: a length share summed over them is exact to the pieces' size (a piece
+/// sampled at its start counts a curve's last piece wholly as its start is, which is
+/// biased wherever a curve leaves the data: at its ends, where refinement adds
+/// vertices).
+fn midpoints(polylines: &[Polyline], step: f64) -> Vec<(Point, f64)> {
+    let mut out = Vec::new();
+    for pl in polylines {
+        for (a, b) in pl.segments() {
+            let len = dist(a, b);
+            let n = ((len / step).ceil() as usize).max(1);
+            let w = len / n as f64;
+            for k in 0..n {
+                out.push((add(a, scale(sub(b, a), (k as f64 + 0.5) / n as f64)), w));
+            }
+        }
+    }
+    out
+}
+
 /// Directed distances from samples of `from` to `to`: (max, arc-length-weighted mean).
 fn directed(from: &[Polyline], to: &SegmentIndex, step: f64) -> (f64, f64) {
     let s = samples(from, step);
@@ -338,22 +358,25 @@ pub fn data_scores(curves: &[Polyline], scan: &isoline_core::Scan, tol: f64) -> 
         .collect();
     let step = 0.25 * tol;
     let free = swept(scan);
-    let (free_len, total_len) = in_free_space(curves, &free, tol, step);
+    let boundary = SegmentIndex::new(&[free.polygon()]);
     let returns_index = isoline_core::DistanceField::new(&returns).ok();
-    let mut on_data = 0.0;
-    for (p, w) in samples(curves, step) {
+    let (mut on_data, mut free_len, mut total_len) = (0.0, 0.0, 0.0);
+    for (p, w) in midpoints(curves, step) {
+        total_len += w;
         if returns_index
             .as_ref()
             .is_some_and(|f| f.distance(p) <= 2.0 * tol)
         {
             on_data += w;
         }
+        if free.contains(p) && boundary.distance(p) > tol {
+            free_len += w;
+        }
     }
-    let boundary = SegmentIndex::new(&[free.polygon()]);
     let phantoms = curves
         .iter()
         .filter(|c| {
-            let near_free: f64 = samples(std::slice::from_ref(*c), step)
+            let near_free: f64 = midpoints(std::slice::from_ref(*c), step)
                 .iter()
                 .filter(|(p, _)| {
                     dist(*p, scan.origin) <= PHANTOM_REACH
@@ -390,6 +413,44 @@ pub fn data_scores(curves: &[Polyline], scan: &isoline_core::Scan, tol: f64) -> 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A wall at y = 2 seen over x in [0, 0.5] (beams 0.1 degree apart, returns 3.5 mm
+    /// apart or closer), drawn as one segment to x = 1.03: the curve lies within
+    /// `2 tol` = 0.1 of a return up to x = 0.6, so the share is 0.6 / 1.03. The midpoint
+    /// rule errs by at most half a piece (`tol / 8`) where the curve leaves the data;
+    /// sampled from each piece's start it counted one piece more (0.64 of a piece).
+    #[test]
+    fn curve_on_data_is_the_length_share_to_half_a_piece() {
+        let n = 141;
+        let step = 0.1f64.to_radians();
+        let ranges: Vec<Option<f64>> = (0..n)
+            .map(|i| Some(2.0 / (std::f64::consts::FRAC_PI_2 - i as f64 * step).sin()))
+            .collect();
+        let scan = isoline_core::Scan::from_laser(&isoline_core::LaserScan {
+            origin: [0.0, 0.0],
+            angle_min: std::f64::consts::FRAC_PI_2 - (n - 1) as f64 * step,
+            angle_increment: step,
+            ranges: &ranges.iter().rev().copied().collect::<Vec<_>>(),
+            range_min: 0.1,
+            range_max: 10.0,
+        })
+        .unwrap();
+        let wall = Polyline {
+            closed: false,
+            points: vec![[0.0, 2.0], [1.03, 2.0]],
+        };
+        let tol = 0.05;
+        let s = data_scores(&[wall], &scan, tol);
+        let exact = 0.6 / 1.03;
+        assert!(
+            (s.curve_on_data - exact).abs() <= 0.5 * 0.25 * tol / 1.03,
+            "{} against {exact}",
+            s.curve_on_data
+        );
+        assert_eq!(s.returns_explained, 1.0);
+        assert_eq!(s.free_space_share, 0.0);
+        assert!((s.length - 1.03).abs() < 1e-12);
+    }
 
     fn circle(r: f64, n: usize) -> Polyline {
         Polyline {
