@@ -277,21 +277,14 @@ impl<'a> Frame<'a> {
                 *c = (d, v as u32);
             }
         }
-        let reached: Vec<u32> = closest
+        let (reached, at): (Vec<u32>, Vec<crate::Point>) = closest
             .iter()
-            .filter(|c| c.1 != INVALID)
-            .map(|c| c.1)
-            .collect();
+            .zip(pts)
+            .filter(|(c, _)| c.1 != INVALID)
+            .map(|(c, &p)| (c.1, p))
+            .unzip();
         let reached_tree = (reached.len() < pts.len())
-            .then(|| {
-                let at: Vec<crate::Point> = closest
-                    .iter()
-                    .zip(pts)
-                    .filter(|(c, _)| c.1 != INVALID)
-                    .map(|(_, &p)| p)
-                    .collect();
-                kiddo::ImmutableKdTree::<f64, 2>::new_from_slice(&at).ok()
-            })
+            .then(|| kiddo::ImmutableKdTree::<f64, 2>::new_from_slice(&at).ok())
             .flatten();
         let start = |j: usize| -> Option<u32> {
             let v = closest[j].1;
