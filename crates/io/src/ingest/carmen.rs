@@ -12,7 +12,10 @@
 //! none). The readings SICK LMS scanners log in millimetre mode for no return, dazzle
 //! and other errors, 32.759 to 32.767 m ([`SICK_MM_CODES`], the top of the 15-bit range
 //! in millimetres), are no returns either: a log of the Örebro corridors holds 968 of
-//! them, which would otherwise draw arcs 32.76 m from the sensor.
+//! them, which would otherwise draw arcs 32.76 m from the sensor. A scanner that reports
+//! no return as its largest reading without the log saying so (the ACES log's SICK,
+//! 620 readings of exactly 50 m) is found by the pile its code makes at the top of the
+//! log's readings ([`reading_piles`]), and that reading is its reach.
 
 use std::io::{BufRead, Seek};
 use std::path::Path;
@@ -58,6 +61,58 @@ impl LaserReach {
             _ => {}
         }
     }
+}
+
+/// The reading each old-style laser of a log reports for no return, if it reports it as
+/// its largest: `[FLASER, RLASER]`. A log's true ranges thin out towards their largest,
+/// each far distance read about once; a code is read whenever a beam sees nothing, so
+/// it piles up. The largest reading (below [`FLASER_RANGE_MAX`], SICK's millimetre codes
+/// left out) is taken for a code when it is read more often than any other reading of at
+/// least half its range. In the ACES log 50 m is read 620 times, the readings below it
+/// once each; a log whose largest reading is a far wall has none (`None`). An
+/// unreadable log has none either: the reading pass says what is wrong with it.
+pub fn reading_piles(path: &Path) -> [Option<f64>; 2] {
+    use std::collections::HashMap;
+    let Ok(reader) = open(path) else {
+        return [None, None];
+    };
+    // Readings counted by their text: a log writes a code the same way every time.
+    let mut counts: [HashMap<u64, u64>; 2] = Default::default();
+    let _ = super::bounded_lines(reader, path, MAX_LINE_BYTES, |_, line| {
+        let Ok(text) = line else { return true };
+        let mut w = text.split_whitespace();
+        let k = match w.next() {
+            Some("FLASER") => 0,
+            Some("RLASER") => 1,
+            _ => return true,
+        };
+        let Some(n) = w.next().and_then(|n| n.parse::<usize>().ok()) else {
+            return true;
+        };
+        for v in w.take(n).filter_map(|f| f.parse::<f64>().ok()) {
+            let code = (SICK_MM_CODES.start() - 1e-6..=SICK_MM_CODES.end() + 1e-6).contains(&v);
+            if v.is_finite() && v > 0.0 && v < FLASER_RANGE_MAX && !code {
+                *counts[k].entry(v.to_bits()).or_insert(0) += 1;
+            }
+        }
+        true
+    });
+    counts.map(|c| {
+        let (&top, &n) = c
+            .iter()
+            .max_by(|a, b| f64::from_bits(*a.0).total_cmp(&f64::from_bits(*b.0)))?;
+        let top = f64::from_bits(top);
+        let rival = c
+            .iter()
+            .filter(|(v, _)| {
+                let v = f64::from_bits(**v);
+                v < top && v >= 0.5 * top
+            })
+            .map(|(_, &m)| m)
+            .max()
+            .unwrap_or(0);
+        (n > rival.max(1)).then_some(top)
+    })
 }
 
 /// The longest line read; a longer one is an error record, not memory.
@@ -288,6 +343,7 @@ pub fn read_carmen_with<T>(
     let mut first = true;
     let mut not_carmen = None;
     let mut reach = LaserReach::default();
+    let piles = reading_piles(path);
     super::bounded_lines(reader, path, MAX_LINE_BYTES, |line_no, line| {
         let bad = |message: String| BadFrame {
             stream: None,
@@ -314,6 +370,15 @@ pub fn read_carmen_with<T>(
             reach.read_param(fields);
             return true;
         }
+        // A pile at the top of the readings is the reach, whatever the log declares.
+        let capped = |declared: Option<f64>, pile: Option<f64>| match (declared, pile) {
+            (Some(d), Some(p)) => Some(d.min(p)),
+            (d, p) => d.or(p),
+        };
+        let reach = LaserReach {
+            front: capped(reach.front, piles[0]),
+            rear: capped(reach.rear, piles[1]),
+        };
         let Some(parsed) = parse_line_with(text, &reach) else {
             return true;
         };
@@ -418,6 +483,44 @@ PARAM robot_rear_laser_max 120 host 0
         assert_eq!(ranges[0], [Some(49.9), None, None, Some(32.7)]);
         // A declared reach beyond the SICK codes' 80 m keeps them out.
         assert_eq!(ranges[1], [Some(49.9), Some(50.0), None, None]);
+    }
+
+    /// A log that reports no return as its largest reading, without declaring its
+    /// reach, has those readings piled at the top: they are no returns. A largest
+    /// reading that is a far wall, read once, stays a return.
+    #[test]
+    fn a_pile_at_the_top_of_the_readings_is_no_return() {
+        let dir = tempfile::tempdir().unwrap();
+        let read = |log: &str| {
+            let path = dir.path().join("run.log");
+            std::fs::write(&path, log).unwrap();
+            let mut ranges = Vec::new();
+            read_carmen_with(
+                &path,
+                |rec| Ok(rec.ranges.unwrap()),
+                |r| {
+                    ranges.push(r.unwrap());
+                    true
+                },
+            )
+            .unwrap();
+            (reading_piles(&path), ranges)
+        };
+        let (piles, ranges) = read(
+            "FLASER 4 12.3 50.0 50.0 27.5 1 2 0.5 1 2 0.5 12.5 host 0.1
+             FLASER 4 12.4 50.0 31.0 27.4 1 2 0.5 1 2 0.5 12.6 host 0.2
+",
+        );
+        assert_eq!(piles, [Some(50.0), None]);
+        assert_eq!(ranges[0], [Some(12.3), None, None, Some(27.5)]);
+        assert_eq!(ranges[1], [Some(12.4), None, Some(31.0), Some(27.4)]);
+        let (piles, ranges) = read(
+            "FLASER 4 12.3 40.0 33.0 27.5 1 2 0.5 1 2 0.5 12.5 host 0.1
+             FLASER 4 12.4 39.9 33.0 27.4 1 2 0.5 1 2 0.5 12.6 host 0.2
+",
+        );
+        assert_eq!(piles, [None, None]);
+        assert_eq!(ranges[0], [Some(12.3), Some(40.0), Some(33.0), Some(27.5)]);
     }
 
     /// Logs are recognised by their lines, gzip-compressed or not, whatever their
