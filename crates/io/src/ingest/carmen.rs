@@ -455,6 +455,21 @@ mod tests {
         }
     }
 
+    /// The ranges of every laser line of the log at `path`.
+    fn ranges_of(path: &Path) -> Vec<Vec<Option<f64>>> {
+        let mut ranges = Vec::new();
+        read_carmen_with(
+            path,
+            |rec| Ok(rec.ranges.unwrap()),
+            |r| {
+                ranges.push(r.unwrap());
+                true
+            },
+        )
+        .unwrap();
+        ranges
+    }
+
     /// A log's declared reach bounds its returns, per laser, and SICK's millimetre-mode
     /// error codes are no returns.
     #[test]
@@ -470,16 +485,7 @@ PARAM robot_rear_laser_max 120 host 0
 ",
         )
         .unwrap();
-        let mut ranges = Vec::new();
-        read_carmen_with(
-            &path,
-            |rec| Ok(rec.ranges.unwrap()),
-            |r| {
-                ranges.push(r.unwrap());
-                true
-            },
-        )
-        .unwrap();
+        let ranges = ranges_of(&path);
         assert_eq!(ranges[0], [Some(49.9), None, None, Some(32.7)]);
         // A declared reach beyond the SICK codes' 80 m keeps them out.
         assert_eq!(ranges[1], [Some(49.9), Some(50.0), None, None]);
@@ -494,17 +500,7 @@ PARAM robot_rear_laser_max 120 host 0
         let read = |log: &str| {
             let path = dir.path().join("run.log");
             std::fs::write(&path, log).unwrap();
-            let mut ranges = Vec::new();
-            read_carmen_with(
-                &path,
-                |rec| Ok(rec.ranges.unwrap()),
-                |r| {
-                    ranges.push(r.unwrap());
-                    true
-                },
-            )
-            .unwrap();
-            (reading_piles(&path), ranges)
+            (reading_piles(&path), ranges_of(&path))
         };
         let (piles, ranges) = read(
             "FLASER 4 12.3 50.0 50.0 27.5 1 2 0.5 1 2 0.5 12.5 host 0.1
