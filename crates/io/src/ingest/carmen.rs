@@ -31,6 +31,11 @@ pub const FLASER_RANGE_MAX: f64 = 80.0;
 /// returns. A true reading there is lost with them: one beam in a scan, at 32.76 m.
 pub const SICK_MM_CODES: std::ops::RangeInclusive<f64> = 32.759..=32.767;
 
+/// Whether the reading `r` (metres, as the log writes it) is one of [`SICK_MM_CODES`].
+fn is_sick_code(r: f64) -> bool {
+    (SICK_MM_CODES.start() - 1e-6..=SICK_MM_CODES.end() + 1e-6).contains(&r)
+}
+
 /// What a log's `PARAM` lines say of its lasers' reach, metres.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct LaserReach {
@@ -90,7 +95,7 @@ pub fn reading_piles(path: &Path) -> [Option<f64>; 2] {
             return true;
         };
         for v in w.take(n).filter_map(|f| f.parse::<f64>().ok()) {
-            let code = (SICK_MM_CODES.start() - 1e-6..=SICK_MM_CODES.end() + 1e-6).contains(&v);
+            let code = is_sick_code(v);
             if v.is_finite() && v > 0.0 && v < FLASER_RANGE_MAX && !code {
                 *counts[k].entry(v.to_bits()).or_insert(0) += 1;
             }
@@ -301,9 +306,7 @@ pub fn parse_line_with(
                 ranges
                     .into_iter()
                     .map(|r| {
-                        let code = key != "ROBOTLASER1"
-                            && (SICK_MM_CODES.start() - 1e-6..=SICK_MM_CODES.end() + 1e-6)
-                                .contains(&r);
+                        let code = key != "ROBOTLASER1" && is_sick_code(r);
                         (r > 0.0 && r < range_max && !code).then_some(r)
                     })
                     .collect(),
