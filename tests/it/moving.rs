@@ -269,7 +269,10 @@ fn scans(
 /// agree with its own within the noise: its curves stray about half as far from the
 /// walls as a single frame's (independent noise alone would give 1/sqrt 10 = 0.32; the
 /// smoothing along the runs rounds corners alike in every frame, which no average
-/// removes: at most 0.6). The Hausdorff distance, set by those corners, is no worse.
+/// removes: at most 0.6). The Hausdorff distance of one frame is set by its spikes,
+/// returns three or more deviations off the wall that its runs' lines leave raw; the
+/// window averages a spike of one frame alone away, so the refined frame's worst stretch
+/// is a corner again: at most 0.6 of one frame's too.
 #[test]
 fn refinement_over_frames_averages_the_noise_down() {
     let dir = tempfile::tempdir().unwrap();
@@ -293,7 +296,7 @@ fn refinement_over_frames_averages_the_noise_down() {
         "mean distance: one frame {ms:.5}, ten {mr:.5}; Hausdorff: one frame {hs:.4}, ten {hr:.4}"
     );
     assert!(mr <= 0.6 * ms, "mean distance {mr} refined, {ms} one frame");
-    assert!(hr <= 1.1 * hs, "Hausdorff {hr} refined, {hs} one frame");
+    assert!(hr <= 0.6 * hs, "Hausdorff {hr} refined, {hs} one frame");
 }
 
 /// Refinement over frames on the moving scanner (60 frames round the room, 0.1 m and

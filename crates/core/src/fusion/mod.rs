@@ -27,7 +27,13 @@ use align::{Rigid, Surface};
 
 use crate::geom::{Point, Polyline};
 use crate::index::SegmentIndex;
-use crate::scan::Analysis;
+use crate::scan::{Analysis, SMOOTHING};
+
+/// Deviations of the newest frame's range noise a curve point must stand off its
+/// chord before the window looks for older curves between the two: the refinement
+/// gate's own width, so a point within it is averaged as before and one beyond it
+/// (a spike no gate round the point would reach past) is not left alone.
+const SPIKE: f64 = 2.0;
 
 /// How long frames stay in a window.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -267,7 +273,9 @@ impl Window {
     /// The newest view's curves, each point within its support's tolerance of its own
     /// returns moved along the curve's normal by the weighted mean of the offsets to
     /// the older views' curves that agree with it (`View::offset`, within twice the
-    /// newest frame's range noise), the newest counting with offset zero; each view
+    /// newest frame's range noise of the point, or of the stretch from the point to its
+    /// own curve's chord where it stands off that chord by more), the newest counting
+    /// with offset zero; each view
     /// weighs by the inverse square of its range noise. Returns the curves and the
     /// older views' returns as the alignment placed them (the evidence the refined
     /// curves are checked against), all in the world's coordinates. Empty when the
@@ -278,18 +286,33 @@ impl Window {
         };
         let older: Vec<&View> = self.views.iter().take(self.views.len() - 1).collect();
         let gate = 2.0 * newest.sigma;
+        // The farthest one frame's curve lies from its wall: the accuracy bound.
+        let reach = 3.0 * newest.sigma + 2.0 * (newest.tol - 2.0 * newest.sigma);
         let own = 1.0 / newest.sigma.max(1e-12).powi(2);
         // Only where the newest frame has returns of its own: elsewhere (a piece bridging
         // a gap between its runs) it has no wall of its own to sharpen.
         let returns = kiddo::ImmutableKdTree::<f64, 2>::new_from_slice(&newest.returns).ok();
-        let near_own = |p: Point| {
-            returns.as_ref().is_some_and(|t| {
-                t.query(&p)
-                    .nearest_one::<kiddo::SquaredEuclidean<f64>>()
-                    .execute()
-                    .distance
-                    <= newest.tol * newest.tol
-            })
+        // The nearest of its returns within its support's tolerance, and the spacing of
+        // its run's returns there (to the nearer neighbour in the run's order, as the
+        // returns are laid out run after run).
+        let own_near = |p: Point| -> Option<f64> {
+            let t = returns.as_ref()?;
+            let nn = t
+                .query(&p)
+                .nearest_one::<kiddo::SquaredEuclidean<f64>>()
+                .execute();
+            if nn.distance > newest.tol * newest.tol {
+                return None;
+            }
+            let j = nn.item as usize;
+            let r = &newest.returns;
+            let spacing = [j.checked_sub(1), Some(j + 1)]
+                .into_iter()
+                .flatten()
+                .filter_map(|k| r.get(k))
+                .map(|q| crate::geom::dist(*q, r[j]))
+                .fold(f64::INFINITY, f64::min);
+            Some(spacing)
         };
         let curves = newest
             .curves
@@ -298,17 +321,46 @@ impl Window {
                 let points = (0..c.points.len())
                     .map(|i| {
                         let p = c.points[i];
-                        let t = tangent(c, i);
-                        if t == [0.0, 0.0] || !near_own(p) {
+                        // The chord of the newest frame's own curve over the returns
+                        // its run's smoothing line spanned (`SMOOTHING` a side, at most
+                        // the two tolerances a side the alignment fits its normals
+                        // over), and where it puts the wall here: a point standing off
+                        // it follows a return that line left raw (a shape, or a return
+                        // a few deviations off: one frame cannot tell). The window can,
+                        // so a curve of an older frame counts anywhere from the point
+                        // to the chord, widened by the gate, and the point moves across
+                        // the chord's direction, not along the flank of its own spike.
+                        let Some(spacing) = own_near(p) else {
+                            return p;
+                        };
+                        let len = (SMOOTHING as f64 * spacing).min(2.0 * newest.tol);
+                        let chord = spacing
+                            .is_finite()
+                            .then(|| chord_offset(c, i, len))
+                            .flatten();
+                        let t = chord.map_or_else(|| tangent(c, i), |(_, d)| d);
+                        if t == [0.0, 0.0] {
                             return p;
                         }
+                        let n = [-t[1], t[0]];
+                        let dev = chord
+                            .map_or(0.0, |(f, _)| crate::geom::dot(crate::geom::sub(f, p), n))
+                            .clamp(-reach, reach);
+                        let dev = if dev.abs() > SPIKE * newest.sigma {
+                            dev
+                        } else {
+                            0.0
+                        };
+                        let (lo, hi) = (dev.min(0.0) - gate, dev.max(0.0) + gate);
                         let (mut sum, mut total) = (0.0, own);
                         for v in &older {
                             // Into the older view's coordinates: its motion is rigid, so
                             // offsets along the turned normal are the same lengths.
                             let m = &v.to_newest;
                             let tq = rotate_back(m, t);
-                            if let Some(s) = v.offset(m.inverse(p), [-tq[1], tq[0]], tq, gate) {
+                            let found =
+                                v.offset(m.inverse(p), [-tq[1], tq[0]], tq, gate + dev.abs());
+                            if let Some(s) = found.filter(|s| (lo..=hi).contains(s)) {
                                 let w = 1.0 / v.sigma.max(1e-12).powi(2);
                                 sum += w * s;
                                 total += w;
@@ -352,6 +404,60 @@ fn tangent(c: &Polyline, i: usize) -> Point {
     } else {
         [0.0, 0.0]
     }
+}
+
+/// The foot of `c`'s point `i` on the chord between the points of `c` an arc length
+/// `len` before and after it; near an open curve's end, on the line through the points
+/// `len` and `2 len` along the side it has, and that line's unit direction (along the
+/// curve). None where the curve is shorter than that.
+fn chord_offset(c: &Polyline, i: usize, len: f64) -> Option<(Point, Point)> {
+    let n = c.points.len();
+    if n < 3 {
+        return None;
+    }
+    // The point an arc length `len` along the curve from `i`, stepping by `step`.
+    let walk = |step: isize, len: f64| -> Option<Point> {
+        let (mut j, mut left) = (i, len);
+        loop {
+            let k = j as isize + step;
+            let k = if c.closed {
+                k.rem_euclid(n as isize) as usize
+            } else if k < 0 || k >= n as isize {
+                return None;
+            } else {
+                k as usize
+            };
+            if k == i {
+                return None;
+            }
+            let (a, b) = (c.points[j], c.points[k]);
+            let l = crate::geom::dist(a, b);
+            if l >= left {
+                return Some(crate::geom::add(
+                    a,
+                    crate::geom::scale(crate::geom::sub(b, a), left / l),
+                ));
+            }
+            left -= l;
+            j = k;
+        }
+    };
+    let (a, b) = match (walk(-1, len), walk(1, len)) {
+        (Some(a), Some(b)) => (a, b),
+        (None, Some(b)) => (b, walk(1, 2.0 * len)?),
+        (Some(a), None) => (walk(-1, 2.0 * len)?, a),
+        (None, None) => return None,
+    };
+    let d = crate::geom::sub(b, a);
+    let l2 = crate::geom::dot(d, d);
+    if l2 <= 0.0 {
+        return None;
+    }
+    let s = crate::geom::dot(crate::geom::sub(c.points[i], a), d) / l2;
+    Some((
+        crate::geom::add(a, crate::geom::scale(d, s)),
+        crate::geom::scale(d, 1.0 / l2.sqrt()),
+    ))
 }
 
 /// The direction `d` turned back by `m`'s rotation.
@@ -485,6 +591,79 @@ mod tests {
                 crate::geom::dist(*p, *q) < 0.05 * SIGMA,
                 "{p:?} against {q:?}"
             );
+        }
+    }
+
+    /// The wall `y = 1` seen as `wall` sees it, but with a spike `height` off it at
+    /// `x = 0`, 6 cm wide, through the return there: a return the run's line did not
+    /// follow.
+    fn spiked(frame: u64, height: f64) -> View {
+        let curve = Polyline {
+            closed: false,
+            points: vec![
+                [1.0, 1.0],
+                [0.03, 1.0],
+                [0.0, 1.0 + height],
+                [-0.03, 1.0],
+                [-1.0, 1.0],
+            ],
+        };
+        let returns = (0..=100)
+            .map(|i| {
+                [
+                    -1.0 + 0.02 * i as f64,
+                    if i == 50 { 1.0 + height } else { 1.0 },
+                ]
+            })
+            .collect();
+        View::new(
+            frame,
+            Some(frame as f64),
+            &[curve],
+            returns,
+            SIGMA,
+            3.0 * SIGMA,
+        )
+    }
+
+    /// A spike 3.5 sigma off the wall in the newest frame alone (beyond the gate round
+    /// the point) is one frame's noise: the older frames' curves, on the wall, count
+    /// from the point to the chord of its own curve either side, so it falls to the
+    /// average, a quarter of its height with three older frames of equal noise. The
+    /// same spike in every frame is a shape, and stays.
+    #[test]
+    fn a_spike_of_the_newest_frame_alone_is_averaged_away() {
+        const HEIGHT: f64 = 3.5 * SIGMA;
+        let refined = |older: fn(u64) -> View| {
+            let mut w = Window::default();
+            for i in 0..3 {
+                w.push(older(i), &limits(10));
+            }
+            w.push(spiked(3, HEIGHT), &limits(10));
+            w.views
+                .iter_mut()
+                .for_each(|v| v.to_newest = Rigid::IDENTITY);
+            w.refined().0
+        };
+        let own = &spiked(3, HEIGHT).curves[0];
+        let averaged = refined(|i| wall(i, i as f64, 1.0));
+        // The spike's tip, whose chord is the wall, exactly; the points on its flanks,
+        // whose chords reach onto the other flank and tilt, within a hundredth of the
+        // noise of that.
+        for (p, q) in averaged[0].points.iter().zip(&own.points) {
+            let expected = (q[1] - 1.0) / 4.0;
+            let slack = if q[1] == 1.0 + HEIGHT {
+                1e-9
+            } else {
+                0.01 * SIGMA
+            };
+            assert!((p[1] - 1.0).abs() <= expected + slack, "{p:?} from {q:?}");
+        }
+        let tip = averaged[0].points.iter().map(|p| p[1]).fold(0.0, f64::max);
+        assert!((tip - (1.0 + HEIGHT / 4.0)).abs() < 1e-9, "{tip}");
+        let kept = refined(|i| spiked(i, HEIGHT));
+        for (p, q) in kept[0].points.iter().zip(&own.points) {
+            assert!(crate::geom::dist(*p, *q) < 1e-9, "{p:?} from {q:?}");
         }
     }
 

@@ -30,6 +30,10 @@ use crate::geom::{add, dist, point_segment_dist2, sub, Placement, Point, Polylin
 /// count from deciding how much memory a frame takes.
 pub const MAX_BEAMS: usize = 1 << 16;
 
+/// Returns a side of the line that smooths a return along its run: four smooth a
+/// frame's noise along its runs and still follow the turn of a wall within a few beams.
+pub(crate) const SMOOTHING: usize = 4;
+
 /// How scan frames are read: the breakpoint test, dropouts and small clusters.
 #[derive(Clone, Debug, PartialEq)]
 #[non_exhaustive]
@@ -628,7 +632,7 @@ impl Analysis {
         };
         // Four returns a side smooth a frame's noise along its runs. A refined frame is
         // analysed alike: its own level set is the one the window must beat.
-        let smooth = scan.smoothed_ranges(&runs, 4, scales.noise);
+        let smooth = scan.smoothed_ranges(&runs, SMOOTHING, scales.noise);
         let free = scan.free_space(&runs, params.dropout_beams, &smooth);
         let n = scan.angles.len();
         let support = runs
