@@ -11,13 +11,14 @@ else
 fi
 quick=${QUICK:-0}
 
-# The recordings in $ISOLINE_REAL (*.log.gz CARMEN logs, *.ndjson.gz beam streams) as
+# The recordings in $ISOLINE_REAL (*.log.gz CARMEN logs, *.ndjson.gz beam streams, *.mcap
+# ROS 2 bags) as
 # $real; without them the script ends, successfully in a QUICK run (the docs test runs
 # every documented command without the recordings).
 need_recordings() {
   real=${ISOLINE_REAL:-}
-  if [ -z "$real" ] || ! ls "$real"/*.gz > /dev/null 2>&1; then
-    echo "no recordings in ISOLINE_REAL='$real' (*.log.gz CARMEN logs, *.ndjson.gz beam streams)" >&2
+  if [ -z "$real" ] || ! compgen -G "$real/*.gz" > /dev/null && ! compgen -G "$real/*.mcap" > /dev/null; then
+    echo "no recordings in ISOLINE_REAL='$real' (*.log.gz CARMEN logs, *.ndjson.gz beam streams, *.mcap ROS 2 bags)" >&2
     [ "$quick" = 1 ] && exit 0
     exit 1
   fi

@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # The real-recording table of docs/benchmarks.md: each CARMEN log (*.log.gz, converted
-# as published) and NDJSON beam stream (*.ndjson.gz) in $ISOLINE_REAL is unpacked into
+# as published), NDJSON beam stream (*.ndjson.gz) and ROS 2 bag (*.mcap, its scans posed
+# by the Odometry topic $ODOMETRY, default /odom) in $ISOLINE_REAL is unpacked into
 # target/real-logs/ and
 # replayed through the daemon as fast as it goes, single-frame (cold; warm: the same
 # frames with warm starts on and their poses removed; posed: warm with the poses) and
@@ -18,12 +19,16 @@ set -euo pipefail
 need_recordings
 dir=target/real-logs
 mkdir -p "$dir"
-for gz in "$real"/*.gz; do
+for gz in "$real"/*.gz "$real"/*.mcap; do
+  [ -e "$gz" ] || continue
   name=$(basename "$gz" .gz)
   case $name in
     # CARMEN logs are read as published (gzip, `.log`).
     *.log) name=${name%.log}; "$bin" convert "$gz" -o "$dir/$name.ndjson" 2>/dev/null ;;
     *.ndjson) name=${name%.ndjson}; zcat "$gz" > "$dir/$name.ndjson" ;;
+    # ROS 2 bags: every LaserScan topic, posed by the Odometry on $ODOMETRY (/odom).
+    *.mcap) name=${name%.mcap}
+      "$bin" convert "$gz" --odometry "${ODOMETRY:-/odom}" -o "$dir/$name.ndjson" 2>/dev/null ;;
     *) continue ;;
   esac
   frames=$dir/$name.ndjson
