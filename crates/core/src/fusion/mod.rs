@@ -35,6 +35,10 @@ use crate::scan::{Analysis, SMOOTHING};
 /// (a spike no gate round the point would reach past) is not left alone.
 const SPIKE: f64 = 2.0;
 
+/// Offsets a view needs before its mean square offset, a variance, counts: ten give it
+/// to within about half (its relative standard error is `sqrt(2 / n)`).
+const MIN_OFFSETS: usize = 10;
+
 /// How long frames stay in a window.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct WindowLimits {
@@ -275,8 +279,9 @@ impl Window {
     /// the older views' curves that agree with it (`View::offset`, within twice the
     /// newest frame's range noise of the point, or of the stretch from the point to its
     /// own curve's chord where it stands off that chord by more), the newest counting
-    /// with offset zero; each view
-    /// weighs by the inverse square of its range noise. Returns the curves and the
+    /// with offset zero; each view weighs by the inverse of the variance with which it
+    /// places the wall, its curve's noise and what the alignment left of its pose error
+    /// (`view_weights`). Returns the curves and the
     /// older views' returns as the alignment placed them (the evidence the refined
     /// curves are checked against), all in the world's coordinates. Empty when the
     /// window is.
@@ -288,7 +293,6 @@ impl Window {
         let gate = 2.0 * newest.sigma;
         // The farthest one frame's curve lies from its wall: the accuracy bound.
         let reach = 3.0 * newest.sigma + 2.0 * (newest.tol - 2.0 * newest.sigma);
-        let own = 1.0 / newest.sigma.max(1e-12).powi(2);
         // Only where the newest frame has returns of its own: elsewhere (a piece bridging
         // a gap between its runs) it has no wall of its own to sharpen.
         let returns = kiddo::ImmutableKdTree::<f64, 2>::new_from_slice(&newest.returns).ok();
@@ -314,11 +318,11 @@ impl Window {
                 .fold(f64::INFINITY, f64::min);
             Some(spacing)
         };
-        let curves = newest
+        let found: Vec<Vec<Option<Found>>> = newest
             .curves
             .par_iter()
             .map(|c| {
-                let points = (0..c.points.len())
+                (0..c.points.len())
                     .map(|i| {
                         let p = c.points[i];
                         // The chord of the newest frame's own curve over the returns
@@ -330,9 +334,7 @@ impl Window {
                         // so a curve of an older frame counts anywhere from the point
                         // to the chord, widened by the gate, and the point moves across
                         // the chord's direction, not along the flank of its own spike.
-                        let Some(spacing) = own_near(p) else {
-                            return p;
-                        };
+                        let spacing = own_near(p)?;
                         let len = (SMOOTHING as f64 * spacing).min(2.0 * newest.tol);
                         let chord = spacing
                             .is_finite()
@@ -340,7 +342,7 @@ impl Window {
                             .flatten();
                         let t = chord.map_or_else(|| tangent(c, i), |(_, d)| d);
                         if t == [0.0, 0.0] {
-                            return p;
+                            return None;
                         }
                         let n = [-t[1], t[0]];
                         let dev = chord
@@ -352,16 +354,48 @@ impl Window {
                             0.0
                         };
                         let (lo, hi) = (dev.min(0.0) - gate, dev.max(0.0) + gate);
-                        let (mut sum, mut total) = (0.0, own);
-                        for v in &older {
-                            // Into the older view's coordinates: its motion is rigid, so
-                            // offsets along the turned normal are the same lengths.
-                            let m = &v.to_newest;
-                            let tq = rotate_back(m, t);
-                            let found =
-                                v.offset(m.inverse(p), [-tq[1], tq[0]], tq, gate + dev.abs());
-                            if let Some(s) = found.filter(|s| (lo..=hi).contains(s)) {
-                                let w = 1.0 / v.sigma.max(1e-12).powi(2);
+                        let offsets = older
+                            .iter()
+                            .map(|v| {
+                                // Into the older view's coordinates: its motion is rigid,
+                                // so offsets along the turned normal are the same lengths.
+                                let m = &v.to_newest;
+                                let tq = rotate_back(m, t);
+                                v.offset(m.inverse(p), [-tq[1], tq[0]], tq, gate + dev.abs())
+                                    .filter(|s| (lo..=hi).contains(s))
+                            })
+                            .collect();
+                        Some(Found {
+                            tangent: t,
+                            spike: dev != 0.0,
+                            offsets,
+                        })
+                    })
+                    .collect()
+            })
+            .collect();
+        let weights = view_weights(&found, older.len(), newest.sigma);
+        let curves = newest
+            .curves
+            .iter()
+            .zip(&found)
+            .map(|(c, found)| {
+                let points = c
+                    .points
+                    .iter()
+                    .zip(found)
+                    .map(|(&p, f)| {
+                        let Some(Found {
+                            tangent: t,
+                            offsets,
+                            ..
+                        }) = f
+                        else {
+                            return p;
+                        };
+                        let (mut sum, mut total) = (0.0, weights.0);
+                        for (s, w) in offsets.iter().zip(&weights.1) {
+                            if let Some(s) = s {
                                 sum += w * s;
                                 total += w;
                             }
@@ -381,6 +415,59 @@ impl Window {
             .collect();
         (curves, evidence)
     }
+}
+
+/// What the older views say at one point of the newest curves.
+#[derive(Clone, Debug)]
+struct Found {
+    /// The direction the point moves across.
+    tangent: Point,
+    /// Whether the point stood off its own chord.
+    spike: bool,
+    /// Each older view's offset along the normal, None where it says nothing.
+    offsets: Vec<Option<f64>>,
+}
+
+/// The weights of the newest view and of each older one: the inverse variance of where
+/// each puts the wall. Two views' curves differ by both curves' noise and by what the
+/// alignment left of the older view's pose error, so each older view's mean square
+/// offset from the newest (over the points off no chord, where the offsets are the
+/// wall's) is `2 c^2 + p_v^2`: the curves' variance `c^2`, taken from the view that
+/// agrees best (its pose error the least), and the rest is that view's pose variance.
+/// A view with fewer than `MIN_OFFSETS` offsets (its variance not known to within
+/// half) weighs as the newest; so do all when none has them, as with equal noise.
+fn view_weights(found: &[Vec<Option<Found>>], views: usize, sigma: f64) -> (f64, Vec<f64>) {
+    let mut sums = vec![(0.0, 0usize); views];
+    for f in found.iter().flatten().flatten() {
+        if f.spike {
+            continue;
+        }
+        for (acc, s) in sums.iter_mut().zip(&f.offsets) {
+            if let Some(s) = s {
+                acc.0 += s * s;
+                acc.1 += 1;
+            }
+        }
+    }
+    let floor = (1e-3 * sigma).powi(2);
+    let ms: Vec<Option<f64>> = sums
+        .iter()
+        .map(|&(sq, n)| (n >= MIN_OFFSETS).then(|| (sq / n as f64).max(floor)))
+        .collect();
+    let Some(c2) = ms
+        .iter()
+        .flatten()
+        .copied()
+        .reduce(f64::min)
+        .map(|m| m / 2.0)
+    else {
+        return (1.0, vec![1.0; views]);
+    };
+    let w = ms
+        .iter()
+        .map(|m| m.map_or(1.0, |m| c2 / (m - c2).max(c2)))
+        .collect();
+    (1.0, w)
 }
 
 /// The unit tangent of `c` at its point `i`: along the chord of its two neighbours
@@ -665,6 +752,48 @@ mod tests {
         for (p, q) in kept[0].points.iter().zip(&own.points) {
             assert!(crate::geom::dist(*p, *q) < 1e-9, "{p:?} from {q:?}");
         }
+    }
+
+    /// A view whose offsets from the newest scatter as the best one's weighs as the
+    /// newest; one shifted by its pose error `d` as well weighs `c^2 / (c^2 + d^2)`
+    /// of it, `c^2` being the variance of one curve (half the best view's mean square
+    /// offset). Points off their chord and views with too few offsets do not count.
+    #[test]
+    fn a_view_weighs_by_what_its_pose_error_adds_to_its_noise() {
+        let c = 0.004;
+        let d = 0.004;
+        let point = |a: f64, b: f64, spike: bool| {
+            Some(Found {
+                tangent: [1.0, 0.0],
+                spike,
+                offsets: vec![Some(a), Some(b), None],
+            })
+        };
+        let mut found: Vec<_> = (0..40)
+            .map(|k| {
+                let e = if k % 2 == 0 { c } else { -c };
+                point(
+                    e * std::f64::consts::SQRT_2,
+                    e * std::f64::consts::SQRT_2 + d,
+                    false,
+                )
+            })
+            .collect();
+        // Spikes, however far, are left out, and so is a point with no view.
+        found.push(point(1.0, 1.0, true));
+        found.push(None);
+        let mut few = found.clone();
+        few.push(Some(Found {
+            tangent: [1.0, 0.0],
+            spike: false,
+            offsets: vec![None, None, Some(0.1)],
+        }));
+        let (own, w) = view_weights(&[few], 3, 0.01);
+        let c2 = c * c;
+        assert!((own - 1.0).abs() < 1e-12);
+        assert!((w[0] - 1.0).abs() < 1e-9, "{w:?}");
+        assert!((w[1] - c2 / (c2 + d * d)).abs() < 1e-9, "{w:?}");
+        assert_eq!(w[2], 1.0, "one offset: weighs as the newest");
     }
 
     /// Frames leave by count and by age, and a restart empties the window.
