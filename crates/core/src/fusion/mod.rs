@@ -393,8 +393,9 @@ impl Window {
                         else {
                             return p;
                         };
-                        let (mut sum, mut total) = (0.0, weights.0);
-                        for (s, w) in offsets.iter().zip(&weights.1) {
+                        // The newest weighs 1, with offset zero.
+                        let (mut sum, mut total) = (0.0, 1.0);
+                        for (s, w) in offsets.iter().zip(&weights) {
                             if let Some(s) = s {
                                 sum += w * s;
                                 total += w;
@@ -428,15 +429,15 @@ struct Found {
     offsets: Vec<Option<f64>>,
 }
 
-/// The weights of the newest view and of each older one: the inverse variance of where
-/// each puts the wall. Two views' curves differ by both curves' noise and by what the
+/// The weight of each older view, the newest weighing 1: the inverse variance of where
+/// each puts the wall, relative to the newest's. Two views' curves differ by both curves' noise and by what the
 /// alignment left of the older view's pose error, so each older view's mean square
 /// offset from the newest (over the points off no chord, where the offsets are the
 /// wall's) is `2 c^2 + p_v^2`: the curves' variance `c^2`, taken from the view that
 /// agrees best (its pose error the least), and the rest is that view's pose variance.
 /// A view with fewer than `MIN_OFFSETS` offsets (its variance not known to within
 /// half) weighs as the newest; so do all when none has them, as with equal noise.
-fn view_weights(found: &[Vec<Option<Found>>], views: usize, sigma: f64) -> (f64, Vec<f64>) {
+fn view_weights(found: &[Vec<Option<Found>>], views: usize, sigma: f64) -> Vec<f64> {
     let mut sums = vec![(0.0, 0usize); views];
     for f in found.iter().flatten().flatten() {
         if f.spike {
@@ -461,13 +462,11 @@ fn view_weights(found: &[Vec<Option<Found>>], views: usize, sigma: f64) -> (f64,
         .reduce(f64::min)
         .map(|m| m / 2.0)
     else {
-        return (1.0, vec![1.0; views]);
+        return vec![1.0; views];
     };
-    let w = ms
-        .iter()
+    ms.iter()
         .map(|m| m.map_or(1.0, |m| c2 / (m - c2).max(c2)))
-        .collect();
-    (1.0, w)
+        .collect()
 }
 
 /// The unit tangent of `c` at its point `i`: along the chord of its two neighbours
@@ -788,9 +787,8 @@ mod tests {
             spike: false,
             offsets: vec![None, None, Some(0.1)],
         }));
-        let (own, w) = view_weights(&[few], 3, 0.01);
+        let w = view_weights(&[few], 3, 0.01);
         let c2 = c * c;
-        assert!((own - 1.0).abs() < 1e-12);
         assert!((w[0] - 1.0).abs() < 1e-9, "{w:?}");
         assert!((w[1] - c2 / (c2 + d * d)).abs() < 1e-9, "{w:?}");
         assert_eq!(w[2], 1.0, "one offset: weighs as the newest");
