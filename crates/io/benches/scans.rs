@@ -52,17 +52,7 @@ fn sim_room() -> Vec<Scan> {
     simulate(&p)
         .unwrap()
         .iter()
-        .map(|f| {
-            Scan::from_laser(&LaserScan {
-                origin: [0.0, 0.0],
-                angle_min: f.angle_min,
-                angle_increment: f.angle_increment,
-                ranges: &f.ranges,
-                range_min: f.range_min,
-                range_max: f.range_max,
-            })
-            .unwrap()
-        })
+        .map(|f| f.scan().unwrap())
         .collect()
 }
 

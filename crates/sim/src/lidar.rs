@@ -649,6 +649,20 @@ pub struct ScanFrame {
 
 pub use isoline_core::geom::{to_sensor, to_world};
 
+impl ScanFrame {
+    /// The frame as the core's scan (beams from the sensor at the origin).
+    pub fn scan(&self) -> Result<isoline_core::Scan, isoline_core::Error> {
+        isoline_core::Scan::from_laser(&isoline_core::LaserScan {
+            origin: [0.0, 0.0],
+            angle_min: self.angle_min,
+            angle_increment: self.angle_increment,
+            ranges: &self.ranges,
+            range_min: self.range_min,
+            range_max: self.range_max,
+        })
+    }
+}
+
 /// Simulates the scans.
 pub fn simulate(params: &LidarParams) -> Result<Vec<ScanFrame>, String> {
     params.validate()?;

@@ -1,0 +1,554 @@
+//! The pose stage: each scan registered against the local map of the last keyframes,
+//! from the input poses' motion taken as a prior; keyframes in a pose graph; loops
+//! searched near each closed keyframe within the graph's uncertainty, verified by
+//! matching, checked against the graph, and the graph solved when one closes
+//! (docs/method.md, "Poses").
+//!
+//! A keyframe is the scan that opens it plus the scans registered while it is the
+//! newest, in its own frame, thinned to a lattice: a submap that moves rigidly with its
+//! node when the graph moves it (Cartographer's submaps, Hess et al. 2016). Every scan
+//! keeps its pose relative to its keyframe, so the whole trajectory follows the graph.
+
+use isoline_core::{Point, Pose, Scan};
+use nalgebra::Matrix3;
+
+use crate::correlate::{search, Likelihood, Window};
+use crate::graph::{Edge, PoseGraph};
+use crate::icp::{register, Match, Prior};
+use crate::se2::{between, compose, compose_cov, diag, diff, rotate_cov, Cov3};
+use crate::submap::{thin, Surface};
+
+/// How scans are registered and loops closed.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(default, deny_unknown_fields))]
+pub struct RegisterParams {
+    /// A new keyframe opens once the sensor has moved this far from the last one,
+    /// metres.
+    pub keyframe_distance: f64,
+    /// ... or turned this far, radians.
+    pub keyframe_angle: f64,
+    /// Keyframes in the local map a scan is registered against.
+    pub local_keyframes: usize,
+    /// The lattice returns are thinned to, metres: one target point per cell.
+    pub cell: f64,
+    /// The measurement noise of a return against the map (range noise and the map's
+    /// own), metres: the robust kernel's floor and the inlier band's third.
+    pub noise: f64,
+    /// The farthest a return's target may lie from where the prior puts it, metres.
+    pub reach: f64,
+    /// Returns beyond this range are not registered, metres.
+    pub max_range: f64,
+    /// The input motion's error: standard deviation per metre travelled (a fraction)
+    /// and per radian turned (a fraction), as wheel odometry's error grows.
+    pub odometry_noise: [f64; 2],
+    /// Scan matching's own drift, the floor under a keyframe edge's covariance:
+    /// standard deviation per metre (a fraction) and radians per metre.
+    pub drift: [f64; 2],
+    /// Search for loops and close them.
+    pub loops: bool,
+    /// Path travelled before a place may close a loop with itself, metres (within it
+    /// the local map already holds it).
+    pub loop_min_path: f64,
+    /// Share of a keyframe's returns that must lie on the older keyframe's walls for a
+    /// loop to close.
+    pub loop_min_overlap: f64,
+}
+
+impl Default for RegisterParams {
+    fn default() -> Self {
+        RegisterParams {
+            keyframe_distance: 0.5,
+            keyframe_angle: 15f64.to_radians(),
+            local_keyframes: 12,
+            cell: 0.03,
+            noise: 0.02,
+            reach: 0.5,
+            max_range: 20.0,
+            odometry_noise: [0.1, 0.1],
+            drift: [0.01, 0.5f64.to_radians()],
+            loops: true,
+            loop_min_path: 10.0,
+            loop_min_overlap: 0.5,
+        }
+    }
+}
+
+impl RegisterParams {
+    /// Every problem with the parameters, each naming its key (`register.cell`).
+    pub fn validate(&self) -> std::result::Result<(), Vec<String>> {
+        let mut problems = Vec::new();
+        let mut check = |key: &str, v: f64, lo: f64, hi: f64| {
+            if !(v.is_finite() && v >= lo && v <= hi) {
+                problems.push(format!("register.{key} = {v}: must be {lo} to {hi}"));
+            }
+        };
+        check("keyframe_distance", self.keyframe_distance, 0.01, 100.0);
+        check("keyframe_angle", self.keyframe_angle, 0.001, 3.2);
+        check("cell", self.cell, 0.001, 1.0);
+        check("noise", self.noise, 0.0001, 1.0);
+        check("reach", self.reach, 0.01, 10.0);
+        check("max_range", self.max_range, 0.1, 1000.0);
+        check("odometry_noise[0]", self.odometry_noise[0], 0.0, 10.0);
+        check("odometry_noise[1]", self.odometry_noise[1], 0.0, 10.0);
+        check("drift[0]", self.drift[0], 0.0, 1.0);
+        check("drift[1]", self.drift[1], 0.0, 1.0);
+        check("loop_min_path", self.loop_min_path, 0.0, 1e6);
+        check("loop_min_overlap", self.loop_min_overlap, 0.0, 1.0);
+        if !(1..=1000).contains(&self.local_keyframes) {
+            problems.push(format!(
+                "register.local_keyframes = {}: must be 1 to 1000",
+                self.local_keyframes
+            ));
+        }
+        if problems.is_empty() {
+            Ok(())
+        } else {
+            Err(problems)
+        }
+    }
+}
+
+/// What registration made of one scan.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Registered {
+    /// The scan's estimated pose in the world, as known when it came.
+    pub pose: Pose,
+    /// Its covariance (`x, y, theta`), row by row.
+    pub cov: [[f64; 3]; 3],
+    /// Whether some direction was decided by the prior (the input's motion), not the
+    /// returns: a featureless corridor along its axis.
+    pub degenerate: bool,
+    /// Share of the scan's returns on the local map's walls (0 for the first scan).
+    pub inlier_share: f64,
+    /// Loops closed when this scan's keyframe closed.
+    pub loops_closed: usize,
+}
+
+/// A keyframe: its submap in its own frame.
+struct Keyframe {
+    /// Thinned returns of its scans.
+    points: Vec<Point>,
+    surface: Surface,
+    /// Path travelled when it opened, metres.
+    path: f64,
+    /// The covariance of its edge from the previous keyframe, in that one's frame.
+    edge_cov: Cov3,
+}
+
+/// Registers a stream of scans, keeps the pose graph and closes loops.
+pub struct Registrar {
+    params: RegisterParams,
+    graph: PoseGraph,
+    keyframes: Vec<Keyframe>,
+    /// Raw returns of the open (newest) keyframe's scans, in its frame.
+    open: Vec<Point>,
+    /// Each scan's keyframe and pose relative to it.
+    anchors: Vec<(usize, Pose)>,
+    /// The previous scan's input pose and estimate.
+    last: Option<(Option<Pose>, Pose)>,
+    /// The local map in the world, and the keyframes it was built from.
+    local: Option<Surface>,
+    path: f64,
+    loops: usize,
+}
+
+impl std::fmt::Debug for Registrar {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Registrar")
+            .field("scans", &self.anchors.len())
+            .field("keyframes", &self.keyframes.len())
+            .field("loops", &self.loops)
+            .finish()
+    }
+}
+
+/// Wide uncertainty of a still-standing prior for scans without input poses: a person
+/// walks half a metre and turns half a radian between scans at most.
+const STILL: [f64; 2] = [0.5, 0.5];
+
+impl Registrar {
+    /// An empty registrar, or the problems with `params`.
+    pub fn new(params: RegisterParams) -> std::result::Result<Registrar, Vec<String>> {
+        params.validate()?;
+        Ok(Registrar {
+            params,
+            graph: PoseGraph::default(),
+            keyframes: Vec::new(),
+            open: Vec::new(),
+            anchors: Vec::new(),
+            last: None,
+            local: None,
+            path: 0.0,
+            loops: 0,
+        })
+    }
+
+    /// The parameters.
+    pub fn params(&self) -> &RegisterParams {
+        &self.params
+    }
+
+    /// Scans registered.
+    pub fn scans(&self) -> usize {
+        self.anchors.len()
+    }
+
+    /// Keyframes in the graph.
+    pub fn keyframes(&self) -> usize {
+        self.keyframes.len()
+    }
+
+    /// Loops closed so far.
+    pub fn loops(&self) -> usize {
+        self.loops
+    }
+
+    /// Registers the next scan. `input` is its pose from the source (odometry, a
+    /// recording's poses), taken for its motion since the previous scan; `None`
+    /// registers the scan from the returns alone.
+    pub fn push(&mut self, scan: &Scan, input: Option<Pose>) -> Registered {
+        let _span = tracing::debug_span!("register", scan = self.anchors.len()).entered();
+        let points = self.returns(scan);
+        let Some((last_input, last)) = self.last else {
+            // The first scan fixes the world: where its input puts it, else the origin.
+            let pose = input.unwrap_or([0.0, 0.0, 0.0]);
+            self.open_keyframe(pose, &points, Cov3::zeros());
+            self.last = Some((input, pose));
+            self.anchors.push((0, [0.0, 0.0, 0.0]));
+            return Registered {
+                pose,
+                cov: [[0.0; 3]; 3],
+                degenerate: false,
+                inlier_share: 0.0,
+                loops_closed: 0,
+            };
+        };
+        let prior = self.prior(last, last_input, input);
+        let m = match &self.local {
+            Some(local) if !local.is_empty() => register(
+                &points,
+                local,
+                prior.mean,
+                Some(&prior),
+                self.params.noise,
+                self.params.reach,
+            ),
+            _ => Match {
+                pose: prior.mean,
+                cov: prior.info.try_inverse().unwrap_or_else(Cov3::identity),
+                info: Matrix3::zeros(),
+                paired: 0,
+                inliers: 0,
+                offered: points.len(),
+                spread: 0.0,
+                degenerate: true,
+            },
+        };
+        let pose = m.pose;
+        self.path += diff(pose, last).xy().norm();
+        self.last = Some((input, pose));
+        let kf = self.keyframes.len() - 1;
+        let anchor = self.graph.nodes[kf];
+        let rel = between(anchor, pose);
+        let mut loops_closed = 0;
+        let moved = rel[0].hypot(rel[1]);
+        if moved >= self.params.keyframe_distance || rel[2].abs() >= self.params.keyframe_angle {
+            loops_closed = self.close_keyframe();
+            // The graph may have moved the old keyframe: the scan keeps its place
+            // relative to it.
+            let pose = compose(self.graph.nodes[kf], rel);
+            let cov = self.edge_cov(&m, rel);
+            self.open_keyframe(pose, &points, cov);
+            self.anchors.push((kf + 1, [0.0, 0.0, 0.0]));
+            self.last = Some((input, pose));
+        } else {
+            self.open
+                .extend(points.iter().map(|&p| isoline_core::geom::to_world(rel, p)));
+            self.anchors.push((kf, rel));
+        }
+        let (k, rel) = *self.anchors.last().expect("pushed above");
+        let pose = compose(self.graph.nodes[k], rel);
+        let c = m.cov;
+        Registered {
+            pose,
+            cov: [
+                [c[(0, 0)], c[(0, 1)], c[(0, 2)]],
+                [c[(1, 0)], c[(1, 1)], c[(1, 2)]],
+                [c[(2, 0)], c[(2, 1)], c[(2, 2)]],
+            ],
+            degenerate: m.degenerate,
+            inlier_share: m.inlier_share(),
+            loops_closed,
+        }
+    }
+
+    /// Every scan's pose as the graph now places it (after the loops closed since it
+    /// was registered), in the order pushed.
+    pub fn trajectory(&self) -> Vec<Pose> {
+        self.anchors
+            .iter()
+            .map(|&(k, rel)| compose(self.graph.nodes[k], rel))
+            .collect()
+    }
+
+    /// Closes the newest keyframe (its submap from all its scans) and searches loops
+    /// for it: the trajectory after this is final.
+    pub fn finish(&mut self) -> Vec<Pose> {
+        if !self.keyframes.is_empty() {
+            self.close_keyframe();
+        }
+        self.trajectory()
+    }
+
+    /// The scan's returns within `max_range`, thinned to the lattice.
+    fn returns(&self, scan: &Scan) -> Vec<Point> {
+        let r = self.params.max_range;
+        let o = scan.origin;
+        let pts: Vec<Point> = scan
+            .returns()
+            .into_iter()
+            .filter(|&p| isoline_core::geom::dist(p, o) <= r)
+            .collect();
+        thin(&pts, self.params.cell)
+    }
+
+    /// The prior on the scan's pose: the input's motion since the previous scan from
+    /// the previous estimate, with the odometry's error model; without inputs, standing
+    /// still with a wide uncertainty.
+    fn prior(&self, last: Pose, last_input: Option<Pose>, input: Option<Pose>) -> Prior {
+        let (mean, cov) = match (last_input, input) {
+            (Some(a), Some(b)) => {
+                let step = between(a, b);
+                let (d, turn) = (step[0].hypot(step[1]), step[2].abs());
+                let [per_m, per_rad] = self.params.odometry_noise;
+                // A floor of a centimetre and a degree: odometry at a stop still slips.
+                let st = per_m * d + 0.01;
+                let sr = per_rad * turn + per_m * d + 1f64.to_radians();
+                (compose(last, step), rotate_cov(&diag(st, st, sr), last[2]))
+            }
+            _ => (last, diag(STILL[0], STILL[0], STILL[1])),
+        };
+        Prior {
+            mean,
+            info: cov.try_inverse().unwrap_or_else(Matrix3::zeros),
+        }
+    }
+
+    /// A keyframe edge's covariance: the match's, in the previous keyframe's frame,
+    /// never below scan matching's drift over the edge's length.
+    fn edge_cov(&self, m: &Match, rel: Pose) -> Cov3 {
+        let kf = self.keyframes.len() - 1;
+        let d = rel[0].hypot(rel[1]);
+        let [per_m, rad_per_m] = self.params.drift;
+        let floor = diag(
+            per_m * d + 0.5 * self.params.cell,
+            per_m * d + 0.5 * self.params.cell,
+            rad_per_m * d + 0.1f64.to_radians(),
+        );
+        rotate_cov(&m.cov, -self.graph.nodes[kf][2]) + floor
+    }
+
+    fn open_keyframe(&mut self, pose: Pose, points: &[Point], cov: Cov3) {
+        let k = self.keyframes.len();
+        self.graph.nodes.push(pose);
+        if k > 0 {
+            let info = cov.try_inverse().unwrap_or_else(Matrix3::identity);
+            self.graph.edges.push(Edge {
+                from: k - 1,
+                to: k,
+                z: between(self.graph.nodes[k - 1], pose),
+                info,
+                loop_closure: false,
+            });
+        }
+        self.open = points.to_vec();
+        let surface = Surface::new(points, self.normal_radius());
+        self.keyframes.push(Keyframe {
+            points: points.to_vec(),
+            surface,
+            path: self.path,
+            edge_cov: cov,
+        });
+        self.rebuild_local();
+    }
+
+    /// The farthest a normal's neighbours may lie: returns farther apart than half a
+    /// metre along a wall are too sparse to say where it runs between them.
+    fn normal_radius(&self) -> f64 {
+        0.5
+    }
+
+    /// The newest keyframe's submap from all its scans, then the loops it closes.
+    fn close_keyframe(&mut self) -> usize {
+        let k = self.keyframes.len() - 1;
+        let points = thin(&std::mem::take(&mut self.open), self.params.cell);
+        let surface = Surface::new(&points, self.normal_radius());
+        self.keyframes[k].points = points;
+        self.keyframes[k].surface = surface;
+        let closed = if self.params.loops {
+            self.close_loops(k)
+        } else {
+            0
+        };
+        self.rebuild_local();
+        closed
+    }
+
+    /// The local map: the last keyframes' target points and normals, in the world.
+    fn rebuild_local(&mut self) {
+        let n = self.keyframes.len();
+        let from = n.saturating_sub(self.params.local_keyframes);
+        let mut points = Vec::new();
+        let mut normals = Vec::new();
+        for k in from..n {
+            let pose = self.graph.nodes[k];
+            let (s, c) = pose[2].sin_cos();
+            let kf = &self.keyframes[k];
+            for (p, nrm) in kf.surface.points().iter().zip(kf.surface.normals()) {
+                points.push(isoline_core::geom::to_world(pose, *p));
+                normals.push([c * nrm[0] - s * nrm[1], s * nrm[0] + c * nrm[1]]);
+            }
+        }
+        self.local = Some(Surface::with_normals(points, normals));
+    }
+
+    /// Searches older keyframes near keyframe `k` for loops, adds the edges that pass
+    /// the checks, and solves the graph if any did. Returns how many closed.
+    fn close_loops(&mut self, k: usize) -> usize {
+        let p = self.params;
+        let here = self.graph.nodes[k];
+        let path = self.keyframes[k].path;
+        // The candidates: far enough back along the path, within reach of the
+        // uncertainty the chain of edges since them adds.
+        let mut candidates: Vec<(f64, usize, Cov3)> = Vec::new();
+        let mut chain = Cov3::zeros();
+        let mut rel = [0.0, 0.0, 0.0];
+        for j in (0..k).rev() {
+            // The chain's covariance of k seen from j, built backwards edge by edge.
+            let step = between(self.graph.nodes[j], self.graph.nodes[j + 1]);
+            chain = compose_cov(step, &self.keyframes[j + 1].edge_cov, rel, &chain);
+            rel = compose(step, rel);
+            if path - self.keyframes[j].path < p.loop_min_path {
+                continue;
+            }
+            let spread = chain
+                .fixed_view::<2, 2>(0, 0)
+                .symmetric_eigenvalues()
+                .max()
+                .sqrt();
+            let d = diff(here, self.graph.nodes[j]).xy().norm();
+            if d <= p.max_range.min(0.5 * p.loop_min_path) + 3.0 * spread {
+                candidates.push((d, j, chain));
+            }
+        }
+        candidates.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let mut closed = 0;
+        for &(_, j, chain) in candidates.iter().take(1) {
+            if let Some(edge) = self.verify(j, k, &chain) {
+                self.graph.edges.push(edge);
+                closed += 1;
+            }
+        }
+        if closed > 0 {
+            let solved = self.graph.optimize(20);
+            tracing::debug!(keyframe = k, closed, ?solved, "loops closed");
+            self.loops += closed;
+        }
+        closed
+    }
+
+    /// Matches keyframe `k`'s submap onto the submaps of keyframe `j` and its
+    /// neighbours from where the graph puts them: a correlative search over the
+    /// window the chain's uncertainty gives (three standard deviations, at most 3 m and
+    /// 20 degrees), then ICP from its best. The edge if the match is good (overlap, not
+    /// degenerate) and consistent with the graph (its correction within the chain's
+    /// 99.9% ellipsoid).
+    fn verify(&self, j: usize, k: usize, chain: &Cov3) -> Option<Edge> {
+        let p = self.params;
+        let guess = between(self.graph.nodes[j], self.graph.nodes[k]);
+        let source = &self.keyframes[k].points;
+        // The target: keyframe j with its neighbours along the path, in j's frame.
+        let (lo, hi) = (j.saturating_sub(2), (j + 2).min(k.saturating_sub(1)));
+        let mut points = Vec::new();
+        let mut normals = Vec::new();
+        for i in lo..=hi {
+            let rel = between(self.graph.nodes[j], self.graph.nodes[i]);
+            let (s, c) = rel[2].sin_cos();
+            let kf = &self.keyframes[i];
+            for (q, n) in kf.surface.points().iter().zip(kf.surface.normals()) {
+                points.push(isoline_core::geom::to_world(rel, *q));
+                normals.push([c * n[0] - s * n[1], s * n[0] + c * n[1]]);
+            }
+        }
+        if points.len() < 20 || source.len() < 20 {
+            return None;
+        }
+        let spread = chain
+            .fixed_view::<2, 2>(0, 0)
+            .symmetric_eigenvalues()
+            .max()
+            .sqrt();
+        let window = Window {
+            linear: (3.0 * spread).clamp(p.reach, 3.0),
+            angular: (3.0 * chain[(2, 2)].sqrt()).clamp(3f64.to_radians(), 20f64.to_radians()),
+        };
+        // Coarse: a fifth of a metre, the returns within 8 m (farther ones turn the
+        // heading step finer for little gain), at most 150 of them.
+        let near: Vec<Point> = source
+            .iter()
+            .copied()
+            .filter(|q| q[0].hypot(q[1]) <= 8.0)
+            .collect();
+        let every = near.len().div_ceil(150).max(1);
+        let coarse_pts: Vec<Point> = near.iter().step_by(every).copied().collect();
+        let coarse = Likelihood::new(&points, 0.2, 0.2, window.linear)?;
+        let (at, _) = search(&coarse_pts, &coarse, guess, window);
+        let fine = Likelihood::new(&points, 0.05, p.noise.max(0.05), 0.3)?;
+        let (at, _) = search(
+            &near,
+            &fine,
+            at,
+            Window {
+                linear: 0.2,
+                angular: 0.2 / 8.0,
+            },
+        );
+        let target = Surface::with_normals(points, normals);
+        let best = register(source, &target, at, None, p.noise, p.reach);
+        let c = diff(best.pose, guess);
+        let s = chain + best.cov;
+        let m2 = s.try_inverse().map(|inv| (c.transpose() * inv * c)[0]);
+        tracing::debug!(
+            j,
+            k,
+            share = best.inlier_share(),
+            degenerate = best.degenerate,
+            ?m2,
+            "loop candidate"
+        );
+        // The match must say more than the graph already knows along every direction:
+        // along a corridor's axis it does not, and there a repeated door or a column
+        // would close the loop at the wrong place.
+        let chain_info = chain.try_inverse()?;
+        if best.inlier_share() < p.loop_min_overlap
+            || crate::icp::degenerate(&best.info, &chain_info)
+        {
+            return None;
+        }
+        // Consistency: the correction against the chain's and the match's uncertainty,
+        // chi-square with three degrees of freedom at 99.9%.
+        let m2 = m2?;
+        if m2.is_nan() || m2 > 16.27 {
+            return None;
+        }
+        let floor = diag(0.5 * p.cell, 0.5 * p.cell, 0.1f64.to_radians());
+        Some(Edge {
+            from: j,
+            to: k,
+            z: best.pose,
+            info: (best.cov + floor).try_inverse()?,
+            loop_closure: true,
+        })
+    }
+}
