@@ -32,11 +32,20 @@ pub struct Args {
     /// and, with --truth, against the scene's walls.
     #[arg(long)]
     map: bool,
+    /// The input is an estimated trajectory (TUM: `t x y z qx qy qz qw` a line, as
+    /// `isoline map --trajectory` writes): scored against this reference trajectory,
+    /// poses paired by time, as the absolute trajectory error after the best rigid
+    /// alignment and the relative pose error over 1 m and 10 m of path.
+    #[arg(long)]
+    reference: Option<PathBuf>,
 }
 
 /// Prints the accuracy as JSON: one object, or the worst Hausdorff distance and one
 /// object per frame.
 pub fn run(a: Args) -> Result<()> {
+    if let Some(reference) = &a.reference {
+        return run_trajectory(&a.recon, reference);
+    }
     if a.map {
         return run_map(&a);
     }
@@ -471,4 +480,81 @@ fn read_polyline_records(path: &Path) -> Result<Vec<(Option<u64>, Vec<Polyline>)
         bail!("{}: no polyline records", path.display());
     }
     Ok(out)
+}
+
+/// A TUM trajectory's timed poses, in the file's order.
+fn read_tum(path: &std::path::Path) -> Result<Vec<(f64, isoline_core::Pose)>> {
+    let text = super::read(path)?;
+    let poses: Vec<_> = text
+        .lines()
+        .filter_map(isoline_map::trajectory::parse_tum_line)
+        .collect();
+    if poses.is_empty() {
+        bail!(
+            "{}: no pose (TUM lines: t x y z qx qy qz qw)",
+            path.display()
+        );
+    }
+    Ok(poses)
+}
+
+/// Prints the trajectory's errors against the reference as JSON: the estimate's poses
+/// paired with the reference's at the same time (within a millisecond), or in order
+/// where either's time stamps repeat.
+fn run_trajectory(estimate: &std::path::Path, reference_path: &std::path::Path) -> Result<()> {
+    use isoline_map::trajectory::{absolute, relative};
+    let est = read_tum(estimate)?;
+    let reference = read_tum(reference_path)?;
+    // Recordings whose time stamps repeat (some CARMEN logs stamp every line alike)
+    // can only be paired pose for pose, in order.
+    let distinct = |v: &[(f64, isoline_core::Pose)]| v.windows(2).all(|w| w[1].0 > w[0].0);
+    let by_order = !(distinct(&est) && distinct(&reference));
+    let (mut e, mut r) = (Vec::new(), Vec::new());
+    if by_order {
+        if est.len() != reference.len() {
+            bail!(
+                "{} ({} poses) and {} ({}): time stamps repeat, so the poses pair in order, and the counts differ",
+                estimate.display(),
+                est.len(),
+                reference_path.display(),
+                reference.len()
+            );
+        }
+        e = est.iter().map(|p| p.1).collect();
+        r = reference.iter().map(|p| p.1).collect();
+    } else {
+        for &(t, p) in &est {
+            let k = reference.partition_point(|q| q.0 < t - 1e-3);
+            if let Some(&(tr, q)) = reference.get(k) {
+                if (tr - t).abs() <= 1e-3 {
+                    e.push(p);
+                    r.push(q);
+                }
+            }
+        }
+    }
+    if e.len() < 2 {
+        bail!(
+            "{} and {}: fewer than two poses at the same times",
+            estimate.display(),
+            reference_path.display()
+        );
+    }
+    let abs = absolute(&e, &r);
+    let rel = |d: f64| {
+        let x = relative(&e, &r, d);
+        json!({"delta_m": d, "pairs": x.pairs, "translation_m": x.translation,
+               "heading_deg": x.heading.to_degrees()})
+    };
+    let out = json!({
+        "poses": abs.poses,
+        "paired_by": if by_order { "order" } else { "time" },
+        "unpaired": est.len() - abs.poses,
+        "length_m": abs.length,
+        "ate_m": abs.ate,
+        "ate_heading_deg": abs.ate_heading.to_degrees(),
+        "rpe": [rel(1.0), rel(10.0)],
+    });
+    println!("{}", serde_json::to_string_pretty(&out)?);
+    Ok(())
 }

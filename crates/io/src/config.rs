@@ -41,6 +41,11 @@ pub struct Config {
     /// `[map]`: `isoline map`'s world lattice.
     #[serde(default)]
     pub map: MapConfig,
+    /// `[register]`: how `isoline map --register` and the daemon's `register = true`
+    /// estimate poses (docs/method.md, "Poses"); every key optional, defaults as
+    /// `isoline_map::RegisterParams::default()`.
+    #[serde(default)]
+    pub register: isoline_map::RegisterParams,
 }
 
 /// `[map]`: how `isoline map` fuses scans (docs/method.md, "A map of the whole run").
@@ -412,6 +417,9 @@ impl Config {
             problems.extend(p);
         }
         if let Err(p) = cfg.map.to_params() {
+            problems.extend(p);
+        }
+        if let Err(p) = cfg.register.validate() {
             problems.extend(p);
         }
         if !problems.is_empty() {

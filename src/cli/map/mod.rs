@@ -13,6 +13,8 @@ use isoline_core::{Map, MapScores, MapStats, Params, Scan};
 use isoline_io::map_files::{write_map, MapFormat, MAP_EXTENSIONS};
 use isoline_io::{BadFrame, Frame};
 
+mod register;
+
 /// `isoline map` options.
 #[derive(clap::Args)]
 pub struct Args {
@@ -39,6 +41,16 @@ pub struct Args {
     /// else the system's temporary directory.
     #[arg(long)]
     spill: Option<PathBuf>,
+    /// Estimate the scans' poses before fusing them: each scan registered against the
+    /// local map with the input poses' motion as a prior (odometry), loops closed, the
+    /// map fused at the estimated poses (docs/method.md, "Poses"). Frames without a pose
+    /// are registered from their returns alone. Without it the input poses are the truth.
+    #[arg(long)]
+    register: bool,
+    /// Write the pose of every scan placed (the estimate with --register) as a TUM
+    /// trajectory: `t x y z qx qy qz qw` a line, z = 0.
+    #[arg(long)]
+    trajectory: Option<PathBuf>,
     /// No progress bar.
     #[arg(long, short)]
     quiet: bool,
@@ -68,6 +80,10 @@ struct Run<'a> {
     skipped: Skipped,
     first_errors: Vec<String>,
     poses: Vec<Point>,
+    /// Each scan fused: its time (else its frame number) and pose.
+    placed: Vec<(f64, Pose)>,
+    /// With --register, every scan's estimated pose in reading order, and the next's.
+    registered: Option<(Vec<Pose>, usize)>,
     reconstruct_s: f64,
     fuse_s: f64,
     /// CPU seconds (all threads) spent reconstructing and fusing.
@@ -132,7 +148,7 @@ pub fn run(mut a: Args) -> Result<()> {
         .output
         .iter()
         .map(|p| Some(p.as_path()))
-        .chain(std::iter::once(a.stats.as_deref()))
+        .chain([a.stats.as_deref(), a.trajectory.as_deref()])
         .collect();
     super::refuse_overwrite(&a.input, &outputs)?;
     for o in &a.output {
@@ -147,12 +163,24 @@ pub fn run(mut a: Args) -> Result<()> {
     let bar = progress(a.quiet);
     let start = Instant::now();
     let cpu = cpu_time::ProcessTime::try_now().ok();
+    let registration = if a.register {
+        let mut params = cfg.register;
+        params.max_range = params.max_range.min(map_params.max_range);
+        Some(
+            register::run(&a.input, &bag, params, &bar)
+                .with_context(|| format!("registering {}", a.input.display()))?,
+        )
+    } else {
+        None
+    };
     let mut run = Run {
         map,
         params: cfg.params(),
         skipped: Skipped::default(),
         first_errors: Vec::new(),
         poses: Vec::new(),
+        placed: Vec::new(),
+        registered: registration.as_ref().map(|r| (r.poses.clone(), 0)),
         reconstruct_s: 0.0,
         fuse_s: 0.0,
         reconstruct_cpu_s: 0.0,
@@ -163,7 +191,7 @@ pub fn run(mut a: Args) -> Result<()> {
         blocks: Vec::new(),
         block: Block::default(),
     };
-    let mut batch: Vec<(Scan, Pose)> = Vec::with_capacity(BATCH);
+    let mut batch: Vec<(Scan, Pose, f64)> = Vec::with_capacity(BATCH);
     let mut failure: Option<anyhow::Error> = None;
     isoline_io::for_each_item(&a.input, &bag, |item| {
         if let Some(scan) = run.accept(item) {
@@ -207,7 +235,18 @@ pub fn run(mut a: Args) -> Result<()> {
     write_all(&a.output, &curves, &run.poses, stats.scans)?;
     let wall = start.elapsed().as_secs_f64();
     let cpu_s = cpu.map(|c| c.elapsed().as_secs_f64());
-    let summary = summary(&a.input, &run, &stats, &scores, wall, cpu_s, finish_s);
+    let mut summary = summary(&a.input, &run, &stats, &scores, wall, cpu_s, finish_s);
+    if let Some(r) = &registration {
+        summary["registration"] = serde_json::to_value(&r.summary)?;
+    }
+    if let Some(path) = &a.trajectory {
+        let mut text = String::from("# t x y z qx qy qz qw\n");
+        for &(t, pose) in &run.placed {
+            text += &isoline_map::trajectory::tum_line(t, pose);
+            text.push('\n');
+        }
+        super::write(path, text)?;
+    }
     eprintln!(
         "isoline map: {} scans in {:.1} s ({:.0} scans/s), {} pieces, {:.1} m; static returns within {} m: {:.1}%, map seen through: {:.2}%",
         stats.scans,
@@ -226,24 +265,34 @@ pub fn run(mut a: Args) -> Result<()> {
 }
 
 impl Run<'_> {
-    /// The frame's scan and pose, or why it is skipped (counted).
-    fn accept(&mut self, item: Result<Frame, BadFrame>) -> Option<(Scan, Pose)> {
+    /// The frame's scan, pose and time, or why it is skipped (counted).
+    fn accept(&mut self, item: Result<Frame, BadFrame>) -> Option<(Scan, Pose, f64)> {
         match item {
             Err(bad) => {
                 self.skipped.unreadable += 1;
                 self.note(bad.message);
                 None
             }
-            Ok(f) => match (f.scan, f.pose) {
-                (_, None) => {
-                    self.skipped.no_pose += 1;
-                    None
+            Ok(f) => match (f.scan, f.pose, &mut self.registered) {
+                // Registration read the same frames in the same order.
+                (Some(scan), _, Some((poses, next))) => {
+                    let pose = poses.get(*next).copied()?;
+                    *next += 1;
+                    Some((scan, pose, f.t.unwrap_or(f.frame as f64)))
                 }
-                (None, Some(_)) => {
+                (None, _, Some(_)) => {
                     self.skipped.no_beams += 1;
                     None
                 }
-                (Some(scan), Some(pose)) => Some((scan, pose)),
+                (_, None, None) => {
+                    self.skipped.no_pose += 1;
+                    None
+                }
+                (None, Some(_), None) => {
+                    self.skipped.no_beams += 1;
+                    None
+                }
+                (Some(scan), Some(pose), None) => Some((scan, pose, f.t.unwrap_or(f.frame as f64))),
             },
         }
     }
@@ -256,7 +305,7 @@ impl Run<'_> {
 
     /// Reconstructs the batch's scans in parallel, fuses them in order, and writes the
     /// outputs when `every` scans have come since the last write.
-    fn fuse(&mut self, batch: &mut Vec<(Scan, Pose)>) -> Result<()> {
+    fn fuse(&mut self, batch: &mut Vec<(Scan, Pose, f64)>) -> Result<()> {
         let t = Instant::now();
         // The process's CPU over each phase: the main thread waits for the batch, and
         // fuses alone.
@@ -264,7 +313,7 @@ impl Run<'_> {
         let params = &self.params;
         let results: Vec<_> = batch
             .par_iter()
-            .map(|(scan, _)| isoline_core::reconstruct_scan(scan, params))
+            .map(|(scan, _, _)| isoline_core::reconstruct_scan(scan, params))
             .collect();
         let reconstruct = t.elapsed().as_secs_f64();
         self.reconstruct_s += reconstruct;
@@ -277,11 +326,13 @@ impl Run<'_> {
         let cpu = cpu_time::ProcessTime::try_now().ok();
         let each = 1e3 * batch_cpu / batch.len().max(1) as f64;
         let t = Instant::now();
-        for ((scan, pose), r) in batch.drain(..).zip(results) {
+        for ((scan, pose, time), r) in batch.drain(..).zip(results) {
             match r {
                 Ok(r) => {
                     let t = Instant::now();
-                    self.map
+                    // With [map] align the pose the scan was fused at is the estimate.
+                    let pose = self
+                        .map
                         .insert(&scan, pose, &r.polylines, r.noise_estimate)?;
                     self.block.fuse_ms += 1e3 * t.elapsed().as_secs_f64();
                     self.block.reconstruct_ms += each;
@@ -290,6 +341,7 @@ impl Run<'_> {
                         self.close_block();
                     }
                     self.poses.push([pose[0], pose[1]]);
+                    self.placed.push((time, pose));
                     self.since_write += 1;
                 }
                 Err(e) => {

@@ -1,0 +1,94 @@
+//! `isoline map --register`'s first pass: every scan of the input registered and the
+//! loops closed, so that the map is fused once, at the final poses (a loop closed late
+//! moves scans fused early; fusing after it needs no tile fused twice).
+
+use std::path::Path;
+use std::time::Instant;
+
+use anyhow::{anyhow, Result};
+
+use isoline_core::Pose;
+use isoline_io::bag::BagOptions;
+use isoline_map::{RegisterParams, Registrar};
+
+/// The estimated poses, one per scan in reading order, and what it took.
+pub struct Registration {
+    pub poses: Vec<Pose>,
+    pub summary: Summary,
+}
+
+/// The summary's `registration` object.
+#[derive(Debug, serde::Serialize)]
+pub struct Summary {
+    /// Scans registered.
+    pub scans: usize,
+    /// Of them, without an input pose (registered from their returns alone).
+    pub without_pose: usize,
+    /// Keyframes in the pose graph.
+    pub keyframes: usize,
+    /// Loops closed.
+    pub loops: usize,
+    /// Scans where some direction was decided by the input's motion, not the returns.
+    pub degenerate: usize,
+    /// Median share of a scan's returns on the local map's walls.
+    pub median_inlier_share: f64,
+    /// CPU time (the process's, all threads) a scan, milliseconds.
+    pub cpu_ms_per_scan: Option<f64>,
+    /// Wall time, seconds.
+    pub seconds: f64,
+}
+
+/// Registers every scan of `input` (frames without beams are passed over, as the map
+/// passes them over).
+pub fn run(
+    input: &Path,
+    bag: &BagOptions,
+    params: RegisterParams,
+    bar: &indicatif::ProgressBar,
+) -> Result<Registration> {
+    let mut reg =
+        Registrar::new(params).map_err(|p| anyhow!("registration parameters: {}", p.join("; ")))?;
+    let start = Instant::now();
+    let cpu = cpu_time::ProcessTime::try_now().ok();
+    let (mut without_pose, mut degenerate) = (0usize, 0usize);
+    let mut shares = Vec::new();
+    isoline_io::for_each_item(input, bag, |item| {
+        if let Ok(f) = item {
+            if let Some(scan) = &f.scan {
+                without_pose += usize::from(f.pose.is_none());
+                let r = reg.push(scan, f.pose);
+                degenerate += usize::from(r.degenerate);
+                shares.push(r.inlier_share);
+                if reg.scans() % 64 == 0 {
+                    bar.set_message(format!("registered, {} loops closed", reg.loops()));
+                    bar.set_position(reg.scans() as u64);
+                }
+            }
+        }
+        true
+    })?;
+    let poses = reg.finish();
+    let seconds = start.elapsed().as_secs_f64();
+    let n = poses.len();
+    let median_inlier_share = if shares.is_empty() {
+        0.0
+    } else {
+        let mid = shares.len() / 2;
+        *shares.select_nth_unstable_by(mid, f64::total_cmp).1
+    };
+    Ok(Registration {
+        poses,
+        summary: Summary {
+            scans: n,
+            without_pose,
+            keyframes: reg.keyframes(),
+            loops: reg.loops(),
+            degenerate,
+            median_inlier_share,
+            cpu_ms_per_scan: cpu
+                .and_then(|c| c.try_elapsed().ok())
+                .map(|d| 1e3 * d.as_secs_f64() / n.max(1) as f64),
+            seconds,
+        },
+    })
+}
