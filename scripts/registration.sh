@@ -1,0 +1,85 @@
+#!/usr/bin/env bash
+# The pose table of docs/benchmarks.md: each CARMEN log (*.log.gz) and ROS 2 bag
+# (*.mcap, poses from $ODOMETRY, default /odom) in $ISOLINE_REAL with its corrected
+# poses replaced by drifting wheel odometry (scripts/drift-odometry.py, seeds $SEEDS,
+# default "1 2 3"), mapped by `isoline map` five ways: the odometry alone, the odometry
+# with [map] align, --register without loops, --register (loops closed), and the
+# corrected poses themselves; each estimated trajectory scored against the corrected
+# one by `isoline eval --reference` (ATE after the best rigid alignment, RPE over 1 m
+# and 10 m); beam streams without a reference (*.ndjson.gz, real wheel odometry) are
+# mapped with their own poses and with --register. Rows: one a recording and way,
+# medians over the seeds. Usage: ISOLINE_REAL=DIR scripts/registration.sh
+set -euo pipefail
+. "$(dirname "$0")/lib.sh"
+need_recordings
+dir=target/registration
+mkdir -p "$dir"
+seeds=${SEEDS:-1 2 3}
+[ "$quick" = 1 ] && seeds=1
+printf '[map]\nalign = true\n' > "$dir/align.toml"
+printf '[register]\nloops = false\n' > "$dir/noloops.toml"
+: > "$dir/rows.txt"
+run() { # NAME WAY INPUT REF [ARGS...]
+  local name=$1 way=$2 input=$3 ref=$4; shift 4
+  "$bin" map "$input" "$@" -q -o "$dir/$name-$way.svg" --stats "$dir/$name-$way.json" \
+    --trajectory "$dir/$name-$way.tum" 2> /dev/null
+  if [ -n "$ref" ]; then
+    "$bin" eval "$dir/$name-$way.tum" --reference "$ref" > "$dir/$name-$way.eval.json"
+  else
+    echo '{}' > "$dir/$name-$way.eval.json"
+  fi
+  echo "$name $way $dir/$name-$way" >> "$dir/rows.txt"
+}
+for input in "$real"/*.log.gz "$real"/*.mcap; do
+  [ -e "$input" ] || continue
+  base=$(basename "$input"); base=${base%.gz}; base=${base%.log}; base=${base%.mcap}
+  args=(); case $input in *.mcap) args=(--odometry "${ODOMETRY:-/odom}") ;; esac
+  "$bin" convert "$input" "${args[@]}" -o "$dir/$base.ndjson" 2> /dev/null
+  for seed in $seeds; do
+    name=$base-s$seed
+    scripts/drift-odometry.py "$dir/$base.ndjson" "$dir/$name.ndjson" "$dir/$name.ref.tum" "$seed"
+    run "$name" odometry "$dir/$name.ndjson" "$dir/$name.ref.tum"
+    run "$name" align "$dir/$name.ndjson" "$dir/$name.ref.tum" -c "$dir/align.toml"
+    run "$name" register-noloops "$dir/$name.ndjson" "$dir/$name.ref.tum" --register -c "$dir/noloops.toml"
+    run "$name" register "$dir/$name.ndjson" "$dir/$name.ref.tum" --register
+  done
+  run "$base" corrected "$dir/$base.ndjson" "$dir/$base-s1.ref.tum"
+  run "$base" corrected-register "$dir/$base.ndjson" "$dir/$base-s1.ref.tum" --register
+done
+for input in "$real"/*.ndjson.gz; do
+  [ -e "$input" ] || continue
+  base=$(basename "$input" .ndjson.gz)
+  run "$base" odometry "$input" ""
+  run "$base" register "$input" "" --register
+done
+python3 - "$dir/rows.txt" <<'PY'
+import json, statistics, sys, re
+rows = {}
+for line in open(sys.argv[1]):
+    name, way, stem = line.split()
+    rec = re.sub(r"-s\d+$", "", name)
+    e = json.load(open(stem + ".eval.json")); s = json.load(open(stem + ".json"))
+    r = s.get("registration", {})
+    rows.setdefault((rec, way), []).append((e, s, r))
+def med(v):
+    v = [x for x in v if x is not None]
+    return statistics.median(v) if v else None
+def f(v, fmt):
+    return "" if v is None else fmt.format(v)
+print("| recording | poses | runs | ATE m | RPE 1 m: m, deg | RPE 10 m: m, deg | static returns within 5 cm | seen through | loops | CPU ms a scan (registration / all) |")
+print("|---|---|---:|---:|---:|---:|---:|---:|---:|---:|")
+for (rec, way), runs in rows.items():
+    g = lambda fn: med([fn(e, s, r) for e, s, r in runs])
+    ate = g(lambda e, s, r: e.get("ate_m"))
+    r1 = g(lambda e, s, r: e["rpe"][0]["translation_m"] if "rpe" in e else None)
+    h1 = g(lambda e, s, r: e["rpe"][0]["heading_deg"] if "rpe" in e else None)
+    r10 = g(lambda e, s, r: e["rpe"][1]["translation_m"] if "rpe" in e else None)
+    h10 = g(lambda e, s, r: e["rpe"][1]["heading_deg"] if "rpe" in e else None)
+    st = g(lambda e, s, r: 100 * s["scores"]["static_within"])
+    seen = g(lambda e, s, r: 100 * s["scores"]["seen_through"])
+    loops = g(lambda e, s, r: r.get("loops"))
+    reg = g(lambda e, s, r: r.get("cpu_ms_per_scan"))
+    allc = g(lambda e, s, r: s.get("cpu_ms_per_scan"))
+    print(f"| {rec} | {way} | {len(runs)} | {f(ate,'{:.3f}')} | {f(r1,'{:.3f}')}, {f(h1,'{:.2f}')} | {f(r10,'{:.3f}')}, {f(h10,'{:.2f}')} "
+          f"| {f(st,'{:.1f}%')} | {f(seen,'{:.2f}%')} | {f(loops,'{:.0f}')} | {f(reg,'{:.1f}')} / {f(allc,'{:.1f}')} |")
+PY
