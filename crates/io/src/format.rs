@@ -362,6 +362,11 @@ pub struct ResultRecord {
     /// transforms): the curves are in the frame's coordinates, and this places them.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub pose: Option<[f64; 3]>,
+    /// The pose registration estimated for the frame (`[pipeline] register = true`),
+    /// `[x, y, theta]` in the world frame of the stream's first scan (its input pose
+    /// when it had one): where refinement and the map placed it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub registered_pose: Option<[f64; 3]>,
     /// The curves.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub polylines: Option<Vec<PolylineJson>>,

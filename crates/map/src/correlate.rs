@@ -98,10 +98,33 @@ pub struct Window {
     pub angular: f64,
 }
 
-/// The best pose within `window` of `guess` for `points` on `grid`, and its score
-/// (the mean likelihood of the points, in `[0, 1]`). Steps: the lattice's spacing in
-/// translation, and in heading the angle that moves the farthest point by it.
-pub fn search(points: &[Point], grid: &Likelihood, guess: Pose, window: Window) -> (Pose, f64) {
+/// What a search found: the best pose and its score (the mean likelihood of the
+/// points, in `[0, 1]`), and the best score of the poses apart from it (more than
+/// two translation steps or two heading steps away).
+#[derive(Clone, Copy, Debug)]
+pub struct Found {
+    /// The best pose.
+    pub pose: Pose,
+    /// Its score.
+    pub score: f64,
+    /// The best score away from it.
+    pub runner_up: f64,
+}
+
+impl Found {
+    /// Whether another place scores within three standard errors of the best: the
+    /// points' share on the walls, read as a proportion of `n` points, cannot tell
+    /// the two apart (a corridor's repeated doors, a building's parallel corridors).
+    pub fn ambiguous(&self, n: usize) -> bool {
+        let se = (self.score * (1.0 - self.score) / n.max(1) as f64).sqrt();
+        self.runner_up >= self.score - 3.0 * se
+    }
+}
+
+/// The best pose within `window` of `guess` for `points` on `grid`. Steps: the
+/// lattice's spacing in translation, and in heading the angle that moves the farthest
+/// point by it.
+pub fn search(points: &[Point], grid: &Likelihood, guess: Pose, window: Window) -> Found {
     let reach = points
         .iter()
         .map(|p| p[0].hypot(p[1]))
@@ -111,7 +134,8 @@ pub fn search(points: &[Point], grid: &Likelihood, guess: Pose, window: Window) 
     let ang_step = (grid.res / reach).min(0.05);
     let nl = (window.linear / lin_step).ceil() as i64;
     let na = (window.angular / ang_step).ceil() as i64;
-    let mut best = (guess, -1.0f64);
+    let side = (2 * nl + 1) as usize;
+    let mut scores = vec![0.0f64; side * side * (2 * na + 1) as usize];
     let mut rotated = Vec::with_capacity(points.len());
     for a in -na..=na {
         let theta = guess[2] + a as f64 * ang_step;
@@ -123,6 +147,7 @@ pub fn search(points: &[Point], grid: &Likelihood, guess: Pose, window: Window) 
                 s * p[0] + c * p[1] + guess[1],
             ]
         }));
+        let layer = (a + na) as usize * side * side;
         for dj in -nl..=nl {
             for di in -nl..=nl {
                 let t = [di as f64 * lin_step, dj as f64 * lin_step];
@@ -130,14 +155,40 @@ pub fn search(points: &[Point], grid: &Likelihood, guess: Pose, window: Window) 
                     .iter()
                     .map(|q| grid.at([q[0] + t[0], q[1] + t[1]]))
                     .sum();
-                let score = f64::from(score) / points.len().max(1) as f64;
-                if score > best.1 {
-                    best = ([guess[0] + t[0], guess[1] + t[1], wrap(theta)], score);
-                }
+                scores[layer + (dj + nl) as usize * side + (di + nl) as usize] =
+                    f64::from(score) / points.len().max(1) as f64;
             }
         }
     }
-    best
+    let index = |k: usize| -> (i64, i64, i64) {
+        let a = (k / (side * side)) as i64 - na;
+        let r = k % (side * side);
+        ((r % side) as i64 - nl, (r / side) as i64 - nl, a)
+    };
+    let (best, score) = scores
+        .iter()
+        .copied()
+        .enumerate()
+        .fold((0, -1.0), |b, (k, v)| if v > b.1 { (k, v) } else { b });
+    let (bi, bj, ba) = index(best);
+    let runner_up = scores
+        .iter()
+        .enumerate()
+        .filter(|&(k, _)| {
+            let (i, j, a) = index(k);
+            (i - bi).abs().max((j - bj).abs()) > 2 || (a - ba).abs() > 2
+        })
+        .map(|(_, &v)| v)
+        .fold(0.0, f64::max);
+    Found {
+        pose: [
+            guess[0] + bi as f64 * lin_step,
+            guess[1] + bj as f64 * lin_step,
+            wrap(guess[2] + ba as f64 * ang_step),
+        ],
+        score,
+        runner_up,
+    }
 }
 
 #[cfg(test)]
@@ -158,7 +209,7 @@ mod tests {
         let scan: Vec<Point> = world.iter().map(|&p| to_sensor(truth, p)).collect();
         let grid = Likelihood::new(&world, 0.05, 0.05, 1.0).unwrap();
         let guess = [2.3, 0.4, 0.3 + 10f64.to_radians()];
-        let (pose, score) = search(
+        let found = search(
             &scan,
             &grid,
             guess,
@@ -167,7 +218,9 @@ mod tests {
                 angular: 0.25,
             },
         );
+        let (pose, score) = (found.pose, found.score);
         assert!(score > 0.9, "{score}");
+        assert!(!found.ambiguous(scan.len()), "{found:?}");
         assert!(
             (pose[0] - truth[0]).hypot(pose[1] - truth[1]) < 0.06,
             "{pose:?}"

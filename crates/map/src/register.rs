@@ -53,6 +53,9 @@ pub struct RegisterParams {
     /// Share of a keyframe's returns that must lie on the older keyframe's walls for a
     /// loop to close.
     pub loop_min_overlap: f64,
+    /// Keyframes whose submaps are kept for loops; older ones keep their node and lose
+    /// their points (a bound on memory: a submap holds at most a few thousand points).
+    pub max_keyframes: usize,
 }
 
 impl Default for RegisterParams {
@@ -70,6 +73,7 @@ impl Default for RegisterParams {
             loops: true,
             loop_min_path: 10.0,
             loop_min_overlap: 0.5,
+            max_keyframes: 2000,
         }
     }
 }
@@ -95,6 +99,12 @@ impl RegisterParams {
         check("drift[1]", self.drift[1], 0.0, 1.0);
         check("loop_min_path", self.loop_min_path, 0.0, 1e6);
         check("loop_min_overlap", self.loop_min_overlap, 0.0, 1.0);
+        if !(self.local_keyframes..=1_000_000).contains(&self.max_keyframes) {
+            problems.push(format!(
+                "register.max_keyframes = {}: must be local_keyframes ({}) to 1000000",
+                self.max_keyframes, self.local_keyframes
+            ));
+        }
         if !(1..=1000).contains(&self.local_keyframes) {
             problems.push(format!(
                 "register.local_keyframes = {}: must be 1 to 1000",
@@ -143,8 +153,11 @@ pub struct Registrar {
     keyframes: Vec<Keyframe>,
     /// Raw returns of the open (newest) keyframe's scans, in its frame.
     open: Vec<Point>,
-    /// Each scan's keyframe and pose relative to it.
+    /// Each scan's keyframe and pose relative to it (kept when the trajectory is).
     anchors: Vec<(usize, Pose)>,
+    keep_trajectory: bool,
+    /// Scans registered.
+    count: usize,
     /// The previous scan's input pose and estimate.
     last: Option<(Option<Pose>, Pose)>,
     /// The local map in the world, and the keyframes it was built from.
@@ -156,12 +169,20 @@ pub struct Registrar {
 impl std::fmt::Debug for Registrar {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("Registrar")
-            .field("scans", &self.anchors.len())
+            .field("scans", &self.count)
             .field("keyframes", &self.keyframes.len())
             .field("loops", &self.loops)
             .finish()
     }
 }
+
+/// The farthest a loop's correlative search looks from where the graph puts the old
+/// place, metres: a 400 m run on odometry that scan matching corrects to a percent.
+const MAX_LOOP_SHIFT: f64 = 10.0;
+
+/// Old keyframes a loop's search matches against at once, nearest first: a bound on
+/// the search's cost.
+const MAX_LOOP_TARGETS: usize = 30;
 
 /// Wide uncertainty of a still-standing prior for scans without input poses: a person
 /// walks half a metre and turns half a radian between scans at most.
@@ -177,6 +198,8 @@ impl Registrar {
             keyframes: Vec::new(),
             open: Vec::new(),
             anchors: Vec::new(),
+            keep_trajectory: true,
+            count: 0,
             last: None,
             local: None,
             path: 0.0,
@@ -189,9 +212,28 @@ impl Registrar {
         &self.params
     }
 
+    /// A registrar for a live stream: it keeps no pose a scan ([`trajectory`] is
+    /// empty), so its memory is bounded by `max_keyframes` submaps and a node a
+    /// keyframe.
+    ///
+    /// [`trajectory`]: Registrar::trajectory
+    pub fn streaming(params: RegisterParams) -> std::result::Result<Registrar, Vec<String>> {
+        let mut r = Registrar::new(params)?;
+        r.keep_trajectory = false;
+        Ok(r)
+    }
+
     /// Scans registered.
     pub fn scans(&self) -> usize {
-        self.anchors.len()
+        self.count
+    }
+
+    fn anchor(&mut self, k: usize, rel: Pose) -> Pose {
+        self.count += 1;
+        if self.keep_trajectory {
+            self.anchors.push((k, rel));
+        }
+        compose(self.graph.nodes[k], rel)
     }
 
     /// Keyframes in the graph.
@@ -208,14 +250,14 @@ impl Registrar {
     /// recording's poses), taken for its motion since the previous scan; `None`
     /// registers the scan from the returns alone.
     pub fn push(&mut self, scan: &Scan, input: Option<Pose>) -> Registered {
-        let _span = tracing::debug_span!("register", scan = self.anchors.len()).entered();
+        let _span = tracing::debug_span!("register", scan = self.count).entered();
         let points = self.returns(scan);
         let Some((last_input, last)) = self.last else {
             // The first scan fixes the world: where its input puts it, else the origin.
             let pose = input.unwrap_or([0.0, 0.0, 0.0]);
             self.open_keyframe(pose, &points, Cov3::zeros());
             self.last = Some((input, pose));
-            self.anchors.push((0, [0.0, 0.0, 0.0]));
+            self.anchor(0, [0.0, 0.0, 0.0]);
             return Registered {
                 pose,
                 cov: [[0.0; 3]; 3],
@@ -260,15 +302,14 @@ impl Registrar {
             let pose = compose(self.graph.nodes[kf], rel);
             let cov = self.edge_cov(&m, rel);
             self.open_keyframe(pose, &points, cov);
-            self.anchors.push((kf + 1, [0.0, 0.0, 0.0]));
             self.last = Some((input, pose));
+            self.anchor(kf + 1, [0.0, 0.0, 0.0]);
         } else {
             self.open
                 .extend(points.iter().map(|&p| isoline_core::geom::to_world(rel, p)));
-            self.anchors.push((kf, rel));
+            self.anchor(kf, rel);
         }
-        let (k, rel) = *self.anchors.last().expect("pushed above");
-        let pose = compose(self.graph.nodes[k], rel);
+        let pose = self.last.expect("set above").1;
         let c = m.cov;
         Registered {
             pose,
@@ -370,6 +411,15 @@ impl Registrar {
             path: self.path,
             edge_cov: cov,
         });
+        if let Some(old) = self
+            .keyframes
+            .len()
+            .checked_sub(self.params.max_keyframes + 1)
+        {
+            let kf = &mut self.keyframes[old];
+            kf.points = Vec::new();
+            kf.surface = Surface::with_normals(Vec::new(), Vec::new());
+        }
         self.rebuild_local();
     }
 
@@ -443,12 +493,21 @@ impl Registrar {
             }
         }
         candidates.sort_by(|a, b| a.0.total_cmp(&b.0));
+        // The nearest candidate, matched against it and the other candidates nearest
+        // (where the drift is metres, the nearest old node need not be the one that saw
+        // the same walls).
+        let others: Vec<usize> = candidates
+            .iter()
+            .take(MAX_LOOP_TARGETS)
+            .map(|c| c.1)
+            .collect();
+        let found = candidates
+            .first()
+            .and_then(|&(_, j, chain)| Some((j, self.verify(j, k, &chain, &others)?)));
         let mut closed = 0;
-        for &(_, j, chain) in candidates.iter().take(1) {
-            if let Some(edge) = self.verify(j, k, &chain) {
-                self.graph.edges.push(edge);
-                closed += 1;
-            }
+        if let Some((_, edge)) = found {
+            self.graph.edges.push(edge);
+            closed = 1;
         }
         if closed > 0 {
             let solved = self.graph.optimize(20);
@@ -458,21 +517,28 @@ impl Registrar {
         closed
     }
 
-    /// Matches keyframe `k`'s submap onto the submaps of keyframe `j` and its
-    /// neighbours from where the graph puts them: a correlative search over the
-    /// window the chain's uncertainty gives (three standard deviations, at most 3 m and
-    /// 20 degrees), then ICP from its best. The edge if the match is good (overlap, not
-    /// degenerate) and consistent with the graph (its correction within the chain's
-    /// 99.9% ellipsoid).
-    fn verify(&self, j: usize, k: usize, chain: &Cov3) -> Option<Edge> {
+    /// Matches keyframe `k`'s submap onto the submaps of keyframe `j`, its neighbours
+    /// and `others` from where the graph puts them: a correlative search over the
+    /// window the chain's uncertainty gives (three standard deviations, at most
+    /// [`MAX_LOOP_SHIFT`] and 30 degrees) on lattices of 50, 20 and 5 cm, then ICP from
+    /// its best. The edge if the search points at one place (no other within three
+    /// standard errors of its score), the match is good (overlap, more informative than
+    /// the chain along every direction) and consistent with the graph (its correction
+    /// within the chain's 99.9% ellipsoid).
+    fn verify(&self, j: usize, k: usize, chain: &Cov3, others: &[usize]) -> Option<Edge> {
         let p = self.params;
         let guess = between(self.graph.nodes[j], self.graph.nodes[k]);
         let source = &self.keyframes[k].points;
-        // The target: keyframe j with its neighbours along the path, in j's frame.
+        // The target: keyframe j with its neighbours along the path and the other
+        // candidates (where the drift is metres, the nearest old node need not be the
+        // one that saw the same walls), in j's frame.
         let (lo, hi) = (j.saturating_sub(2), (j + 2).min(k.saturating_sub(1)));
+        let mut chosen: Vec<usize> = (lo..=hi).chain(others.iter().copied()).collect();
+        chosen.sort_unstable();
+        chosen.dedup();
         let mut points = Vec::new();
         let mut normals = Vec::new();
-        for i in lo..=hi {
+        for i in chosen {
             let rel = between(self.graph.nodes[j], self.graph.nodes[i]);
             let (s, c) = rel[2].sin_cos();
             let kf = &self.keyframes[i];
@@ -490,30 +556,41 @@ impl Registrar {
             .max()
             .sqrt();
         let window = Window {
-            linear: (3.0 * spread).clamp(p.reach, 3.0),
-            angular: (3.0 * chain[(2, 2)].sqrt()).clamp(3f64.to_radians(), 20f64.to_radians()),
+            linear: (3.0 * spread).clamp(p.reach, MAX_LOOP_SHIFT),
+            angular: (3.0 * chain[(2, 2)].sqrt()).clamp(3f64.to_radians(), 30f64.to_radians()),
         };
-        // Coarse: a fifth of a metre, the returns within 8 m (farther ones turn the
-        // heading step finer for little gain), at most 150 of them.
-        let near: Vec<Point> = source
-            .iter()
-            .copied()
-            .filter(|q| q[0].hypot(q[1]) <= 8.0)
-            .collect();
-        let every = near.len().div_ceil(150).max(1);
-        let coarse_pts: Vec<Point> = near.iter().step_by(every).copied().collect();
-        let coarse = Likelihood::new(&points, 0.2, 0.2, window.linear)?;
-        let (at, _) = search(&coarse_pts, &coarse, guess, window);
-        let fine = Likelihood::new(&points, 0.05, p.noise.max(0.05), 0.3)?;
-        let (at, _) = search(
-            &near,
-            &fine,
-            at,
-            Window {
-                linear: 0.2,
-                angular: 0.2 / 8.0,
-            },
-        );
+        let at = {
+            // Coarse to fine: each level searches two of the coarser level's cells and
+            // one of its heading steps about the coarser best. The returns within 8 m
+            // (farther ones turn the heading step finer for little gain), at most 150 at
+            // the coarse levels.
+            let near: Vec<Point> = source
+                .iter()
+                .copied()
+                .filter(|q| q[0].hypot(q[1]) <= 8.0)
+                .collect();
+            let every = near.len().div_ceil(150).max(1);
+            let sparse: Vec<Point> = near.iter().step_by(every).copied().collect();
+            let mut at = guess;
+            let mut win = window;
+            for (level, (res, pts)) in [(0.5, &sparse), (0.2, &sparse), (0.05, &near)]
+                .into_iter()
+                .enumerate()
+            {
+                let grid = Likelihood::new(&points, res, res.max(p.noise), win.linear)?;
+                let found = search(pts, &grid, at, win);
+                // The whole window's search must point at one place.
+                if level == 0 && found.ambiguous(pts.len()) {
+                    return None;
+                }
+                at = found.pose;
+                win = Window {
+                    linear: 2.0 * res,
+                    angular: res / 8.0,
+                };
+            }
+            at
+        };
         let target = Surface::with_normals(points, normals);
         let best = register(source, &target, at, None, p.noise, p.reach);
         let c = diff(best.pose, guess);
