@@ -8,7 +8,11 @@
 # one by `isoline eval --reference` (ATE after the best rigid alignment, RPE over 1 m
 # and 10 m); beam streams without a reference (*.ndjson.gz, real wheel odometry) are
 # mapped with their own poses and with --register. Rows: one a recording and way,
-# medians over the seeds. Usage: ISOLINE_REAL=DIR scripts/registration.sh
+# medians over the seeds. Then the daemon with `register = true` on seed 1's odometry,
+# single frames and refined over 10 (`accumulate = 10`), scored by `isoline eval
+# --frames`: the next scan's returns that see what a frame saw, placed by the input
+# poses and by the registered ones, their mean distance to the frame's curves.
+# Usage: ISOLINE_REAL=DIR scripts/registration.sh
 set -euo pipefail
 . "$(dirname "$0")/lib.sh"
 need_recordings
@@ -83,3 +87,27 @@ for (rec, way), runs in rows.items():
     print(f"| {rec} | {way} | {len(runs)} | {f(ate,'{:.3f}')} | {f(r1,'{:.3f}')}, {f(h1,'{:.2f}')} | {f(r10,'{:.3f}')}, {f(h10,'{:.2f}')} "
           f"| {f(st,'{:.1f}%')} | {f(seen,'{:.2f}%')} | {f(loops,'{:.0f}')} | {f(reg,'{:.1f}')} / {f(allc,'{:.1f}')} |")
 PY
+echo
+echo "| recording | frames | next scan by input poses, cm | by registered poses, cm | nearer | CPU ms a frame |"
+echo "|---|---|---:|---:|---:|---:|"
+for input in "$dir"/*-s1.ndjson; do
+  [ -e "$input" ] || continue
+  name=$(basename "$input" -s1.ndjson)
+  for acc in 0 10; do
+    out=$dir/$name-daemon-$acc.ndjson
+    printf '[input]\npath = "%s"\nreplay = "fast"\n[output]\npath = "%s"\n[pipeline]\nregister = true\naccumulate = %s\n' \
+      "$(realpath "$input")" "$(realpath -m "$out")" "$acc" > "$dir/daemon-$acc.toml"
+    rm -f "$out"
+    cpu=$("$bin" run -c "$dir/daemon-$acc.toml" 2>&1 | sed -n 's/.*CPU \([0-9.]*\) ms a frame.*/\1/p')
+    "$bin" eval "$out" --frames "$input" > "$out.eval.json"
+    python3 - "$name" "$acc" "$out.eval.json" "$cpu" <<'PY'
+import json, sys
+name, acc, path, cpu = sys.argv[1:]
+e = json.load(open(path))
+a, b = e["next_scan_by_input_pose"], e["next_scan_by_registered_pose"]
+kind = "single" if acc == "0" else f"refined over {acc}"
+print(f"| {name} | {kind} | {100*a:.2f} | {100*b:.2f} | {100*(1-b/a):.0f}% | {cpu} |")
+PY
+  done
+done
+

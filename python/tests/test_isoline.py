@@ -223,7 +223,7 @@ def test_bad_files_and_options_raise(tmp_path):
 # --- streams -------------------------------------------------------------------------
 
 
-def daemon_records(binary, tmp_path, input_path, accumulate=0):
+def daemon_records(binary, tmp_path, input_path, accumulate=0, register=False):
     out = tmp_path / "daemon.ndjson"
     config = tmp_path / "run.toml"
     config.write_text(
@@ -239,6 +239,7 @@ path = {json.dumps(str(out))}
 policy = "block"
 warm_start = true
 accumulate = {accumulate}
+register = {"true" if register else "false"}
 """
     )
     subprocess.run([str(binary), "run", "-c", str(config)], check=True, capture_output=True)
@@ -302,6 +303,23 @@ def test_a_stream_over_a_real_log_takes_the_daemons_decisions(binary, tmp_path):
     head.write_text("".join(lines))
     ours = assert_stream_matches_daemon(binary, tmp_path, head)
     assert len(ours) == 120
+
+
+def test_a_registered_stream_gives_the_daemons_poses(binary, tmp_path):
+    path = FIXTURES / "clutter-hokuyo-20.ndjson"
+    theirs = daemon_records(binary, tmp_path, path, accumulate=5, register=True)
+    stream = isoline.Stream(accumulate=5, register=True)
+    ours = [stream.push(f) for f in isoline.read_frames(path)]
+    assert len(ours) == len(theirs) == 20
+    for a, b in zip(ours, theirs):
+        # The same registration of the same scans: the same estimate, to rounding.
+        assert a.registered_pose is not None
+        assert np.allclose(a.registered_pose, b["registered_pose"], atol=1e-9)
+        assert a.pose == tuple(b["pose"])
+    # The shipped stream's poses are the simulator's: the estimate stays on them.
+    err = max(math.dist(r.registered_pose[:2], r.pose[:2]) for r in ours)
+    assert err < 0.02, err
+    assert isoline.Stream().push(next(iter(isoline.read_frames(path)))).registered_pose is None
 
 
 def test_a_restarted_stream_starts_cold():

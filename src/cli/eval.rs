@@ -281,14 +281,24 @@ fn run_without_truth(a: &Args) -> Result<()> {
         .collect();
     // Each stream's scans with poses, in frame order: the next one's returns are the
     // held-out evidence of a frame's curves.
-    let mut posed: std::collections::BTreeMap<(Option<String>, u64), (&isoline_core::Scan, Pose)> =
-        Default::default();
+    let mut posed: Posed<'_> = Default::default();
     for f in frames.iter().flatten() {
         if let (Some(scan), Some(pose)) = (&f.scan, f.pose) {
             posed.insert((f.stream.clone(), f.frame), (scan, pose));
         }
     }
     let records = read_records(&a.recon)?;
+    // The records' own placements, by stream and frame: the input pose and, from a
+    // daemon with `register = true`, the registered one.
+    let placements: Placements = records
+        .iter()
+        .map(|r| {
+            (
+                (r.stream.clone(), r.frame.unwrap_or(0)),
+                (r.pose, r.registered_pose),
+            )
+        })
+        .collect();
     let mut rows = Vec::new();
     let mut errors = 0;
     for r in &records {
@@ -303,11 +313,15 @@ fn run_without_truth(a: &Args) -> Result<()> {
         let pls: Vec<Polyline> = pls.iter().cloned().map(Into::into).collect();
         let s = eval::data_scores(&pls, scan, tol);
         let held_out = held_out(&posed, &key, &pls, tol);
+        let placed =
+            |which: Pick| placed_next(&posed, &placements, &key, &pls, which, (tol, 3.0 * tol));
         let ms = r.stats.as_ref().map(|st| st.ms.total);
         rows.push(json!({
             "stream": r.stream, "frame": r.frame, "returns": s.returns,
             "returns_explained": s.returns_explained, "mean_distance": s.mean_distance,
             "held_out_distance": held_out,
+            "next_scan_by_input_pose": placed(|p| p.0),
+            "next_scan_by_registered_pose": placed(|p| p.1),
             "curve_on_data": s.curve_on_data, "free_space_share": s.free_space_share,
             "length": s.length, "closed": s.closed, "phantoms": s.phantoms, "ms": ms,
         }));
@@ -317,6 +331,14 @@ fn run_without_truth(a: &Args) -> Result<()> {
         v.sort_by(f64::total_cmp);
         v.get(v.len() / 2)
             .map_or(serde_json::Value::Null, |x| json!(x))
+    };
+    let mean = |k: &str| -> serde_json::Value {
+        let v: Vec<f64> = rows.iter().filter_map(|r| r[k].as_f64()).collect();
+        if v.is_empty() {
+            serde_json::Value::Null
+        } else {
+            json!(v.iter().sum::<f64>() / v.len() as f64)
+        }
     };
     let count = |k: &str| {
         rows.iter()
@@ -330,6 +352,8 @@ fn run_without_truth(a: &Args) -> Result<()> {
         "returns_explained": median("returns_explained"),
         "mean_distance": median("mean_distance"),
         "held_out_distance": median("held_out_distance"),
+        "next_scan_by_input_pose": mean("next_scan_by_input_pose"),
+        "next_scan_by_registered_pose": mean("next_scan_by_registered_pose"),
         "curve_on_data": median("curve_on_data"),
         "free_space_share": median("free_space_share"),
         "ms": median("ms"),
@@ -338,6 +362,40 @@ fn run_without_truth(a: &Args) -> Result<()> {
         "frames": rows,
     });
     super::print(&format!("{out}\n"))
+}
+
+/// How well the poses place frames: the mean distance to `curves` (frame `key`'s),
+/// capped at `cap`, of the next scan's returns that see what this frame saw (those
+/// [`overlap`] keeps, chosen by the scans alone), placed in this frame by the two
+/// records' poses as `which` picks them (the input's, or the registered ones) and not
+/// aligned. The same returns count under either pose, so the two means differ only by
+/// where the poses put them. `None` where either record lacks that pose.
+fn placed_next(
+    posed: &Posed<'_>,
+    placements: &Placements,
+    key: &(Option<String>, u64),
+    curves: &[Polyline],
+    which: Pick,
+    (tol, cap): (f64, f64),
+) -> Option<f64> {
+    use isoline_core::geom::{to_sensor, to_world};
+    let pose = which(placements.get(key)?)?;
+    let next_key = (key.0.clone(), key.1.checked_add(1)?);
+    let ((stream, frame), next) = placements.range(next_key..).next()?;
+    if *stream != key.0 {
+        return None;
+    }
+    let next_pose = which(next)?;
+    let (next_scan, _) = posed.get(&(stream.clone(), *frame))?;
+    let (_, kept) = overlap(posed, key, tol)?;
+    let returns = next_scan.returns();
+    let index = isoline_core::SegmentIndex::new(curves);
+    let d: Vec<f64> = kept
+        .iter()
+        .map(|&i| to_sensor(pose, to_world(next_pose, returns[i])))
+        .map(|q| index.distance(q).min(cap))
+        .collect();
+    (!d.is_empty()).then(|| d.iter().sum::<f64>() / d.len() as f64)
 }
 
 /// The mean distance to `curves` (frame `key`'s), capped at `tol`, of the next scan's
@@ -350,11 +408,38 @@ fn run_without_truth(a: &Args) -> Result<()> {
 /// scored: a mean over the returns within `tol` of the curves would reward curves that
 /// explain fewer of them. `None` without a next scan, poses, or returns within `tol`.
 fn held_out(
-    posed: &std::collections::BTreeMap<(Option<String>, u64), (&isoline_core::Scan, Pose)>,
+    posed: &Posed<'_>,
     key: &(Option<String>, u64),
     curves: &[Polyline],
     tol: f64,
 ) -> Option<f64> {
+    let (aligned, _) = overlap(posed, key, tol)?;
+    let index = isoline_core::SegmentIndex::new(curves);
+    let near: Vec<f64> = aligned
+        .iter()
+        .map(|&q| index.distance(q).min(tol))
+        .collect();
+    (!near.is_empty()).then(|| near.iter().sum::<f64>() / near.len() as f64)
+}
+
+/// Each record's input pose and registered pose, by stream and frame.
+type Placements = std::collections::BTreeMap<(Option<String>, u64), (Option<Pose>, Option<Pose>)>;
+
+/// Which of a record's two poses to place it by.
+type Pick = fn(&(Option<Pose>, Option<Pose>)) -> Option<Pose>;
+
+/// Each stream's scans with poses, by stream and frame.
+type Posed<'a> = std::collections::BTreeMap<(Option<String>, u64), (&'a isoline_core::Scan, Pose)>;
+
+/// The next scan's returns that see what frame `key` saw: placed in this frame by the
+/// two poses, laid onto this frame's returns by the alignment refinement uses, and
+/// kept within `tol` of them; aligned, with their indices among the next scan's
+/// returns. Independent of the curves and of any pose being judged.
+fn overlap(
+    posed: &Posed<'_>,
+    key: &(Option<String>, u64),
+    tol: f64,
+) -> Option<(Vec<Point>, Vec<usize>)> {
     use isoline_core::geom::{to_sensor, to_world};
     let &(scan, pose) = posed.get(key)?;
     let next_key = (key.0.clone(), key.1.checked_add(1)?);
@@ -369,7 +454,6 @@ fn held_out(
         .collect();
     let [x, y, theta] = isoline_core::align_returns(&placed, scan, &Default::default());
     let (s, c) = theta.sin_cos();
-    let index = isoline_core::SegmentIndex::new(curves);
     let own = isoline_core::SegmentIndex::new(
         &scan
             .returns()
@@ -380,13 +464,15 @@ fn held_out(
             })
             .collect::<Vec<_>>(),
     );
-    let near: Vec<f64> = placed
-        .iter()
-        .map(|p| [c * p[0] - s * p[1] + x, s * p[0] + c * p[1] + y])
-        .filter(|&q| own.distance(q) <= tol)
-        .map(|q| index.distance(q).min(tol))
-        .collect();
-    (!near.is_empty()).then(|| near.iter().sum::<f64>() / near.len() as f64)
+    Some(
+        placed
+            .iter()
+            .map(|p| [c * p[0] - s * p[1] + x, s * p[0] + c * p[1] + y])
+            .enumerate()
+            .filter(|&(_, q)| own.distance(q) <= tol)
+            .map(|(i, q)| (q, i))
+            .unzip(),
+    )
 }
 
 /// Every record of an NDJSON result file, error records included.

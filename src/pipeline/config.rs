@@ -92,6 +92,11 @@ pub struct DaemonConfig {
     pub live_linger: bool,
     /// Serve Prometheus metrics and a health check on this address.
     pub metrics: Option<SocketAddr>,
+    /// Registration (`[pipeline] register = true`, with `[register]`'s parameters):
+    /// each stream's scans get their pose estimated against its local map, the input
+    /// pose taken as odometry; records carry it as `registered_pose`, and refinement
+    /// and the map place scans by it.
+    pub register: Option<isoline_map::RegisterParams>,
     /// Reconstruction parameters.
     pub params: Params,
     /// The map of the run (`[map]` with `output`): every scan with a pose fused into
@@ -231,6 +236,9 @@ pub struct PipelineConfig {
     pub accumulate: Option<i64>,
     /// Seconds a frame stays in the window at most, in `[0.001, 1e6]`.
     pub accumulate_seconds: Option<f64>,
+    /// Estimate each stream's poses from its scans (docs/method.md, "Poses"), the input
+    /// poses taken as odometry; `[register]` sets how. Default false.
+    pub register: Option<bool>,
     /// Bytes all streams' refinement windows may hold together, in `2^20..=2^40`;
     /// each stream's window holds at most this divided by `max_streams`, its oldest
     /// frames leaving first. Default 4 GiB (16 MiB a stream with 256 streams).
@@ -300,6 +308,7 @@ struct Pipeline {
     max_streams: usize,
     stream_idle: Duration,
     accumulate: Option<WindowLimits>,
+    register: bool,
 }
 
 impl PipelineConfig {
@@ -345,6 +354,7 @@ impl PipelineConfig {
                 seconds: self.accumulate_seconds.filter(|_| window_seconds.is_some()),
                 max_bytes: Some(state_bytes / max_streams.max(1)),
             }),
+            register: self.register.unwrap_or(false),
         }
     }
 }
@@ -457,8 +467,10 @@ impl DaemonConfig {
         let metrics: Option<ListenerConfig> = take(&mut t, "metrics", &mut problems);
         // What is left is the shared tables, which refuse any other key.
         let mut map = None;
+        let mut register = None;
         let params = match Config::from_table(t, name, "").map_err(Error::from) {
             Ok(c) => {
+                register = Some(c.register);
                 map = c.map.output.as_ref().map(|o| super::map::MapOutput {
                     params: c.map_params(),
                     paths: o.paths().iter().map(|p| resolve(base, p)).collect(),
@@ -538,6 +550,7 @@ impl DaemonConfig {
                 max_streams: pipeline.max_streams,
                 stream_idle: pipeline.stream_idle,
                 accumulate: pipeline.accumulate,
+                register: register.filter(|_| pipeline.register),
                 live,
                 live_linger,
                 metrics,

@@ -204,6 +204,8 @@ fn spawn_compute(
 ) -> Result<(Vec<StageThread>, crossbeam_channel::Receiver<stages::Msg>)> {
     let q = cfg.queue;
     let (to_distance, distance_rx) = bounded(q);
+    // With registration, a stage between ingest and distance: ingest sends to it.
+    let (to_register, register_rx) = bounded(q);
     let (to_adapt, adapt_rx) = bounded(q);
     let (to_solve, solve_rx) = bounded(q);
     let (to_renorm, renorm_rx) = bounded(q);
@@ -215,17 +217,36 @@ fn spawn_compute(
     params.scan.refine = cfg.accumulate.is_some();
     let params = Arc::new(params);
     let (warm, policy) = (cfg.warm_start, cfg.policy);
-    let threads = vec![
-        (
-            "ingest",
-            stages::spawn_ingest(
-                line_rx,
+    let mut threads = vec![(
+        "ingest",
+        stages::spawn_ingest(
+            line_rx,
+            if cfg.register.is_some() {
+                to_register
+            } else {
+                to_distance.clone()
+            },
+            stop.clone(),
+            cfg.poll,
+            metrics.clone(),
+        )?,
+    )];
+    if let Some(register) = cfg.register {
+        threads.push((
+            "register",
+            stages::spawn_register(
+                register_rx,
                 to_distance,
-                stop.clone(),
-                cfg.poll,
+                policy,
+                register,
+                streams.clone(),
                 metrics.clone(),
             )?,
-        ),
+        ));
+    } else {
+        drop((to_distance, register_rx));
+    }
+    threads.extend([
         (
             "distance",
             stages::spawn_distance(
@@ -269,7 +290,7 @@ fn spawn_compute(
                 metrics.clone(),
             )?,
         ),
-    ];
+    ]);
     Ok((threads, export_rx))
 }
 

@@ -28,6 +28,7 @@ use isoline_core::Params;
 use isoline_core::Reconstruction;
 use isoline_core::{Window, WindowLimits};
 use isoline_io::format::ResultRecord;
+use isoline_map::{RegisterParams, Registrar};
 
 /// A frame on its way through the stages.
 pub(crate) struct Msg {
@@ -39,6 +40,9 @@ pub(crate) struct Msg {
     line: u64,
     /// Where the frame's coordinates sit in the world, when the frame says.
     pose: Option<Pose>,
+    /// The pose registration estimated (`[pipeline] register`): where refinement and
+    /// the map place the frame.
+    registered: Option<Pose>,
     /// The frame's time stamp, when it has one.
     t: Option<f64>,
     arrived: Instant,
@@ -391,6 +395,7 @@ fn parse_line(mut line: Line) -> Msg {
         frame,
         line: line.line,
         pose,
+        registered: None,
         t,
         arrived: line.arrived,
         receipt: line.receipt,
@@ -460,9 +465,49 @@ pub(crate) fn spawn_distance(
                     Ok(p) => Work::Prepared(Box::new(p)),
                     Err(e) => Work::Failed(e.to_string()),
                 };
-                if keep_scans && m.pose.is_some() {
+                if keep_scans && (m.pose.is_some() || m.registered.is_some()) {
                     m.scan = f.scan.map(Box::new);
                 }
+            },
+        )
+    })
+}
+
+/// Register (`[pipeline] register`): each stream's scans registered against its local
+/// map by its own [`Registrar`] (isoline-map), the frame's pose taken as odometry
+/// (none: from the returns alone). Frames without beams pass as they came.
+pub(crate) fn spawn_register(
+    rx: Receiver<Msg>,
+    tx: Sender<Msg>,
+    policy: Policy,
+    params: RegisterParams,
+    streams: StreamBounds,
+    metrics: Arc<Metrics>,
+) -> Result<JoinHandle<()>> {
+    spawn("register", move || {
+        let mut state: Streams<Registrar> = Streams::new(&streams);
+        run_stage(
+            "register",
+            rx,
+            tx,
+            policy,
+            &metrics,
+            |m, d| stage_span!("register", m, d),
+            |m| {
+                let Work::Input(f) = &m.work else {
+                    return;
+                };
+                let Some(scan) = f.scan.as_ref() else {
+                    return;
+                };
+                let registrar = state.seen(
+                    m.key(),
+                    m.lease(),
+                    Instant::now(),
+                    |_| true,
+                    || Registrar::streaming(params).expect("validated with the configuration"),
+                );
+                m.registered = Some(registrar.push(scan, m.pose).pose);
             },
         )
     })
@@ -712,8 +757,10 @@ impl Exporter {
         self.first = Some(self.first.map_or(m.arrived, |f| f.min(m.arrived)));
         let frame = m.number();
         let lease = m.lease();
+        // Registered frames are placed by the estimate; the record keeps both.
+        let placed = m.registered.or(m.pose);
         let work = match m.work {
-            Work::Solved(b) => self.export(*b, &m.stream, frame, m.t, m.pose, lease),
+            Work::Solved(b) => self.export(*b, &m.stream, frame, m.t, placed, lease),
             other => other,
         };
         let mut rec = ResultRecord {
@@ -721,6 +768,7 @@ impl Exporter {
             frame: m.frame,
             t: m.t,
             pose: m.pose,
+            registered_pose: m.registered,
             ..Default::default()
         };
         let mut shown = Vec::new();
@@ -730,10 +778,11 @@ impl Exporter {
                 rec = ResultRecord {
                     t: m.t,
                     pose: m.pose,
+                    registered_pose: m.registered,
                     ..ResultRecord::of(m.stream.clone(), frame, &r)
                 };
                 self.tally_frame(&mut rec, &r, m.arrived);
-                self.send_to_map(m.scan, m.pose, &r, &m.stream, frame);
+                self.send_to_map(m.scan, placed, &r, &m.stream, frame);
                 if self.wants_frames {
                     shown.clone_from(&points);
                 }
@@ -762,7 +811,7 @@ impl Exporter {
             record: rec,
             points: shown,
             t: m.t,
-            pose: m.pose,
+            pose: placed,
         };
         let counted = Counted::of(&view.record, m.arrived);
         self.outputs
@@ -992,6 +1041,7 @@ mod tests {
             frame: Some(frame),
             line: frame,
             pose: None,
+            registered: None,
             t: None,
             arrived: Instant::now(),
             receipt: None,

@@ -96,6 +96,8 @@ fn points_array<'py>(py: Python<'py>, points: &[Point]) -> Bound<'py, PyArray2<f
 #[derive(Clone)]
 struct Params {
     inner: isoline_core::Params,
+    /// `[register]`: how a `Stream(register=True)` estimates poses.
+    register: isoline_map::RegisterParams,
     text: String,
 }
 
@@ -107,6 +109,7 @@ impl Params {
         let cfg = isoline_io::config::Config::parse(toml, "Params").map_err(io_error)?;
         Ok(Params {
             inner: cfg.params(),
+            register: cfg.register,
             text: toml.to_string(),
         })
     }
@@ -121,6 +124,7 @@ impl Params {
             .map_err(io_error)?;
         Ok(Params {
             inner: cfg.params(),
+            register: cfg.register,
             text,
         })
     }
@@ -391,6 +395,13 @@ impl Result {
         self.record.pose.map(|[x, y, th]| (x, y, th))
     }
 
+    /// The pose a `Stream(register=True)` estimated for the frame, (x, y, heading) in
+    /// metres and radians, in the world of the stream's first scan; `None` otherwise.
+    #[getter]
+    fn registered_pose(&self) -> Option<(f64, f64, f64)> {
+        self.record.registered_pose.map(|[x, y, th]| (x, y, th))
+    }
+
     /// The curves placed in the world by the frame's pose (`ValueError` without one).
     fn to_world<'py>(&self, py: Python<'py>) -> PyResult<Vec<Bound<'py, PyArray2<f64>>>> {
         let pose = self
@@ -493,25 +504,31 @@ fn reconstruct_frame(py: Python<'_>, frame: &Frame, params: Option<&Params>) -> 
 
 /// A stream of frames from one sensor: each frame is warm-started from the one before
 /// (moved by the change of pose), and with `accumulate` > 1 each scan with a pose is
-/// refined over the stream's last `accumulate` frames. It takes the decisions the daemon
+/// refined over the stream's last `accumulate` frames. With `register=True` each scan's
+/// pose is estimated against the stream's local map, the given pose taken as odometry
+/// (none: from the returns alone; `Params`' `[register]` table sets how), and the
+/// result's `registered_pose` places it, as the daemon's `register = true` does. It takes the decisions the daemon
 /// takes for one stream with the same `[pipeline]` settings: a frame number that does
 /// not go up restarts the stream cold.
 #[pyclass(module = "isoline")]
 struct Stream {
     inner: isoline_core::Stream,
     next: u64,
+    /// With `register=True`: the stream's pose stage (isoline-map).
+    registrar: Option<isoline_map::Registrar>,
 }
 
 #[pymethods]
 impl Stream {
     #[new]
-    #[pyo3(signature = (params = None, *, warm_start = true, accumulate = 0, accumulate_seconds = None, max_state_bytes = DEFAULT_WINDOW_BYTES))]
+    #[pyo3(signature = (params = None, *, warm_start = true, accumulate = 0, accumulate_seconds = None, max_state_bytes = DEFAULT_WINDOW_BYTES, register = false))]
     fn new(
         params: Option<&Params>,
         warm_start: bool,
         accumulate: usize,
         accumulate_seconds: Option<f64>,
         max_state_bytes: usize,
+        register: bool,
     ) -> PyResult<Self> {
         if accumulate > MAX_ACCUMULATE {
             return Err(PyValueError::new_err(format!(
@@ -533,7 +550,19 @@ impl Stream {
                 max_bytes: Some(max_state_bytes),
             });
         }
-        Ok(Stream { inner, next: 0 })
+        let registrar = if register {
+            let params = params.map_or_else(Default::default, |p| p.register);
+            Some(isoline_map::Registrar::streaming(params).map_err(|p| {
+                PyValueError::new_err(format!("register parameters: {}", p.join("; ")))
+            })?)
+        } else {
+            None
+        };
+        Ok(Stream {
+            inner,
+            next: 0,
+            registrar,
+        })
     }
 
     /// Reconstructs the stream's next frame: a `Frame` (its own number, time and pose
@@ -565,21 +594,29 @@ impl Stream {
             f.t = t;
         }
         self.next = f.frame.saturating_add(1);
-        let inner = &mut self.inner;
+        let (inner, registrar) = (&mut self.inner, &mut self.registrar);
         let outcome = py.detach(|| {
-            inner.push(&isoline_core::StreamFrame {
-                frame: f.frame,
-                points: &f.points,
-                scan: f.scan.as_ref(),
-                t: f.t,
-                pose: f.pose,
-            })
+            // Registered scans are placed by the estimate, as the daemon places them.
+            let registered = match (registrar.as_mut(), f.scan.as_ref()) {
+                (Some(r), Some(scan)) => Some(r.push(scan, f.pose).pose),
+                _ => None,
+            };
+            inner
+                .push(&isoline_core::StreamFrame {
+                    frame: f.frame,
+                    points: &f.points,
+                    scan: f.scan.as_ref(),
+                    t: f.t,
+                    pose: registered.or(f.pose),
+                })
+                .map(|r| (r, registered))
         });
-        let r = outcome.map_err(core_error)?;
+        let (r, registered) = outcome.map_err(core_error)?;
         Ok(Result {
             record: ResultRecord {
                 t: f.t,
                 pose: f.pose,
+                registered_pose: registered,
                 ..ResultRecord::of(f.stream.clone(), f.frame, &r)
             },
         })
