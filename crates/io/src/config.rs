@@ -469,7 +469,7 @@ mod tests {
     #[test]
     fn unknown_keys_and_bad_values_are_named() {
         // Each refused file, and what its error must name.
-        let refused: [(&str, &str, &[&str]); 8] = [
+        let refused: [(&str, &str, &[&str]); 10] = [
             (
                 "a.toml",
                 "[mesh]\nhmin = 0.001\nhmni = 2\n",
@@ -498,6 +498,12 @@ mod tests {
             ),
             ("u.toml", "[export.repair]\ncleanfit = 0.5\n", &["cleanfit"]),
             ("f.toml", "[solver]\nalhpa = 1\n", &["alhpa"]),
+            (
+                "p.toml",
+                "[register]\nnoise = -1\nmax_keyframes = 3\n",
+                &["register.noise = -1", "register.max_keyframes = 3"],
+            ),
+            ("q.toml", "[register]\nloop = false\n", &["loop"]),
         ];
         for (name, text, names) in refused {
             let e = Config::parse(text, name).unwrap_err().to_string();
