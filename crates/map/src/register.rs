@@ -9,7 +9,7 @@
 //! node when the graph moves it (Cartographer's submaps, Hess et al. 2016). Every scan
 //! keeps its pose relative to its keyframe, so the whole trajectory follows the graph.
 
-use isoline_core::{Point, Pose, Scan};
+use isoline_core::{Point, Polyline, Pose, Scan};
 use nalgebra::Matrix3;
 
 use crate::correlate::{search, Likelihood, Window};
@@ -135,6 +135,26 @@ pub struct Registered {
     pub loops_closed: usize,
 }
 
+/// Points every `step` along `curves` (in a scan's frame), those within `reach` of
+/// its origin.
+fn sample(curves: &[Polyline], step: f64, reach: f64) -> Vec<Point> {
+    let mut out = Vec::new();
+    for c in curves {
+        for (a, b) in c.segments() {
+            let n = (isoline_core::geom::dist(a, b) / step).ceil().max(1.0) as usize;
+            out.extend((0..n).map(|i| {
+                let t = i as f64 / n as f64;
+                [a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1])]
+            }));
+        }
+        if let (false, Some(&last)) = (c.closed, c.points.last()) {
+            out.push(last);
+        }
+    }
+    out.retain(|p| p[0].hypot(p[1]) <= reach && p[0].is_finite() && p[1].is_finite());
+    out
+}
+
 /// A keyframe: its submap in its own frame.
 struct Keyframe {
     /// Thinned returns of its scans.
@@ -250,8 +270,24 @@ impl Registrar {
     /// recording's poses), taken for its motion since the previous scan; `None`
     /// registers the scan from the returns alone.
     pub fn push(&mut self, scan: &Scan, input: Option<Pose>) -> Registered {
-        let _span = tracing::debug_span!("register", scan = self.count).entered();
         let points = self.returns(scan);
+        self.push_points(points, input)
+    }
+
+    /// Registers the next scan by its curves (its reconstruction, in its frame) rather
+    /// than its raw returns: points every `cell` along them. The curves are the walls
+    /// with the range noise averaged along each run, so the point-to-line residuals
+    /// measure where the walls are, not the noise of one scan (on the SICK logs the
+    /// error over 10 m of path falls by about half; docs/benchmarks.md, "Poses").
+    pub fn push_curves(&mut self, curves: &[Polyline], input: Option<Pose>) -> Registered {
+        let points = sample(curves, self.params.cell, self.params.max_range);
+        self.push_points(points, input)
+    }
+
+    /// Registers the next scan given as points in its frame, as
+    /// [`push`](Registrar::push) does with its returns.
+    pub fn push_points(&mut self, points: Vec<Point>, input: Option<Pose>) -> Registered {
+        let _span = tracing::debug_span!("register", scan = self.count).entered();
         let Some((last_input, last)) = self.last else {
             // The first scan fixes the world: where its input puts it, else the origin.
             let pose = input.unwrap_or([0.0, 0.0, 0.0]);
@@ -561,7 +597,7 @@ impl Registrar {
         };
         let at = {
             // Coarse to fine: each level searches two of the coarser level's cells and
-            // one of its heading steps about the coarser best. The returns within 8 m
+            // one of its heading steps about the coarser best. The points within 8 m
             // (farther ones turn the heading step finer for little gain), at most 150 at
             // the coarse levels.
             let near: Vec<Point> = source
@@ -571,6 +607,9 @@ impl Registrar {
                 .collect();
             let every = near.len().div_ceil(150).max(1);
             let sparse: Vec<Point> = near.iter().step_by(every).copied().collect();
+            // The fine level at most 400: it refines within a few cells.
+            let every = near.len().div_ceil(400).max(1);
+            let near: Vec<Point> = near.iter().step_by(every).copied().collect();
             let mut at = guess;
             let mut win = window;
             for (level, (res, pts)) in [(0.5, &sparse), (0.2, &sparse), (0.05, &near)]
@@ -627,5 +666,29 @@ impl Registrar {
             info: (best.cov + floor).try_inverse()?,
             loop_closure: true,
         })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn curves_are_sampled_every_step_within_reach() {
+        let curves = [
+            Polyline {
+                closed: false,
+                points: vec![[1.0, 0.0], [1.0, 0.3]],
+            },
+            Polyline {
+                closed: true,
+                points: vec![[30.0, 0.0], [30.0, 1.0], [31.0, 0.0]],
+            },
+        ];
+        let pts = sample(&curves, 0.1, 20.0);
+        // 0.3 m in three steps and its end; the closed curve lies beyond the reach.
+        assert_eq!(pts.len(), 4, "{pts:?}");
+        assert!(pts.iter().all(|p| (p[0] - 1.0).abs() < 1e-12));
+        assert!((pts[3][1] - 0.3).abs() < 1e-12);
     }
 }

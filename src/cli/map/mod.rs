@@ -167,7 +167,7 @@ pub fn run(mut a: Args) -> Result<()> {
         let mut params = cfg.register;
         params.max_range = params.max_range.min(map_params.max_range);
         Some(
-            register::run(&a.input, &bag, params, &bar)
+            register::run(&a.input, &bag, params, &cfg.params(), &bar)
                 .with_context(|| format!("registering {}", a.input.display()))?,
         )
     } else {

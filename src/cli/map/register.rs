@@ -6,6 +6,7 @@ use std::path::Path;
 use std::time::Instant;
 
 use anyhow::{anyhow, Result};
+use rayon::prelude::*;
 
 use isoline_core::Pose;
 use isoline_io::bag::BagOptions;
@@ -38,12 +39,16 @@ pub struct Summary {
     pub seconds: f64,
 }
 
-/// Registers every scan of `input` (frames without beams are passed over, as the map
-/// passes them over).
+/// Scans reconstructed at once, on all cores, before they are registered in order.
+const BATCH: usize = 64;
+
+/// Registers every scan of `input` by its curves (reconstructed with `params_method`;
+/// frames without beams are passed over, as the map passes them over).
 pub fn run(
     input: &Path,
     bag: &BagOptions,
     params: RegisterParams,
+    params_method: &isoline_core::Params,
     bar: &indicatif::ProgressBar,
 ) -> Result<Registration> {
     let mut reg =
@@ -52,21 +57,44 @@ pub fn run(
     let cpu = cpu_time::ProcessTime::try_now().ok();
     let (mut without_pose, mut degenerate) = (0usize, 0usize);
     let mut shares = Vec::new();
+    // Scans are reconstructed in parallel batches, then registered in order by their
+    // curves (Registrar::push_curves).
+    let mut batch: Vec<(isoline_core::Scan, Option<Pose>)> = Vec::with_capacity(BATCH);
+    let mut run = |batch: &mut Vec<(isoline_core::Scan, Option<Pose>)>| {
+        let curves: Vec<Vec<isoline_core::Polyline>> = batch
+            .par_iter()
+            .map(|(scan, _)| {
+                isoline_core::reconstruct_scan(scan, params_method)
+                    .map(|r| r.polylines)
+                    .unwrap_or_default()
+            })
+            .collect();
+        for ((scan, pose), curves) in batch.drain(..).zip(curves) {
+            without_pose += usize::from(pose.is_none());
+            // A scan whose reconstruction drew nothing is registered by its returns.
+            let r = if curves.is_empty() {
+                reg.push(&scan, pose)
+            } else {
+                reg.push_curves(&curves, pose)
+            };
+            degenerate += usize::from(r.degenerate);
+            shares.push(r.inlier_share);
+        }
+        bar.set_message(format!("registered, {} loops closed", reg.loops()));
+        bar.set_position(reg.scans() as u64);
+    };
     isoline_io::for_each_item(input, bag, |item| {
         if let Ok(f) = item {
-            if let Some(scan) = &f.scan {
-                without_pose += usize::from(f.pose.is_none());
-                let r = reg.push(scan, f.pose);
-                degenerate += usize::from(r.degenerate);
-                shares.push(r.inlier_share);
-                if reg.scans() % 64 == 0 {
-                    bar.set_message(format!("registered, {} loops closed", reg.loops()));
-                    bar.set_position(reg.scans() as u64);
+            if let Some(scan) = f.scan {
+                batch.push((scan, f.pose));
+                if batch.len() == BATCH {
+                    run(&mut batch);
                 }
             }
         }
         true
     })?;
+    run(&mut batch);
     let poses = reg.finish();
     let seconds = start.elapsed().as_secs_f64();
     let n = poses.len();
