@@ -55,3 +55,13 @@ pub fn scene_walls(truth: &Path) -> Vec<Vec<[f64; 2]>> {
         .map(|pl| serde_json::from_value(pl["points"].clone()).unwrap())
         .collect()
 }
+
+/// `isoline synth room` into `out`: `frames` scans `motion` metres apart along the
+/// room's path, with `extra` options (noise, seed, stream) after them.
+pub fn synth_room(out: &Path, frames: usize, motion: f64, extra: &[&str]) {
+    let (frames, motion) = (frames.to_string(), motion.to_string());
+    let mut args = vec!["synth", "room", "--frames", &frames, "--motion", &motion];
+    args.extend_from_slice(extra);
+    args.extend(["-o", p(out)]);
+    ok(&args);
+}

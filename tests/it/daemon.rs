@@ -645,20 +645,7 @@ fn refinement_windows_hold_their_byte_budget() {
     for (k, s) in ["a", "b"].iter().enumerate() {
         let path = d.join(format!("{s}.ndjson"));
         let seed = (k + 1).to_string();
-        crate::common::ok(&[
-            "synth",
-            "room",
-            "--frames",
-            "5",
-            "--motion",
-            "0.05",
-            "--seed",
-            &seed,
-            "--stream",
-            s,
-            "-o",
-            path.to_str().unwrap(),
-        ]);
+        crate::common::synth_room(&path, 5, 0.05, &["--seed", &seed, "--stream", s]);
         text.push_str(&std::fs::read_to_string(&path).unwrap());
     }
     let input = d.join("in.ndjson");
@@ -706,22 +693,12 @@ fn registration_gives_each_stream_poses_of_its_own() {
     for (k, s) in ["a", "b"].iter().enumerate() {
         let path = d.join(format!("{s}.ndjson"));
         let seed = (k + 1).to_string();
-        crate::common::ok(&[
-            "synth",
-            "room",
-            "--frames",
-            "30",
-            "--motion",
-            "0.1",
-            "--noise",
-            "0.01",
-            "--seed",
-            &seed,
-            "--stream",
-            s,
-            "-o",
-            path.to_str().unwrap(),
-        ]);
+        crate::common::synth_room(
+            &path,
+            30,
+            0.1,
+            &["--noise", "0.01", "--seed", &seed, "--stream", s],
+        );
         let (mut t, mut l) = (Vec::new(), Vec::new());
         let mut prev: Option<[f64; 3]> = None;
         let mut odom = [0.0; 3];

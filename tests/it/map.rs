@@ -1,7 +1,7 @@
 //! `isoline map`: a simulated drive through the room, with a person walking across it,
 //! fused into one world-frame map and checked against the scene's truth.
 
-use super::common::{ok, p, scene_walls, to_walls};
+use super::common::{ok, p, scene_walls, synth_room, to_walls};
 
 #[test]
 fn a_drive_through_the_room_is_one_map_near_the_walls_without_the_person() {
@@ -158,16 +158,7 @@ fn frames_without_poses_make_no_map_and_say_why() {
 fn the_configuration_names_the_map_when_the_command_line_does_not() {
     let dir = tempfile::tempdir().unwrap();
     let frames = dir.path().join("f.ndjson");
-    ok(&[
-        "synth",
-        "room",
-        "--frames",
-        "6",
-        "--motion",
-        "0.1",
-        "-o",
-        p(&frames),
-    ]);
+    synth_room(&frames, 6, 0.1, &[]);
     let sub = dir.path().join("cfg");
     std::fs::create_dir(&sub).unwrap();
     let cfg = sub.join("map.toml");
@@ -201,20 +192,7 @@ fn the_configuration_names_the_map_when_the_command_line_does_not() {
 fn frames_without_poses_are_registered_from_their_returns() {
     let dir = tempfile::tempdir().unwrap();
     let frames = dir.path().join("f.ndjson");
-    ok(&[
-        "synth",
-        "room",
-        "--frames",
-        "60",
-        "--motion",
-        "0.1",
-        "--noise",
-        "0.01",
-        "--seed",
-        "3",
-        "-o",
-        p(&frames),
-    ]);
+    synth_room(&frames, 60, 0.1, &["--noise", "0.01", "--seed", "3"]);
     let text = std::fs::read_to_string(&frames).unwrap();
     let (mut stripped, mut reference) = (String::new(), String::from("# t x y z qx qy qz qw\n"));
     for l in text.lines() {

@@ -248,12 +248,13 @@ impl Registrar {
         self.count
     }
 
-    fn anchor(&mut self, k: usize, rel: Pose) -> Pose {
+    /// Counts a scan, and keeps its keyframe and pose relative to it when the
+    /// trajectory is kept.
+    fn anchor(&mut self, k: usize, rel: Pose) {
         self.count += 1;
         if self.keep_trajectory {
             self.anchors.push((k, rel));
         }
-        compose(self.graph.nodes[k], rel)
     }
 
     /// Keyframes in the graph.
@@ -442,7 +443,8 @@ impl Registrar {
         self.open = points.to_vec();
         let surface = Surface::new(points, self.normal_radius());
         self.keyframes.push(Keyframe {
-            points: points.to_vec(),
+            // Its points are those of all its scans, set when it closes.
+            points: Vec::new(),
             surface,
             path: self.path,
             edge_cov: cov,

@@ -12,6 +12,8 @@ use isoline_core::Pose;
 use isoline_io::bag::BagOptions;
 use isoline_map::{RegisterParams, Registrar};
 
+use super::BATCH;
+
 /// The estimated poses, one per scan in reading order, and what it took.
 pub struct Registration {
     pub poses: Vec<Pose>,
@@ -38,9 +40,6 @@ pub struct Summary {
     /// Wall time, seconds.
     pub seconds: f64,
 }
-
-/// Scans reconstructed at once, on all cores, before they are registered in order.
-const BATCH: usize = 64;
 
 /// Registers every scan of `input` by its curves (reconstructed with `params_method`;
 /// frames without beams are passed over, as the map passes them over).
