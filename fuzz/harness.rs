@@ -88,3 +88,88 @@ pub fn reconstruct_points(data: &[u8]) {
         }
     }
 }
+
+/// The map's frames: the first four bytes pick the cell, the tile, the beams' reach and
+/// the hit tolerance (from 1 mm to 1000 m); then each 64 bytes are a scan of eight
+/// beams with a pose and a range noise of any bits (NaN, infinite, 1e300, 2.8e17 m),
+/// fused with a curve through its returns. Settings the map refuses are refused; every
+/// scan is fused or refused; memory and the store stay within their bounds.
+pub fn map(data: &[u8]) {
+    use isoline_core::{LaserScan, Map, MapParams, MemoryStore, Polyline, Scan};
+    let Some((head, rest)) = data.split_at_checked(4) else {
+        return;
+    };
+    let base = MapParams {
+        cell: [0.01, 0.03, 0.1, 1.0][usize::from(head[0] % 4)],
+        tile: [4, 8, 16, 128][usize::from(head[1] % 4)],
+        max_range: [1.0, 5.0, 20.0][usize::from(head[2] % 3)],
+        hit_tolerance: 10f64.powf(f64::from(head[3]) * 6.0 / 255.0 - 3.0),
+        max_stored_tiles: 16,
+        ..MapParams::default()
+    };
+    // The fewest tiles in memory the settings allow, if any.
+    let Some(params) = (0..24)
+        .map(|k| MapParams {
+            max_tiles: 1 << k,
+            ..base
+        })
+        .find(|p| p.validate().is_ok())
+    else {
+        return;
+    };
+    let Ok(mut map) = Map::new(params, Box::new(MemoryStore::default())) else {
+        return;
+    };
+    let f = |b: &[u8]| f64::from_le_bytes(b.try_into().expect("eight bytes"));
+    for c in rest.chunks_exact(64).take(64) {
+        let pose = [f(&c[0..8]), f(&c[8..16]), f(&c[16..24])];
+        let noise = f(&c[24..32]);
+        let ranges: Vec<Option<f64>> = c[32..40]
+            .iter()
+            .map(|&b| (b > 0).then(|| f64::from(b) / 10.0))
+            .collect();
+        let Ok(scan) = Scan::from_laser(&LaserScan {
+            origin: [0.0, 0.0],
+            angle_min: -1.0,
+            angle_increment: 0.25,
+            ranges: &ranges,
+            range_min: 0.0,
+            range_max: 30.0,
+        }) else {
+            continue;
+        };
+        let curve = Polyline {
+            closed: false,
+            points: scan.returns(),
+        };
+        let _ = map.insert(&scan, pose, &[curve], noise);
+        let s = map.stats();
+        assert!(s.tiles_resident <= params.max_tiles, "{s:?}");
+        assert!(s.tiles_stored <= params.max_stored_tiles, "{s:?}");
+    }
+    for pl in map.curves().expect("a memory store does not fail") {
+        assert!(pl.points.iter().flatten().all(|c| c.is_finite()));
+    }
+}
+
+/// The CARMEN reader on any bytes (gzip-compressed when they start as gzip does): the
+/// pile of no-return codes, `PARAM` reach and the three laser messages. Every laser
+/// line is a frame or a bad frame; readings are finite and within the frame's reach.
+pub fn carmen(data: &[u8]) {
+    let dir = std::env::temp_dir().join(format!("isoline-fuzz-carmen-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).expect("a temporary folder");
+    let path = dir.join("in.log");
+    std::fs::write(&path, data).expect("a temporary file");
+    let _ = isoline_io::carmen::read_carmen_with(&path, Ok, |item| {
+        if let Ok(rec) = item {
+            let reach = rec.range_max.unwrap_or(f64::INFINITY);
+            for r in rec.ranges.iter().flatten().flatten() {
+                assert!(
+                    r.is_finite() && *r > 0.0 && *r < reach + 1e-9,
+                    "{r} {reach}"
+                );
+            }
+        }
+        true
+    });
+}

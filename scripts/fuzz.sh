@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
-# Fuzzes the five targets of fuzz/ (cargo-fuzz, libFuzzer) with the nightly toolchain,
+# Fuzzes the seven targets of fuzz/ (cargo-fuzz, libFuzzer) with the nightly toolchain,
 # two at a time: points and config for SECONDS_SMALL each, frame and reconstruct for
-# SECONDS_BIG each, recording (bags and CARMEN logs) for SECONDS_SMALL (defaults 360
-# and 600: 38 minutes of fuzzing in all). Each target
+# SECONDS_BIG each, recording (bags and CARMEN logs), carmen (the CARMEN reader alone)
+# and map (the world map's frames) for SECONDS_SMALL (defaults 360 and 600: 50 minutes
+# of fuzzing in all). Each target
 # starts from fuzz/seeds/TARGET; an input that crashes or hangs (10 s) is copied into
 # fuzz/regressions/TARGET, which `cargo test --test it fuzz_regressions` replays on stable.
 # Prints each target's executions and coverage and exits non-zero on any crash.
@@ -14,7 +15,7 @@ set -euo pipefail
 cd "$(dirname "$(readlink -f "$0")")/.."
 small=${1:-360}
 big=${2:-600}
-targets="points config frame reconstruct recording"
+targets="points config frame reconstruct recording carmen map"
 if [ "${QUICK:-0}" = 1 ]; then
   for t in $targets; do
     if [ ! -f "fuzz/fuzz_targets/$t.rs" ] || [ -z "$(ls "fuzz/seeds/$t")" ]; then
@@ -54,5 +55,9 @@ run frame "$big" 65536 & a=$!
 run reconstruct "$big" 1024 & b=$!
 wait $a || status=1
 wait $b || status=1
-run recording "$small" 65536 || status=1
+run recording "$small" 65536 & a=$!
+run carmen "$small" 65536 & b=$!
+wait $a || status=1
+wait $b || status=1
+run map "$small" 4100 || status=1
 exit $status

@@ -27,7 +27,8 @@ setup() {
 test() {
   rm -rf target/wheels
   "$venv/bin/maturin" build --quiet --profile dev --interpreter "$venv/bin/python" --out target/wheels
-  "$venv/bin/pip" install --quiet --disable-pip-version-check --no-index --find-links target/wheels isoline
+  # Forced: a wheel of the same version from an earlier run would otherwise stay.
+  "$venv/bin/pip" install --quiet --disable-pip-version-check --force-reinstall --no-deps --no-index --find-links target/wheels isoline
   [[ -x target/debug/isoline ]] || cargo build --quiet --bin isoline
   # From outside the checkout, so that `import isoline` is the installed wheel.
   cd /tmp

@@ -525,13 +525,15 @@ impl Job {
             status: "skipped".into(),
             ..Default::default()
         };
-        if let Some(recs) = self.previous_records(task) {
-            tally(&mut s, &recs);
+        for r in self.previous_records(task).iter().flatten() {
+            tally(&mut s, r);
         }
         s
     }
 
-    /// Reconstructs every frame of one input and writes its outputs.
+    /// Reconstructs every frame of one input and writes its outputs, each record as its
+    /// frame is done (one frame held at a time); a file that cannot be read to its end
+    /// keeps the outputs of the frames before the damage and fails.
     fn process(&self, task: &Task) -> FileSummary {
         let t0 = Instant::now();
         let _span = tracing::info_span!("file", file = %task.input.display()).entered();
@@ -546,74 +548,192 @@ impl Job {
             s.ms = t0.elapsed().as_secs_f64() * 1e3;
             s
         };
-        let frames = match isoline_io::read_items(&task.input, &self.bag) {
-            Ok(f) => f,
-            Err(e) => return fail(s, e.to_string()),
+        let mut outputs = match Outputs::create(&self.formats, self.outputs(task), frames_dir(task))
+        {
+            Ok(o) => o,
+            Err(e) => return fail(s, e),
         };
-        if frames.is_empty() {
-            return fail(s, "empty: no points and no frames".into());
-        }
-        let mut recs = Vec::with_capacity(frames.len());
-        let mut drawings = Vec::new();
-        for item in &frames {
-            let f = match item {
-                Ok(f) => f,
-                Err(b) => {
-                    recs.push(isoline_io::format::ResultRecord {
+        let numbered = isoline_io::is_frame_stream(&task.input)
+            || isoline_io::is_recording(&task.input)
+            || isoline_io::is_compressed_frame_stream(&task.input);
+        let (mut errors, mut failed) = (Vec::new(), 0usize);
+        let mut stopped = None;
+        let read = isoline_io::for_each_item(&task.input, &self.bag, |item| {
+            let (rec, drawing) = match &item {
+                Ok(f) => {
+                    let (rec, r) = reconstruct_frame(f, &task.params);
+                    let drawing = r.filter(|_| self.formats.contains(&Format::Svg)).map(|r| {
+                        let features: Vec<_> = r.features.iter().map(|f| f.center).collect();
+                        svg::render(
+                            &svg::of_reconstruction(&f.points, &r, &features, &[], false),
+                            1200.0,
+                        )
+                    });
+                    (rec, drawing.map(|d| (f.frame, d)))
+                }
+                Err(b) => (
+                    isoline_io::format::ResultRecord {
                         stream: b.stream.clone(),
                         frame: b.frame,
                         error: Some(b.message.clone()),
                         ..Default::default()
+                    },
+                    None,
+                ),
+            };
+            tally(&mut s, &rec);
+            if let Some(e) = &rec.error {
+                failed += 1;
+                // The first few say what went wrong; the count says how often.
+                if errors.len() < MAX_REASONS {
+                    errors.push(match rec.frame {
+                        Some(k) if numbered => format!("frame {k}: {e}"),
+                        _ => e.clone(),
                     });
-                    continue;
-                }
-            };
-            let (rec, r) = reconstruct_frame(f, &task.params);
-            if let Some(r) = r {
-                if self.formats.contains(&Format::Svg) {
-                    let features: Vec<_> = r.features.iter().map(|f| f.center).collect();
-                    let doc = svg::render(
-                        &svg::of_reconstruction(&f.points, &r, &features, &[], false),
-                        1200.0,
-                    );
-                    drawings.push((f.frame, doc));
                 }
             }
-            recs.push(rec);
-        }
-        tally(&mut s, &recs);
-        let errors: Vec<String> = recs
-            .iter()
-            .filter_map(|r| r.error.as_ref().map(|e| (r.frame, e)))
-            .map(|(k, e)| match k {
-                Some(k) if frames.len() > 1 => format!("frame {k}: {e}"),
-                _ => e.clone(),
-            })
-            .collect();
-        for (format, out) in self.formats.iter().zip(self.outputs(task)) {
-            let written = match format {
-                Format::Svg => write_drawings(&out, &frames_dir(task), &drawings, frames.len()),
-                other => writers::write_atomic(&out, writers::render(*other, &recs).as_bytes()),
-            };
-            if let Err(e) = written {
-                return fail(s, format!("writing {}: {e}", out.display()));
+            match outputs.push(&rec, drawing) {
+                Ok(()) => true,
+                Err(e) => {
+                    stopped = Some(e);
+                    false
+                }
             }
+        });
+        if let Some(e) = stopped {
+            return fail(s, e);
         }
-        if !errors.is_empty() {
-            let reason = if errors.len() < frames.len() {
-                format!(
-                    "{} of {} frames failed: {}",
-                    errors.len(),
-                    frames.len(),
-                    errors.join("; ")
-                )
-            } else {
-                errors.join("; ")
-            };
+        if s.frames == 0 {
+            return fail(
+                s,
+                match read {
+                    Err(e) => e.to_string(),
+                    Ok(()) => "empty: no points and no frames".into(),
+                },
+            );
+        }
+        if let Err(e) = outputs.finish() {
+            return fail(s, e);
+        }
+        if let Err(e) = read {
+            let n = s.frames;
+            return fail(
+                s,
+                format!("read {n} frames (their outputs are written), then: {e}"),
+            );
+        }
+        if failed > 0 {
+            let more = failed - errors.len();
+            let mut reason = errors.join("; ");
+            if more > 0 {
+                reason += &format!("; and {more} more");
+            }
+            if failed < s.frames {
+                reason = format!("{failed} of {} frames failed: {reason}", s.frames);
+            }
             return fail(s, reason);
         }
         s.ms = t0.elapsed().as_secs_f64() * 1e3;
         s
+    }
+}
+
+/// The failed frames a summary names by their error; the others it counts.
+const MAX_REASONS: usize = 20;
+
+/// One input's outputs, written as its frames are done.
+struct Outputs {
+    /// The text formats' writers, each to a temporary file renamed into place at the end.
+    records: Vec<(
+        writers::RecordWriter<std::io::BufWriter<std::fs::File>>,
+        writers::PartFile,
+        PathBuf,
+    )>,
+    /// Where the first frame's drawing goes, with SVG among the formats.
+    svg: Option<PathBuf>,
+    /// The folder of each frame's drawing, for an input of several frames.
+    dir: PathBuf,
+    /// The first frame's drawing, until a second frame says there are several.
+    first: Option<(u64, String)>,
+    frames: usize,
+}
+
+impl Outputs {
+    /// Creates every output before the first frame: an unwritable path fails the input
+    /// before the work.
+    fn create(
+        formats: &[Format],
+        paths: Vec<PathBuf>,
+        dir: PathBuf,
+    ) -> std::result::Result<Outputs, String> {
+        let mut o = Outputs {
+            records: Vec::new(),
+            svg: None,
+            dir,
+            first: None,
+            frames: 0,
+        };
+        for (format, out) in formats.iter().zip(paths) {
+            let writing = |e: std::io::Error| format!("writing {}: {e}", out.display());
+            if *format == Format::Svg {
+                o.svg = Some(out);
+                continue;
+            }
+            let (part, file) = writers::PartFile::create(&out).map_err(writing)?;
+            let w = writers::RecordWriter::new(*format, std::io::BufWriter::new(file))
+                .map_err(writing)?;
+            o.records.push((w, part, out));
+        }
+        Ok(o)
+    }
+
+    fn push(
+        &mut self,
+        rec: &isoline_io::format::ResultRecord,
+        drawing: Option<(u64, String)>,
+    ) -> std::result::Result<(), String> {
+        self.frames += 1;
+        for (w, _, out) in &mut self.records {
+            w.push(rec)
+                .map_err(|e| format!("writing {}: {e}", out.display()))?;
+        }
+        let in_dir = |k: u64, doc: &str| -> std::result::Result<(), String> {
+            let path = self.dir.join(format!("frame-{k:06}.svg"));
+            std::fs::create_dir_all(&self.dir)
+                .and_then(|()| writers::write_atomic(&path, doc.as_bytes()))
+                .map_err(|e| format!("writing {}: {e}", path.display()))
+        };
+        // A second frame says there are several: the first one's drawing joins the
+        // folder.
+        if self.frames == 2 {
+            if let Some((k0, first)) = &self.first {
+                in_dir(*k0, first)?;
+            }
+        }
+        let Some((k, doc)) = drawing else {
+            return Ok(());
+        };
+        if self.frames > 1 {
+            in_dir(k, &doc)?;
+        }
+        // The first drawing is also the input's own.
+        if self.first.is_none() {
+            self.first = Some((k, doc));
+        }
+        Ok(())
+    }
+
+    fn finish(self) -> std::result::Result<(), String> {
+        for (w, part, out) in self.records {
+            let writing = |e: std::io::Error| format!("writing {}: {e}", out.display());
+            drop(w.finish().map_err(writing)?);
+            part.commit().map_err(writing)?;
+        }
+        if let (Some(path), Some((_, doc))) = (self.svg, self.first) {
+            writers::write_atomic(&path, doc.as_bytes())
+                .map_err(|e| format!("writing {}: {e}", path.display()))?;
+        }
+        Ok(())
     }
 }
 
@@ -629,37 +749,15 @@ fn frames_dir(task: &Task) -> PathBuf {
     PathBuf::from(p)
 }
 
-/// Writes the first drawing to `first` and, for an input of several frames, each one to
-/// `dir/frame-FRAME.svg`.
-fn write_drawings(
-    first: &Path,
-    dir: &Path,
-    drawings: &[(u64, String)],
-    frames: usize,
-) -> std::io::Result<()> {
-    if let Some((_, doc)) = drawings.first() {
-        writers::write_atomic(first, doc.as_bytes())?;
-    }
-    if frames > 1 && !drawings.is_empty() {
-        std::fs::create_dir_all(dir)?;
-        for (k, doc) in drawings {
-            writers::write_atomic(&dir.join(format!("frame-{k:06}.svg")), doc.as_bytes())?;
-        }
-    }
-    Ok(())
-}
-
-/// Adds the stats of `recs` to `s`.
-fn tally(s: &mut FileSummary, recs: &[isoline_io::format::ResultRecord]) {
-    s.frames = recs.len();
-    for r in recs {
-        s.polylines += r.polylines.as_ref().map_or(0, |p| p.len());
-        if let Some(st) = &r.stats {
-            s.points += st.points;
-            s.vertices = s.vertices.max(st.vertices);
-            s.iterations += st.iterations;
-            s.residual = s.residual.max(st.residual);
-        }
+/// Adds one record's stats to `s`.
+fn tally(s: &mut FileSummary, r: &isoline_io::format::ResultRecord) {
+    s.frames += 1;
+    s.polylines += r.polylines.as_ref().map_or(0, |p| p.len());
+    if let Some(st) = &r.stats {
+        s.points += st.points;
+        s.vertices = s.vertices.max(st.vertices);
+        s.iterations += st.iterations;
+        s.residual = s.residual.max(st.residual);
     }
 }
 

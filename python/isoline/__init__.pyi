@@ -1,7 +1,7 @@
 """Types of the isoline package (the extension module isoline._isoline)."""
 
 from os import PathLike
-from typing import Iterator, Literal, Optional, Sequence, Tuple, Union
+from typing import Iterator, List, Literal, Optional, Sequence, Tuple, Union
 
 import numpy as np
 import numpy.typing as npt
@@ -119,6 +119,10 @@ class Stream:
 class FrameReader(Iterator[Frame]):
     def __iter__(self) -> "FrameReader": ...
     def __next__(self) -> Frame: ...
+    @property
+    def skipped(self) -> int: ...
+    @property
+    def skipped_messages(self) -> List[str]: ...
 
 def reconstruct(points: ArrayLike, params: Optional[Params] = None) -> Result: ...
 def reconstruct_scan(
@@ -138,4 +142,5 @@ def read_frames(
     odometry: Optional[str] = None,
     world_frame: Optional[str] = None,
     errors: Literal["warn", "raise", "ignore"] = "warn",
+    max_line_bytes: int = 16777216,
 ) -> FrameReader: ...

@@ -9,12 +9,14 @@ paths.
 """
 
 import json
+import gzip
 import math
 import os
 import subprocess
 import sys
 import threading
 import time
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -406,3 +408,80 @@ def test_the_snippets_of_docs_python_md_run(monkeypatch):
     for block in blocks:
         exec(compile(block, "docs/python.md", "exec"), namespace)
     assert namespace["r"].polylines and namespace["world"]
+
+
+# --- bad input: what a careless user or an attacker passes ---------------------------
+
+
+def test_arrays_that_claim_more_rows_than_memory_raise_not_abort():
+    # A view of two numbers that claims 10^11 rows: copying it would need 1.6 TB.
+    huge = np.broadcast_to(np.array([1.0, 2.0]), (10**11, 2))
+    with pytest.raises(MemoryError):
+        isoline.reconstruct(huge)
+    # A scan holds at most 65,536 beams: refused before the copy.
+    ranges = np.broadcast_to(np.array(1.0), (10**11,))
+    with pytest.raises(ValueError, match="at most 65536"):
+        isoline.reconstruct_scan(ranges, 0.0, 1e-6, 0.0, 10.0)
+
+
+def test_push_refuses_what_the_constructors_refuse():
+    stream = isoline.Stream()
+    square = np.array([[0, 0], [1, 0], [1, 1], [0, 1]] * 10, dtype=float)
+    with pytest.raises(isoline.IsolineError, match="pose"):
+        stream.push(square, pose=(math.nan, 0.0, 0.0))
+    with pytest.raises(isoline.IsolineError, match="t = inf"):
+        stream.push(square, t=math.inf)
+    frame = isoline.Frame.from_points(square)
+    with pytest.raises(isoline.IsolineError, match="pose"):
+        stream.push(frame, pose=(0.0, math.inf, 0.0))
+    # The stream is unharmed.
+    assert stream.push(square, pose=(0.0, 0.0, 0.0), t=1.0).pose == (0.0, 0.0, 0.0)
+
+
+def peak_rss_mib():
+    import resource
+
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+
+
+def test_ndjson_frames_stream_with_bounded_read_ahead(tmp_path):
+    # 400 MB of frames in 0.6 MB of gzip: held, they took gigabytes before the first
+    # frame came; streamed, the first comes at once.
+    bomb = tmp_path / "bomb.ndjson.gz"
+    line = (json.dumps({"frame": 0, "points": [[0, 0], [1, 0], [1, 1], [0, 1]] * 3}) + "\n").encode()
+    block = line * (1 << 20 // len(line))
+    with gzip.open(bomb, "wb", compresslevel=1) as f:
+        for _ in range(400):
+            f.write(block)
+    before = peak_rss_mib()
+    start = time.monotonic()
+    reader = isoline.read_frames(bomb)
+    first = next(reader)
+    assert len(first.points) == 12
+    del reader
+    assert time.monotonic() - start < 5.0
+    assert peak_rss_mib() - before < 100
+
+
+def test_bad_lines_give_one_warning_with_a_count(tmp_path):
+    bad = tmp_path / "bad.ndjson"
+    good = json.dumps({"frame": 0, "points": [[0, 0], [1, 0], [1, 1], [0, 1]] * 10})
+    bad.write_text(good + "\n" + "{\"frame\": 1, \"points\": 7}\n" * 200_000)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        reader = isoline.read_frames(bad)
+        frames = list(reader)
+    assert len(frames) == 1
+    assert len(caught) == 1
+    assert "200000 frame(s)" in str(caught[0].message)
+    assert reader.skipped == 200_000
+    assert len(reader.skipped_messages) == 100
+    assert "line 2" in reader.skipped_messages[0]
+
+
+def test_the_ndjson_line_cap_is_a_setting(tmp_path):
+    path = tmp_path / "long.ndjson"
+    path.write_text(json.dumps({"frame": 0, "points": [[0, 0], [1, 0], [1, 1], [0, 1]] * 100}) + "\n")
+    with pytest.raises(isoline.IsolineError, match="longer than 100 bytes"):
+        list(isoline.read_frames(path, errors="raise", max_line_bytes=100))
+    assert len(list(isoline.read_frames(path, max_line_bytes=1 << 20))) == 1

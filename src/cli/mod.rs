@@ -93,6 +93,16 @@ pub fn refuse_overwrite(input: &Path, outputs: &[Option<&Path>]) -> Result<()> {
     Ok(())
 }
 
+/// Fails, naming the path, unless each of `outputs` can be written: checked before the
+/// work, not after it.
+pub fn check_writable(outputs: &[Option<&Path>]) -> Result<()> {
+    for p in outputs.iter().flatten() {
+        isoline_io::write::PartFile::probe(p)
+            .with_context(|| format!("{} cannot be written", p.display()))?;
+    }
+    Ok(())
+}
+
 /// Writes `text` to `path` through a temporary file renamed into place (a failed or
 /// killed write leaves no partial file under the name), naming it in the error.
 pub fn write(path: &Path, text: impl AsRef<[u8]>) -> Result<()> {
@@ -118,11 +128,23 @@ pub struct BagArgs {
     /// Bag input: the frame the poses are in, through /tf (default: the odometry's).
     #[arg(long)]
     world_frame: Option<String>,
+    /// NDJSON input: the longest line read, bytes (default 16 MiB; a frame of a
+    /// million points is a line of about 21 MB). A longer line is a bad frame.
+    #[arg(long, value_parser = clap::value_parser!(u64).range(1..=1 << 34))]
+    max_line_bytes: Option<u64>,
 }
 
 impl BagArgs {
     /// The options, refused unless `input` is a bag when any is given.
     pub fn options(self, input: &Path) -> Result<isoline_io::bag::BagOptions> {
+        if self.max_line_bytes.is_some()
+            && !(isoline_io::is_frame_stream(input)
+                || isoline_io::is_compressed_frame_stream(input))
+        {
+            anyhow::bail!(
+                "--max-line-bytes applies to an NDJSON input (.ndjson, .jsonl, maybe .gz)"
+            );
+        }
         let opts = isoline_io::bag::BagOptions {
             topics: self.topics,
             odometry: self.odometry,
@@ -132,6 +154,14 @@ impl BagArgs {
             anyhow::bail!("--topic, --odometry and --world-frame apply to a bag input (.mcap)");
         }
         Ok(opts)
+    }
+}
+
+impl BagArgs {
+    /// The longest NDJSON line to read.
+    pub fn line_cap(&self) -> usize {
+        self.max_line_bytes
+            .map_or(isoline_io::MAX_FRAME_LINE_BYTES, |n| n as usize)
     }
 }
 

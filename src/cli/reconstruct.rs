@@ -7,7 +7,6 @@ use anyhow::{bail, Context, Result};
 use isoline_io::format::ResultRecord;
 use isoline_io::foxglove::{FrameView, McapOut};
 use isoline_io::write::svg;
-use isoline_io::Item;
 
 /// `isoline reconstruct` options.
 #[derive(clap::Args)]
@@ -41,10 +40,164 @@ pub struct Args {
     bag: super::BagArgs,
 }
 
+/// Where the records go: written as each frame is done, so that a run holds one frame
+/// at a time whatever the recording's length.
+enum Sink {
+    /// A text format to a file, renamed into place when complete.
+    File(
+        isoline_io::write::RecordWriter<std::io::BufWriter<std::fs::File>>,
+        isoline_io::write::PartFile,
+    ),
+    /// NDJSON on standard output.
+    Stdout(isoline_io::write::RecordWriter<std::io::Stdout>),
+    /// A Foxglove bag.
+    Mcap(Box<McapOut>),
+    /// A drawing of the one frame an SVG holds: its points and reconstruction.
+    Svg(std::path::PathBuf, Option<Box<Drawn>>),
+}
+
+/// The frame an SVG draws: its points and reconstruction.
+type Drawn = (Vec<isoline_core::geom::Point>, isoline_core::Reconstruction);
+
+impl Sink {
+    /// Creates the output before any frame is read: a path that cannot be written fails
+    /// the run at once.
+    fn open(output: Option<&std::path::Path>, format: isoline_io::write::Format) -> Result<Sink> {
+        use isoline_io::write::{Format, RecordWriter};
+        Ok(match output {
+            None => Sink::Stdout(RecordWriter::new(Format::Ndjson, std::io::stdout())?),
+            Some(p) if isoline_io::is_bag(p) => Sink::Mcap(Box::new(McapOut::create(p)?)),
+            Some(p) if format == Format::Svg => {
+                // Created now so that an unwritable path fails before the work.
+                let (part, _) = super::create_part(p)?;
+                drop(part);
+                Sink::Svg(p.to_path_buf(), None)
+            }
+            Some(p) => {
+                let (part, file) = super::create_part(p)?;
+                Sink::File(
+                    RecordWriter::new(format, std::io::BufWriter::new(file))?,
+                    part,
+                )
+            }
+        })
+    }
+
+    fn push(
+        &mut self,
+        rec: &ResultRecord,
+        frame: Option<&isoline_io::Frame>,
+        r: Option<isoline_core::Reconstruction>,
+    ) -> Result<()> {
+        match self {
+            Sink::File(w, part) => w
+                .push(rec)
+                .with_context(|| format!("writing {}", part.part().display())),
+            Sink::Stdout(w) => match w.push(rec) {
+                Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => Ok(()),
+                r => r.context("writing to standard output"),
+            },
+            Sink::Mcap(m) => Ok(m.write(&FrameView {
+                record: rec.clone(),
+                points: frame.map(|f| f.points.clone()).unwrap_or_default(),
+                t: frame.and_then(|f| f.t),
+                pose: frame.and_then(|f| f.pose),
+            })?),
+            Sink::Svg(_, drawn) => {
+                if let (Some(f), Some(r)) = (frame, r) {
+                    *drawn = Some(Box::new((f.points.clone(), r)));
+                }
+                Ok(())
+            }
+        }
+    }
+
+    fn finish(self, draw_mesh: bool) -> Result<()> {
+        match self {
+            Sink::File(w, part) => {
+                let path = part.part().to_path_buf();
+                drop(
+                    w.finish()
+                        .with_context(|| format!("writing {}", path.display()))?,
+                );
+                part.commit()
+                    .with_context(|| format!("writing {}", path.display()))
+            }
+            Sink::Stdout(w) => match w.finish() {
+                Err(e) if e.kind() != std::io::ErrorKind::BrokenPipe => {
+                    Err(e).context("writing to standard output")
+                }
+                _ => Ok(()),
+            },
+            Sink::Mcap(m) => Ok(m.finish()?),
+            Sink::Svg(path, drawn) => {
+                let Some((points, r)) = drawn.map(|d| *d) else {
+                    bail!("{}: no curves to draw (the frame failed)", path.display());
+                };
+                let features: Vec<_> = r.features.iter().map(|f| f.center).collect();
+                let doc = svg::render(
+                    &svg::of_reconstruction(&points, &r, &features, &[], draw_mesh),
+                    1200.0,
+                );
+                super::write(&path, doc)
+            }
+        }
+    }
+}
+
+/// The frames' statistics as JSON: one object for one frame, an array for several,
+/// written as they come.
+struct StatsSink {
+    out: std::io::BufWriter<std::fs::File>,
+    part: isoline_io::write::PartFile,
+    first: Option<String>,
+    written: u64,
+}
+
+impl StatsSink {
+    fn open(path: &std::path::Path) -> Result<StatsSink> {
+        let (part, file) = super::create_part(path)?;
+        Ok(StatsSink {
+            out: std::io::BufWriter::new(file),
+            part,
+            first: None,
+            written: 0,
+        })
+    }
+
+    fn push(&mut self, stats: &impl serde::Serialize) -> Result<()> {
+        use std::io::Write;
+        let text = format!("{:#}", serde_json::to_value(stats)?);
+        match (self.written, self.first.take()) {
+            (0, _) => self.first = Some(text),
+            (_, Some(first)) => write!(self.out, "[\n{first},\n{text}")?,
+            _ => write!(self.out, ",\n{text}")?,
+        }
+        self.written += 1;
+        Ok(())
+    }
+
+    fn finish(mut self) -> Result<()> {
+        use std::io::Write;
+        match (self.written, self.first.take()) {
+            (1, Some(first)) => writeln!(self.out, "{first}")?,
+            _ => self.out.write_all(b"\n]\n")?,
+        }
+        self.out.flush()?;
+        drop(self.out);
+        let path = self.part.part().to_path_buf();
+        self.part
+            .commit()
+            .with_context(|| format!("writing {}", path.display()))
+    }
+}
+
 /// Reconstructs every frame (or `--frame`) and writes one record per frame in the
-/// output's format; fails when a frame failed, after writing the others.
+/// output's format, each as it is done; fails when a frame failed, after writing the
+/// others, and when the input could not be read to its end (a download cut short), after
+/// writing the records of the frames before the damage.
 pub fn run(a: Args) -> Result<()> {
-    use isoline_io::write::{self as writers, Format};
+    use isoline_io::write::Format;
 
     let cfg = super::load_config(a.config.as_deref())?;
     let mut params = cfg.params();
@@ -55,14 +208,12 @@ pub fn run(a: Args) -> Result<()> {
         params.solver.init = i;
     }
     let params = &params;
-    let (input, output, stats, frame, draw_mesh) = (
+    let (input, output, stats, only) = (
         a.input.as_path(),
         a.output.as_deref(),
         a.stats.as_deref(),
         a.frame,
-        a.mesh,
     );
-
     let mcap = output.is_some_and(isoline_io::is_bag);
     let format = match output {
         None => Format::Ndjson,
@@ -76,41 +227,50 @@ pub fn run(a: Args) -> Result<()> {
         })?,
     };
     super::refuse_overwrite(input, &[output, stats])?;
+    let cap = a.bag.line_cap();
     let bag = a.bag.options(input)?;
-    let all = isoline_io::read_items(input, &bag)?;
-    let frames: Vec<Item> = match frame {
-        Some(f) => all
-            .into_iter()
-            .filter(|r| match r {
-                Ok(r) => r.frame == f,
-                Err(b) => b.frame == Some(f),
-            })
-            .collect(),
-        None => all,
+    let mut sink = Sink::open(output, format)?;
+    let mut stats_sink = stats.map(StatsSink::open).transpose()?;
+    // The first record waits for a second frame: one frame of points that fails has its
+    // error as the answer, and no output.
+    let mut held: Option<(
+        ResultRecord,
+        Option<isoline_io::Frame>,
+        Option<isoline_core::Reconstruction>,
+    )> = None;
+    let (mut seen, mut failed) = (0u64, 0u64);
+    let mut stop: Option<anyhow::Error> = None;
+    let emit = |sink: &mut Sink,
+                stats_sink: &mut Option<StatsSink>,
+                (rec, f, r): (
+        ResultRecord,
+        Option<isoline_io::Frame>,
+        Option<isoline_core::Reconstruction>,
+    )|
+     -> Result<()> {
+        sink.push(&rec, f.as_ref(), r)?;
+        if let Some(s) = stats_sink {
+            s.push(&rec.stats)?;
+        }
+        Ok(())
     };
-    if frames.is_empty() {
-        bail!(
-            "{}: no frame {}",
-            input.display(),
-            frame.map_or("at all".into(), |f| f.to_string())
-        );
-    }
-    if format == Format::Svg && frames.len() > 1 {
-        bail!(
-            "{} has {} frames and an SVG holds one: pick one with --frame",
-            input.display(),
-            frames.len()
-        );
-    }
-    let mut records = Vec::with_capacity(frames.len());
-    let mut last = None;
-    let mut failed = 0;
-    let mut out_mcap = match output {
-        Some(p) if mcap => Some(McapOut::create(p)?),
-        _ => None,
-    };
-    for item in &frames {
-        let (rec, r) = match item {
+    let read = isoline_io::for_each_item_capped(input, &bag, cap, |item| {
+        let number = match &item {
+            Ok(f) => Some(f.frame),
+            Err(b) => b.frame,
+        };
+        if only.is_some() && number != only {
+            return true;
+        }
+        seen += 1;
+        if format == Format::Svg && seen > 1 {
+            stop = Some(anyhow::anyhow!(
+                "{} has more than one frame and an SVG holds one: pick one with --frame",
+                input.display()
+            ));
+            return false;
+        }
+        let (rec, r) = match &item {
             Ok(f) => isoline_io::reconstruct_frame(f, params),
             Err(b) => (
                 ResultRecord {
@@ -124,71 +284,77 @@ pub fn run(a: Args) -> Result<()> {
         };
         if let Some(e) = &rec.error {
             failed += 1;
-            let what = match item {
+            let what = match &item {
                 Err(_) => e.clone(),
-                Ok(f) if frames.len() > 1 || f.stream.is_some() => {
+                Ok(f) if seen > 1 || f.stream.is_some() || isoline_io::is_recording(input) => {
                     format!("{}, frame {}: {e}", input.display(), f.frame)
                 }
                 Ok(_) => format!("{}: {e}", input.display()),
             };
-            // One frame of points: the error is the answer. A recording's frames all
-            // get records, whatever their number.
-            if frames.len() == 1 && !isoline_io::is_recording(input) {
-                bail!(what);
+            if seen > 1 || isoline_io::is_recording(input) {
+                eprintln!("isoline: {what}");
             }
-            eprintln!("isoline: {what}");
         }
-        if let Some(m) = &mut out_mcap {
-            let f = item.as_ref().ok();
-            m.write(&FrameView {
-                record: rec.clone(),
-                points: f.map(|f| f.points.clone()).unwrap_or_default(),
-                t: f.and_then(|f| f.t),
-                pose: f.and_then(|f| f.pose),
-            })?;
-        }
-        if r.is_some() {
-            last = r;
-        }
-        records.push(rec);
-    }
-    if let Some(m) = out_mcap {
-        m.finish()?;
-    } else {
-        let text = match format {
-            Format::Svg => {
-                let r = last.as_ref().expect("one frame, reconstructed");
-                let features: Vec<_> = r.features.iter().map(|f| f.center).collect();
-                let points = frames[0]
-                    .as_ref()
-                    .map(|f| f.points.as_slice())
-                    .unwrap_or(&[]);
-                svg::render(
-                    &svg::of_reconstruction(points, r, &features, &[], draw_mesh),
-                    1200.0,
-                )
+        let next = (rec, item.ok(), r);
+        let out = match held.take() {
+            Some(first) => {
+                if let (Some(e), false) = (&first.0.error, isoline_io::is_recording(input)) {
+                    eprintln!(
+                        "isoline: {}, frame {}: {e}",
+                        input.display(),
+                        first.0.frame.unwrap_or(0)
+                    );
+                }
+                emit(&mut sink, &mut stats_sink, first)
             }
-            other => writers::render(other, &records),
+            .and_then(|()| emit(&mut sink, &mut stats_sink, next)),
+            None if seen == 1 => {
+                held = Some(next);
+                Ok(())
+            }
+            None => emit(&mut sink, &mut stats_sink, next),
         };
-        match output {
-            Some(p) => super::write(p, text)?,
-            None => super::print(&text)?,
+        if let Err(e) = out {
+            stop = Some(e);
+            return false;
         }
+        true
+    });
+    if let Some(e) = stop {
+        return Err(e);
     }
-    if let Some(path) = stats {
-        let all: Vec<_> = records.iter().map(|r| &r.stats).collect();
-        let v = if all.len() == 1 {
-            serde_json::to_value(all[0])?
-        } else {
-            serde_json::to_value(&all)?
-        };
-        super::write(path, format!("{v:#}\n"))?;
+    if seen == 0 {
+        read?;
+        bail!(
+            "{}: no frame {}",
+            input.display(),
+            only.map_or("at all".into(), |f| f.to_string())
+        );
+    }
+    if let Some((rec, f, r)) = held.take() {
+        // One frame of points: the error is the answer. A recording's frames all get
+        // records, whatever their number.
+        if let (Some(e), false) = (&rec.error, isoline_io::is_recording(input)) {
+            read?;
+            match f.filter(|f| f.stream.is_some()) {
+                Some(f) => bail!("{}, frame {}: {e}", input.display(), f.frame),
+                None => bail!("{}: {e}", input.display()),
+            }
+        }
+        emit(&mut sink, &mut stats_sink, (rec, f, r))?;
+    }
+    sink.finish(a.mesh)?;
+    if let Some(s) = stats_sink {
+        s.finish()?;
+    }
+    if let Err(e) = read {
+        return Err(anyhow::Error::new(e).context(format!(
+            "{}: read {seen} frames, then could not read on (their records are written)",
+            input.display()
+        )));
     }
     if failed > 0 {
-        bail!(
-            "{failed} of {} frames failed (error records written)",
-            frames.len()
-        );
+        bail!("{failed} of {seen} frames failed (error records written)");
     }
     Ok(())
 }

@@ -430,6 +430,16 @@ impl DaemonConfig {
                 }
             }
         }
+        // Every output is checked now: a path that cannot be written would otherwise end
+        // the run at its first write, with the frames after it never read.
+        for (key, p) in &written {
+            if let Err(e) = isoline_io::write::PartFile::probe(p) {
+                problems.push(format!(
+                    "{key} = {:?} cannot be written: {e}",
+                    p.display().to_string()
+                ));
+            }
+        }
         for (i, (k1, p1)) in written.iter().enumerate() {
             for (k2, p2) in &written[i + 1..] {
                 if crate::files::same_file(p1, p2) {

@@ -69,6 +69,11 @@ pub struct MapReport {
     pub behind: u64,
     /// Scans whose fusion failed (a bug, logged).
     pub failed: u64,
+    /// Scans whose pose put them beyond the map's lattice
+    /// ([`isoline_core::MapParams::max_coordinate`]): left out, the first logged.
+    pub refused: u64,
+    /// Stored tiles forgotten beyond `[map] max_stored_tiles`.
+    pub tiles_dropped: u64,
     /// Times the map's files were written (the last at the end).
     pub writes: u64,
     /// The final map's pieces.
@@ -166,6 +171,12 @@ impl Mapper {
                     self.path.push(p);
                 }
             }
+            Ok(Err(e @ isoline_core::Error::PoseOutOfReach { .. })) => {
+                self.report.refused += 1;
+                if self.report.refused == 1 {
+                    tracing::warn!("{e}; such scans are left out of the map (counted)");
+                }
+            }
             // The store failed: the map cannot go on holding its bound.
             Ok(Err(e)) => return Err(e.into()),
             Err(_) => {
@@ -214,6 +225,7 @@ impl Mapper {
             seen_through: scores.seen_through,
             tiles_resident: stats.tiles_resident,
             tiles_stored: stats.tiles_stored,
+            tiles_dropped: stats.tiles_dropped,
             ..self.report
         })
     }

@@ -185,6 +185,16 @@ impl std::fmt::Display for RunSummary {
                 100.0 * m.seen_through,
                 m.writes
             )?;
+            if m.refused > 0 {
+                write!(f, "; {} scans beyond the map's reach left out", m.refused)?;
+            }
+            if m.tiles_dropped > 0 {
+                write!(
+                    f,
+                    "; {} stored tiles forgotten (max_stored_tiles)",
+                    m.tiles_dropped
+                )?;
+            }
         }
         Ok(())
     }

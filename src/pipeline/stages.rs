@@ -51,6 +51,8 @@ pub(crate) struct Msg {
     /// The frame's beams, kept past the distance stage for the map (when it is on and
     /// the frame has a pose).
     scan: Option<Box<isoline_core::Scan>>,
+    /// What the reader did to the frame's readings, for the record's warnings.
+    notes: Vec<String>,
     work: Work,
 }
 
@@ -371,12 +373,13 @@ fn parse_line(mut line: Line) -> Msg {
                 .map_err(|e| (e.to_string(), guess_ids(text)))
         }
     };
-    let (stream, frame, pose, t, work) = match parsed {
+    let (stream, frame, pose, t, notes, work) = match parsed {
         Ok(mut f) => (
             f.stream.take().or(default_stream),
             Some(f.frame),
             f.pose,
             f.t,
+            std::mem::take(&mut f.notes),
             Work::Input(Box::new(f)),
         ),
         Err((message, (stream, frame))) => {
@@ -386,6 +389,7 @@ fn parse_line(mut line: Line) -> Msg {
                 frame,
                 None,
                 None,
+                Vec::new(),
                 Work::Failed(message),
             )
         }
@@ -400,6 +404,7 @@ fn parse_line(mut line: Line) -> Msg {
         arrived: line.arrived,
         receipt: line.receipt,
         scan: None,
+        notes,
         work,
     }
 }
@@ -781,6 +786,7 @@ impl Exporter {
                     registered_pose: m.registered,
                     ..ResultRecord::of(m.stream.clone(), frame, &r)
                 };
+                rec.add_warnings(&m.notes);
                 self.tally_frame(&mut rec, &r, m.arrived);
                 self.send_to_map(m.scan, placed, &r, &m.stream, frame);
                 if self.wants_frames {
@@ -1046,6 +1052,7 @@ mod tests {
             arrived: Instant::now(),
             receipt: None,
             scan: None,
+            notes: Vec::new(),
             work: if live {
                 Work::Input(Default::default())
             } else {

@@ -33,6 +33,16 @@ fn recordings() {
 }
 
 #[test]
+fn maps() {
+    assert!(replay("map", harness::map) >= 2);
+}
+
+#[test]
+fn carmen_logs() {
+    assert!(replay("carmen", harness::carmen) >= 2);
+}
+
+#[test]
 fn point_files() {
     assert!(replay("points", harness::points) > 0);
     harness::points(b"1e999 0\n0 0\n");

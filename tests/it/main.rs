@@ -9,6 +9,7 @@ mod daemon;
 mod docs;
 mod files;
 mod fuzz_regressions;
+mod hardening;
 #[cfg(feature = "kafka")]
 mod kafka;
 #[cfg(feature = "live")]

@@ -66,6 +66,9 @@ pub struct MapConfig {
     pub max_range: Option<f64>,
     /// Tiles held in memory at most. Default 512.
     pub max_tiles: Option<usize>,
+    /// Tiles kept in the spill folder at most; beyond it the least recently seen are
+    /// forgotten. Default 8192 (2 GiB of 128-sample tiles).
+    pub max_stored_tiles: Option<usize>,
     /// Lay each scan onto the map before fusing it. Default false.
     pub align: Option<bool>,
     /// Standard deviation of the poses' heading error, radians, in `[0, 0.5]`: a scan's
@@ -120,6 +123,7 @@ impl MapConfig {
             hit_tolerance: self.hit_tolerance.unwrap_or(d.hit_tolerance),
             max_range: self.max_range.unwrap_or(d.max_range),
             max_tiles: self.max_tiles.unwrap_or(d.max_tiles),
+            max_stored_tiles: self.max_stored_tiles.unwrap_or(d.max_stored_tiles),
             align: self.align.unwrap_or(d.align),
             heading_noise: self.heading_noise.unwrap_or(d.heading_noise),
         };
@@ -416,8 +420,12 @@ impl Config {
         if let Err(p) = cfg.scan.to_params() {
             problems.extend(p);
         }
-        if let Err(p) = cfg.map.to_params() {
-            problems.extend(p);
+        match cfg.map.to_params() {
+            Err(p) => problems.extend(p),
+            // The map takes a scan's noise as at most this wide: a configured noise
+            // beyond it is a mistake (no laser scanner is that noisy), said now.
+            Ok(_) if cfg.map.output.is_some() => problems.extend(cfg.map_noise_problem()),
+            Ok(_) => {}
         }
         if let Err(p) = cfg.register.validate() {
             problems.extend(p);
@@ -432,6 +440,20 @@ impl Config {
             ));
         }
         Ok(cfg)
+    }
+
+    /// Why `[scan] range_noise` is too wide for the map, if it is: the map takes a
+    /// scan's noise as at most `(max_tolerance - 2 cell) / 3` (a wider one would reach
+    /// tiles beyond those its bound counts), and no laser scanner is that noisy. Checked
+    /// at load when `[map] output` is set, and by whatever else maps.
+    pub fn map_noise_problem(&self) -> Option<String> {
+        let map = self.map.to_params().ok()?;
+        let widest = (map.max_tolerance() - 2.0 * map.cell) / 3.0;
+        let n = self.scan.range_noise.filter(|n| *n > widest)?;
+        Some(format!(
+            "scan.range_noise = {n}: at most {widest:.3} m with the map's cell and tile \
+             (3 range_noise + 2 cell within a quarter of a tile's side, or ten cells)"
+        ))
     }
 
     /// Reads and validates a TOML file.

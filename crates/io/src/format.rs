@@ -14,6 +14,10 @@ use isoline_core::Feature;
 /// validated form.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct FrameRecord {
+    /// What the reader did to the frame's readings (e.g. readings taken for the
+    /// scanner's no-return code and dropped); carried into the result's warnings.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub notes: Option<Vec<String>>,
     /// Stream id (optional).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub stream: Option<String>,
@@ -393,6 +397,15 @@ pub struct ResultRecord {
 }
 
 impl ResultRecord {
+    /// Adds `notes` to the record's warnings.
+    pub fn add_warnings(&mut self, notes: &[String]) {
+        if !notes.is_empty() {
+            self.warnings
+                .get_or_insert_with(Vec::new)
+                .extend(notes.iter().cloned());
+        }
+    }
+
     /// The record of a reconstructed frame: its curves, features (scan frames) and stats.
     pub fn of(
         stream: Option<String>,

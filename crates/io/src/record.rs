@@ -18,14 +18,15 @@ pub fn reconstruct_frame(frame: &Frame, params: &Params) -> (ResultRecord, Optio
     );
     let _e = span.enter();
     match reconstruct_with(&frame.points, frame.scan.as_ref(), params, None) {
-        Ok(r) => (
-            ResultRecord {
+        Ok(r) => {
+            let mut rec = ResultRecord {
                 t: frame.t,
                 pose: frame.pose,
                 ..ResultRecord::of(frame.stream.clone(), frame.frame, &r)
-            },
-            Some(r),
-        ),
+            };
+            rec.add_warnings(&frame.notes);
+            (rec, Some(r))
+        }
         Err(e) => (
             ResultRecord {
                 stream: frame.stream.clone(),

@@ -1,5 +1,10 @@
 //! A map's tiles on disk: where [`isoline_core::Map`] puts the tiles it holds no longer
 //! in memory, one file a tile, in a directory of its own removed when the store goes.
+//!
+//! A run that is killed cannot remove its directory; the next store made in the same
+//! parent does. Each directory holds a `lock` file its store keeps locked (an advisory
+//! lock the system releases when the process ends, however it ends): a directory whose
+//! lock can be taken belongs to no living run.
 
 use std::path::{Path, PathBuf};
 
@@ -10,7 +15,12 @@ use isoline_core::{TileKey, TileStore};
 #[derive(Debug)]
 pub struct DiskTiles {
     dir: PathBuf,
+    /// Held locked while the store lives.
+    _lock: std::fs::File,
 }
+
+/// The prefix of a store's directory name.
+const PREFIX: &str = "isoline-tiles-";
 
 impl DiskTiles {
     /// A store in a new directory under `parent` (the system's temporary directory when
@@ -18,16 +28,24 @@ impl DiskTiles {
     pub fn new(parent: Option<&Path>) -> std::io::Result<DiskTiles> {
         let parent = parent.map_or_else(std::env::temp_dir, Path::to_path_buf);
         std::fs::create_dir_all(&parent)?;
+        remove_stale(&parent);
         let nanos = std::time::SystemTime::now()
             .duration_since(std::time::UNIX_EPOCH)
             .map_or(0, |d| d.subsec_nanos());
         for attempt in 0..1000u32 {
-            let dir = parent.join(format!(
-                "isoline-tiles-{}-{nanos}-{attempt}",
-                std::process::id()
-            ));
+            let dir = parent.join(format!("{PREFIX}{}-{nanos}-{attempt}", std::process::id()));
             match std::fs::create_dir(&dir) {
-                Ok(()) => return Ok(DiskTiles { dir }),
+                Ok(()) => {
+                    let lock = std::fs::File::create(dir.join("lock"))
+                        .and_then(|f| f.try_lock().map_err(std::io::Error::other).map(|()| f));
+                    return match lock {
+                        Ok(f) => Ok(DiskTiles { dir, _lock: f }),
+                        Err(e) => {
+                            let _ = std::fs::remove_dir_all(&dir);
+                            Err(e)
+                        }
+                    };
+                }
                 Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => continue,
                 Err(e) => return Err(e),
             }
@@ -42,6 +60,37 @@ impl DiskTiles {
 
     fn path(&self, key: TileKey) -> PathBuf {
         self.dir.join(format!("tile_{}_{}.bin", key.0, key.1))
+    }
+}
+
+/// Removes the tile directories under `parent` that no living store holds: their lock
+/// can be taken, or (made before a lock was) they are older than a minute and have none.
+fn remove_stale(parent: &Path) {
+    let Ok(entries) = std::fs::read_dir(parent) else {
+        return;
+    };
+    for e in entries.flatten() {
+        let dir = e.path();
+        let named = e
+            .file_name()
+            .to_str()
+            .is_some_and(|n| n.starts_with(PREFIX));
+        if !named || !dir.is_dir() {
+            continue;
+        }
+        let stale = match std::fs::File::open(dir.join("lock")) {
+            Ok(f) => f.try_lock().is_ok(),
+            Err(_) => e
+                .metadata()
+                .and_then(|m| m.modified())
+                .ok()
+                .and_then(|t| t.elapsed().ok())
+                .is_some_and(|age| age.as_secs() > 60),
+        };
+        if stale {
+            tracing::info!(dir = %dir.display(), "removing the tiles a killed run left");
+            let _ = std::fs::remove_dir_all(&dir);
+        }
     }
 }
 
@@ -85,5 +134,22 @@ mod tests {
         store.put((0, 0), vec![9]).unwrap();
         drop(store);
         assert!(!dir.exists());
+    }
+
+    #[test]
+    fn a_killed_runs_tiles_are_removed_by_the_next_store_and_a_living_ones_are_not() {
+        let parent = tempfile::tempdir().unwrap();
+        let mut living = DiskTiles::new(Some(parent.path())).unwrap();
+        living.put((5, 5), vec![1]).unwrap();
+        // What a killed run leaves: its directory and an unlocked lock file.
+        let dead = parent.path().join(format!("{PREFIX}1-2-3"));
+        std::fs::create_dir(&dead).unwrap();
+        std::fs::write(dead.join("lock"), b"").unwrap();
+        std::fs::write(dead.join("tile_0_0.bin"), vec![0u8; 1000]).unwrap();
+        let other = parent.path().join("keep-me");
+        std::fs::create_dir(&other).unwrap();
+        let next = DiskTiles::new(Some(parent.path())).unwrap();
+        assert!(!dead.exists());
+        assert!(living.dir().exists() && next.dir().exists() && other.exists());
     }
 }

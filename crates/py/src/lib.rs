@@ -16,7 +16,7 @@ use std::sync::Mutex;
 use numpy::ndarray::{Array1, Array2};
 use numpy::{AllowTypeChange, IntoPyArray, PyArray1, PyArray2, PyArrayLikeDyn};
 use pyo3::create_exception;
-use pyo3::exceptions::{PyOSError, PyStopIteration, PyValueError};
+use pyo3::exceptions::{PyMemoryError, PyOSError, PyStopIteration, PyValueError};
 use pyo3::prelude::*;
 
 use isoline_core::{Point, WindowLimits};
@@ -50,6 +50,16 @@ fn core_error(e: isoline_core::Error) -> PyErr {
     IsolineError::new_err(e.to_string())
 }
 
+/// Room for `n` items, or `MemoryError`: an array may be a view of a few numbers that
+/// claims more rows than memory holds (`np.broadcast_to`), and copying it must fail in
+/// Python, not abort the interpreter.
+fn reserve<T>(n: usize, what: &str) -> PyResult<Vec<T>> {
+    let mut v = Vec::new();
+    v.try_reserve_exact(n)
+        .map_err(|_| PyMemoryError::new_err(format!("{what}: {n} rows do not fit in memory")))?;
+    Ok(v)
+}
+
 /// The rows of an (N, 2) array-like as points; anything else is a `ValueError`.
 fn points_of(obj: &Bound<'_, PyAny>, what: &str) -> PyResult<Vec<Point>> {
     let array: PyArrayLikeDyn<'_, f64, AllowTypeChange> = obj
@@ -62,11 +72,13 @@ fn points_of(obj: &Bound<'_, PyAny>, what: &str) -> PyResult<Vec<Point>> {
             view.shape()
         )));
     }
-    Ok(view.outer_iter().map(|row| [row[0], row[1]]).collect())
+    let mut points = reserve(view.shape()[0], what)?;
+    points.extend(view.outer_iter().map(|row| [row[0], row[1]]));
+    Ok(points)
 }
 
-/// A one-dimensional array-like of numbers.
-fn vector_of(obj: &Bound<'_, PyAny>, what: &str) -> PyResult<Vec<f64>> {
+/// A one-dimensional array-like of at most `max` numbers (checked before the copy).
+fn vector_of(obj: &Bound<'_, PyAny>, what: &str, max: usize) -> PyResult<Vec<f64>> {
     let array: PyArrayLikeDyn<'_, f64, AllowTypeChange> = obj
         .extract()
         .map_err(|e| PyValueError::new_err(format!("{what}: not an array of numbers ({e})")))?;
@@ -77,7 +89,15 @@ fn vector_of(obj: &Bound<'_, PyAny>, what: &str) -> PyResult<Vec<f64>> {
             view.shape()
         )));
     }
-    Ok(view.iter().copied().collect())
+    if view.len() > max {
+        return Err(PyValueError::new_err(format!(
+            "{what}: {} values, at most {max}",
+            view.len()
+        )));
+    }
+    let mut v = reserve(view.len(), what)?;
+    v.extend(view.iter().copied());
+    Ok(v)
 }
 
 fn points_array<'py>(py: Python<'py>, points: &[Point]) -> Bound<'py, PyArray2<f64>> {
@@ -201,7 +221,7 @@ impl Frame {
         frame: u64,
         stream: Option<String>,
     ) -> PyResult<Self> {
-        let ranges = vector_of(ranges, "ranges")?
+        let ranges = vector_of(ranges, "ranges", isoline_core::MAX_BEAMS)?
             .into_iter()
             .map(|r| (r.is_finite() && r >= range_min && r <= range_max).then_some(r))
             .collect();
@@ -587,6 +607,17 @@ impl Stream {
         if let Some(n) = frame {
             f.frame = n;
         }
+        // What every constructor and reader refuses, refused here too.
+        if let Some(p) = pose.filter(|p| ![p.0, p.1, p.2].iter().all(|v| v.is_finite())) {
+            return Err(IsolineError::new_err(format!(
+                "invalid scan: pose {p:?} is not finite"
+            )));
+        }
+        if let Some(t) = t.filter(|t| !t.is_finite()) {
+            return Err(IsolineError::new_err(format!(
+                "invalid scan: t = {t} is not finite"
+            )));
+        }
         if pose.is_some() {
             f.pose = pose_of(pose);
         }
@@ -636,12 +667,21 @@ enum Read {
     Failed(isoline_io::Error),
 }
 
+/// The messages of skipped frames a reader keeps (the rest it counts).
+const MAX_SKIPPED_KEPT: usize = 100;
+
 /// The frames of a recording (an MCAP bag, a CARMEN log), an NDJSON frame stream or a
-/// point file, read ahead on a thread while Python takes them.
+/// point file, read ahead on a thread while Python takes them. With `errors="warn"`,
+/// frames that cannot be read are skipped and counted (`skipped`, the first hundred
+/// messages in `skipped_messages`), with one warning when the reader reaches the end.
 #[pyclass(module = "isoline")]
 struct FrameReader {
     rx: Mutex<Receiver<Read>>,
     errors: String,
+    /// Frames skipped so far, and the first messages.
+    skipped: Mutex<(u64, Vec<String>)>,
+    /// Whether the end's warning was given.
+    warned: std::sync::atomic::AtomicBool,
 }
 
 #[pymethods]
@@ -654,46 +694,97 @@ impl FrameReader {
         loop {
             let next = py.detach(|| self.rx.lock().ok().and_then(|rx| rx.recv().ok()));
             match next {
-                None => return Err(PyStopIteration::new_err(())),
-                Some(Read::Failed(e)) => return Err(io_error(e)),
+                None => {
+                    self.warn_once(py)?;
+                    return Err(PyStopIteration::new_err(()));
+                }
+                Some(Read::Failed(e)) => {
+                    self.warn_once(py)?;
+                    return Err(io_error(e));
+                }
                 Some(Read::Item(Ok(frame))) => return Ok(Frame { inner: frame }),
                 Some(Read::Item(Err(bad))) => match self.errors.as_str() {
                     "raise" => return Err(IsolineError::new_err(bad.message)),
                     "warn" => {
-                        let warning = py.get_type::<pyo3::exceptions::PyUserWarning>();
-                        PyErr::warn(
-                            py,
-                            &warning,
-                            &std::ffi::CString::new(bad.message.replace('\0', " "))
-                                .unwrap_or_default(),
-                            1,
-                        )?;
+                        if let Ok(mut s) = self.skipped.lock() {
+                            s.0 += 1;
+                            if s.1.len() < MAX_SKIPPED_KEPT {
+                                s.1.push(bad.message);
+                            }
+                        }
                     }
                     _ => {}
                 },
             }
         }
     }
+
+    /// Frames skipped as unreadable so far (with `errors="warn"`).
+    #[getter]
+    fn skipped(&self) -> u64 {
+        self.skipped.lock().map_or(0, |s| s.0)
+    }
+
+    /// Why the first (at most 100) skipped frames could not be read.
+    #[getter]
+    fn skipped_messages(&self) -> Vec<String> {
+        self.skipped.lock().map(|s| s.1.clone()).unwrap_or_default()
+    }
+}
+
+impl FrameReader {
+    /// One warning for the whole reader, with the count and the first message: Python
+    /// keeps every distinct warning it is given, so one a bad line would grow without
+    /// bound.
+    fn warn_once(&self, py: Python<'_>) -> PyResult<()> {
+        let (n, first) = match self.skipped.lock() {
+            Ok(s) => (s.0, s.1.first().cloned().unwrap_or_default()),
+            Err(_) => return Ok(()),
+        };
+        if n == 0 || self.warned.swap(true, std::sync::atomic::Ordering::Relaxed) {
+            return Ok(());
+        }
+        let text = format!(
+            "{n} frame(s) could not be read and were skipped (the reader's skipped_messages \
+             says why); first: {first}"
+        );
+        let warning = py.get_type::<pyo3::exceptions::PyUserWarning>();
+        PyErr::warn(
+            py,
+            &warning,
+            &std::ffi::CString::new(text.replace('\0', " ")).unwrap_or_default(),
+            1,
+        )
+    }
 }
 
 /// Reads the frames of `path`: an MCAP bag of `sensor_msgs/LaserScan` (`topics`, and
 /// `odometry` or `world_frame` to give each scan a pose), a CARMEN log (`.log`, `.clf`,
 /// gzip-compressed or not; poses from the log), an NDJSON frame stream or a point file.
-/// A message that cannot be a frame is skipped with a warning (`errors="warn"`), raises
-/// `IsolineError` (`"raise"`), or is skipped silently (`"ignore"`).
+/// Every format streams: a few dozen frames are read ahead, whatever the file's size.
+/// A message that cannot be a frame is skipped and counted, with one warning at the end
+/// (`errors="warn"`), raises `IsolineError` (`"raise"`), or is skipped silently
+/// (`"ignore"`). An NDJSON line longer than `max_line_bytes` (default 16 MiB) is such a
+/// message.
 #[pyfunction]
-#[pyo3(signature = (path, *, topics = None, odometry = None, world_frame = None, errors = "warn"))]
+#[pyo3(signature = (path, *, topics = None, odometry = None, world_frame = None, errors = "warn", max_line_bytes = isoline_io::MAX_FRAME_LINE_BYTES))]
 fn read_frames(
     path: PathBuf,
     topics: Option<Vec<String>>,
     odometry: Option<String>,
     world_frame: Option<String>,
     errors: &str,
+    max_line_bytes: usize,
 ) -> PyResult<FrameReader> {
     if !["warn", "raise", "ignore"].contains(&errors) {
         return Err(PyValueError::new_err(format!(
             "errors = {errors:?}: expected \"warn\", \"raise\" or \"ignore\""
         )));
+    }
+    if max_line_bytes == 0 {
+        return Err(PyValueError::new_err(
+            "max_line_bytes = 0: must be positive",
+        ));
     }
     if !path.exists() {
         return Err(PyOSError::new_err(format!(
@@ -712,19 +803,7 @@ fn read_frames(
         .spawn(move || {
             // The Python side dropping the reader ends the thread at its next frame.
             let each = |item| tx.send(Read::Item(item)).is_ok();
-            let outcome = if isoline_io::is_bag(&path) {
-                isoline_io::bag::read_bag(&path, &opts, each).map(|_| ())
-            } else if isoline_io::carmen::is_carmen(&path) {
-                isoline_io::carmen::read_carmen(&path, each).map(|_| ())
-            } else {
-                isoline_io::read_items(&path, &opts).map(|items| {
-                    for item in items {
-                        if tx.send(Read::Item(item)).is_err() {
-                            break;
-                        }
-                    }
-                })
-            };
+            let outcome = isoline_io::for_each_item_capped(&path, &opts, max_line_bytes, each);
             if let Err(e) = outcome {
                 let _ = tx.send(Read::Failed(e));
             }
@@ -733,6 +812,8 @@ fn read_frames(
     Ok(FrameReader {
         rx: Mutex::new(rx),
         errors: errors.to_string(),
+        skipped: Mutex::new((0, Vec::new())),
+        warned: std::sync::atomic::AtomicBool::new(false),
     })
 }
 

@@ -72,6 +72,8 @@ struct Skipped {
     unreadable: u64,
     /// Scans whose reconstruction failed.
     failed: u64,
+    /// Scans whose pose puts them beyond the map's lattice.
+    far: u64,
 }
 
 struct Run<'a> {
@@ -118,8 +120,12 @@ struct Block {
 
 /// Builds the map and writes it; fails when no scan could be placed.
 pub fn run(mut a: Args) -> Result<()> {
+    let cap = a.bag.line_cap();
     let bag = a.bag.options(&a.input)?;
     let cfg = super::load_config(a.config.as_deref())?;
+    if let Some(problem) = cfg.map_noise_problem() {
+        bail!("{problem}");
+    }
     // The configuration's paths are taken from its folder, as the daemon takes them.
     let base = a
         .config
@@ -156,6 +162,7 @@ pub fn run(mut a: Args) -> Result<()> {
             bail!("{}: the map is written as {MAP_EXTENSIONS}", o.display());
         }
     }
+    super::check_writable(&outputs)?;
     let store = isoline_io::DiskTiles::new(spill.as_deref())
         .context("creating the directory for tiles that leave memory")?;
     let map_params = cfg.map_params();
@@ -167,7 +174,7 @@ pub fn run(mut a: Args) -> Result<()> {
         let mut params = cfg.register;
         params.max_range = params.max_range.min(map_params.max_range);
         Some(
-            register::run(&a.input, &bag, params, &cfg.params(), &bar)
+            register::run(&a.input, &bag, cap, params, &cfg.params(), &bar)
                 .with_context(|| format!("registering {}", a.input.display()))?,
         )
     } else {
@@ -193,7 +200,7 @@ pub fn run(mut a: Args) -> Result<()> {
     };
     let mut batch: Vec<(Scan, Pose, f64)> = Vec::with_capacity(BATCH);
     let mut failure: Option<anyhow::Error> = None;
-    isoline_io::for_each_item(&a.input, &bag, |item| {
+    let read = isoline_io::for_each_item_capped(&a.input, &bag, cap, |item| {
         if let Some(scan) = run.accept(item) {
             batch.push(scan);
         }
@@ -205,22 +212,26 @@ pub fn run(mut a: Args) -> Result<()> {
             show(&bar, &run, start);
         }
         true
-    })
-    .with_context(|| format!("reading {}", a.input.display()))?;
+    });
     if let Some(e) = failure {
         return Err(e);
     }
+    // A file damaged part way (a download cut short) still gives the map of the scans
+    // before the damage; the run then fails with the read error.
+    let read = read.with_context(|| format!("reading {}", a.input.display()));
     run.fuse(&mut batch)?;
     run.close_block();
     show(&bar, &run, start);
     let stats = run.map.stats();
     if stats.scans == 0 {
+        read?;
         bail!(
-            "{}: no scan with a pose to place ({} without a pose, {} without beams, {} unreadable{})",
+            "{}: no scan with a pose to place ({} without a pose, {} without beams, {} unreadable, {} beyond the map's reach{})",
             a.input.display(),
             run.skipped.no_pose,
             run.skipped.no_beams,
             run.skipped.unreadable,
+            run.skipped.far,
             run.first_errors
                 .first()
                 .map(|e| format!("; first: {e}"))
@@ -261,7 +272,12 @@ pub fn run(mut a: Args) -> Result<()> {
     if let Some(p) = &a.stats {
         super::write(p, serde_json::to_string_pretty(&summary)? + "\n")?;
     }
-    Ok(())
+    read.map_err(|e| {
+        e.context(format!(
+            "the map of the {} scans before the damage is written",
+            stats.scans
+        ))
+    })
 }
 
 impl Run<'_> {
@@ -331,9 +347,15 @@ impl Run<'_> {
                 Ok(r) => {
                     let t = Instant::now();
                     // With [map] align the pose the scan was fused at is the estimate.
-                    let pose = self
-                        .map
-                        .insert(&scan, pose, &r.polylines, r.noise_estimate)?;
+                    let pose = match self.map.insert(&scan, pose, &r.polylines, r.noise_estimate) {
+                        Ok(p) => p,
+                        Err(e @ isoline_core::Error::PoseOutOfReach { .. }) => {
+                            self.skipped.far += 1;
+                            self.note(e.to_string());
+                            continue;
+                        }
+                        Err(e) => return Err(e.into()),
+                    };
                     self.block.fuse_ms += 1e3 * t.elapsed().as_secs_f64();
                     self.block.reconstruct_ms += each;
                     self.block.scans += 1;
@@ -456,12 +478,14 @@ fn summary(
             "resident": stats.tiles_resident,
             "stored": stats.tiles_stored,
             "spills": stats.spills,
+            "dropped": stats.tiles_dropped,
             "bytes_bound": p.memory_bound(),
         },
         "map": {
             "cell": p.cell, "tile": p.tile, "min_scans": p.min_scans,
             "max_weight": p.max_weight, "hit_tolerance": p.hit_tolerance,
             "max_range": p.max_range, "max_tiles": p.max_tiles,
+            "max_stored_tiles": p.max_stored_tiles,
         },
         "scores": {
             "returns_scored": scores.returns_scored,

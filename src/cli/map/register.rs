@@ -46,6 +46,7 @@ pub struct Summary {
 pub fn run(
     input: &Path,
     bag: &BagOptions,
+    max_line: usize,
     params: RegisterParams,
     params_method: &isoline_core::Params,
     bar: &indicatif::ProgressBar,
@@ -82,7 +83,9 @@ pub fn run(
         bar.set_message(format!("registered, {} loops closed", reg.loops()));
         bar.set_position(reg.scans() as u64);
     };
-    isoline_io::for_each_item(input, bag, |item| {
+    // A file damaged part way gives poses to the scans before the damage; the map's own
+    // pass reads them again and reports the damage.
+    let _ = isoline_io::for_each_item_capped(input, bag, max_line, |item| {
         if let Ok(f) = item {
             if let Some(scan) = f.scan {
                 batch.push((scan, f.pose));
@@ -92,7 +95,7 @@ pub fn run(
             }
         }
         true
-    })?;
+    });
     run(&mut batch);
     let poses = reg.finish();
     let seconds = start.elapsed().as_secs_f64();

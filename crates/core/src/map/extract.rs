@@ -149,7 +149,7 @@ pub(crate) fn curves(map: &Map) -> Vec<Polyline> {
         .par_iter()
         .flat_map_iter(|&k| tile_pieces(map, k))
         .collect();
-    for (_, p) in map.stored.values() {
+    for (_, p, _) in map.stored.values() {
         pieces.extend_from_slice(p);
     }
     let lines = join(&pieces);

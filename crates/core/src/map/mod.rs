@@ -88,6 +88,11 @@ pub struct MapParams {
     pub max_range: f64,
     /// Tiles held in memory at most; the least recently seen go to the store.
     pub max_tiles: usize,
+    /// Tiles kept in the store at most (each [`MapParams::tile_bytes`] on disk): beyond
+    /// it the least recently seen stored tile is forgotten, its part of the map with it
+    /// (counted in [`MapStats::tiles_dropped`]). Scans whose poses jump (a reset, robots
+    /// not localised together) would otherwise grow the store without end.
+    pub max_stored_tiles: usize,
     /// Lay each scan onto the map before fusing it (its pose corrected by at most
     /// `8 hit_tolerance` and 0.1 rad); off (the default), scans go where their poses put
     /// them. Scan-to-map alignment drifts as odometry does where the map ahead is
@@ -110,6 +115,8 @@ impl Default for MapParams {
             hit_tolerance: 0.05,
             max_range: 20.0,
             max_tiles: 512,
+            // 2 GiB of 128-sample tiles: 120,000 m^2 at 3 cm, a campus.
+            max_stored_tiles: 8192,
             align: false,
             // SLAM-corrected poses are off by about this much in the median frame
             // (docs/method.md, refinement); half of it gives the same maps within a
@@ -130,6 +137,17 @@ impl MapParams {
         };
         positive(&mut problems, "cell", self.cell);
         positive(&mut problems, "hit_tolerance", self.hit_tolerance);
+        if self.hit_tolerance.is_finite()
+            && self.cell.is_finite()
+            && self.hit_tolerance > self.max_tolerance()
+        {
+            problems.push(format!(
+                "map.hit_tolerance = {}: at most {} m (a quarter of a tile's side, at least \
+                 ten cells): a beam's hit band must stay within the tiles a scan may touch",
+                self.hit_tolerance,
+                self.max_tolerance()
+            ));
+        }
         positive(&mut problems, "max_range", self.max_range);
         if !(self.heading_noise.is_finite() && (0.0..=0.5).contains(&self.heading_noise)) {
             problems.push(format!(
@@ -156,7 +174,7 @@ impl MapParams {
                 ));
             }
         }
-        if (self.max_range / self.cell) > 1e6 {
+        if self.max_range / self.cell > 1e6 {
             problems.push("map.max_range / map.cell: above a million samples".into());
         }
         if problems.is_empty() {
@@ -166,11 +184,36 @@ impl MapParams {
         }
     }
 
-    /// The most tiles a disc of radius `max_range` overlaps.
+    /// The most tiles one scan touches: a disc of radius `max_range` plus the widest
+    /// band a beam's hit or a curve's truncation reaches past its return
+    /// ([`MapParams::max_tolerance`] and a cell).
     fn tiles_per_scan(&self) -> usize {
         let side = self.cell * self.tile as f64;
-        let across = (2.0 * self.max_range / side).ceil() as usize + 2;
+        let reach = self.max_range + self.max_tolerance() + self.cell;
+        let across = (2.0 * reach / side).ceil() as usize + 1;
         across * across
+    }
+
+    /// The widest band round a return the votes and the curves' signed distances reach,
+    /// metres: a quarter of a tile's side, and at least ten cells (a range noise of a
+    /// little over two cells fits whatever the tiles). `hit_tolerance` is validated
+    /// against it, and a scan's range noise is taken at most as wide (`3 sigma + 2 cell`
+    /// within it); [`MapParams::validate`] counts it in the tiles one scan touches.
+    pub fn max_tolerance(&self) -> f64 {
+        (0.25 * self.tile as f64).max(10.0) * self.cell
+    }
+
+    /// The farthest a pose may put a scan's sensor from the world's origin, metres: the
+    /// lattice's indices stay within 2^31 cells (64,000 km at 3 cm, more than the
+    /// Earth's circumference), so that every sample's place is exact to far below a
+    /// cell in floating point. Scans placed farther are refused.
+    pub fn max_coordinate(&self) -> f64 {
+        self.cell * f64::from(1u32 << 31) - self.max_range - self.cell * self.tile as f64
+    }
+
+    /// Bytes one tile holds, in memory or in the store.
+    pub fn tile_bytes(&self) -> usize {
+        Tile::bytes(self.tile)
     }
 
     /// Bytes the tiles in memory hold at most.
@@ -193,6 +236,11 @@ pub struct MapStats {
     pub spills: u64,
     /// Bytes the tiles in memory hold.
     pub bytes: usize,
+    /// Stored tiles forgotten beyond `max_stored_tiles`.
+    pub tiles_dropped: u64,
+    /// Scans refused because their pose put them beyond
+    /// [`MapParams::max_coordinate`].
+    pub scans_refused: u64,
 }
 
 /// A map that scans with poses are fused into ([`Map::insert`]) and whose curves can
@@ -223,11 +271,14 @@ pub struct MapStats {
 pub struct Map {
     params: MapParams,
     tiles: FxHashMap<Key, Tile>,
-    /// Tiles in the store: their first row and column, and the curve pieces they held.
-    stored: FxHashMap<Key, (Border, Vec<extract::Piece>)>,
+    /// Tiles in the store: their first row and column, the curve pieces they held, and
+    /// the last scan that touched them.
+    stored: FxHashMap<Key, (Border, Vec<extract::Piece>, u64)>,
     store: Box<dyn TileStore>,
     scans: u64,
     spills: u64,
+    dropped: u64,
+    refused: u64,
     /// The scan being fused: its signed distances, nearest first (reused).
     scratch: FxHashMap<(i64, i64), (f32, f32)>,
     /// The same, by tile (reused).
@@ -264,6 +315,8 @@ impl Map {
             store,
             scans: 0,
             spills: 0,
+            dropped: 0,
+            refused: 0,
             scratch: FxHashMap::default(),
             cells: Vec::new(),
             score: score::Tally::default(),
@@ -283,13 +336,17 @@ impl Map {
             tiles_stored: self.stored.len(),
             spills: self.spills,
             bytes: self.tiles.len() * Tile::bytes(self.params.tile),
+            tiles_dropped: self.dropped,
+            scans_refused: self.refused,
         }
     }
 
     /// Fuses one scan: `scan` and `curves` in the scan's frame, `pose` the frame's place
     /// in the world, `noise` the range noise's standard deviation (metres, the scan's
     /// estimate). Returns the pose the scan was fused at (`pose`, or as the alignment
-    /// corrected it). Fails only when the store fails.
+    /// corrected it). Fails when the store fails, and with [`Error::PoseOutOfReach`] for
+    /// a pose that puts the sensor beyond [`MapParams::max_coordinate`]: that scan is
+    /// left out (counted in [`MapStats::scans_refused`]) and the map goes on.
     pub fn insert(
         &mut self,
         scan: &Scan,
@@ -298,6 +355,12 @@ impl Map {
         noise: f64,
     ) -> Result<Pose> {
         let given = pose;
+        let limit = self.params.max_coordinate();
+        let at = to_world(pose, scan.origin);
+        if !(at[0].abs() <= limit && at[1].abs() <= limit && pose[2].is_finite()) {
+            self.refused += 1;
+            return Err(Error::PoseOutOfReach { pose, limit });
+        }
         let pose = if self.params.align && self.scans > 0 {
             self.load_under(scan, pose)?;
             self.align(scan, pose, noise)
@@ -308,8 +371,12 @@ impl Map {
         self.scans += 1;
         let origin = to_world(pose, scan.origin);
         let _span = tracing::debug_span!("map_insert", scan = self.scans - 1).entered();
+        // The widest band the votes and the signed distances may reach bounds the
+        // tiles a scan touches (MapParams::max_tolerance): a wider noise is taken as
+        // that wide.
+        let widest = (self.params.max_tolerance() - 2.0 * self.params.cell) / 3.0;
         let noise = if noise.is_finite() && noise > 0.0 {
-            noise
+            noise.min(widest.max(0.0))
         } else {
             0.0
         };
@@ -762,6 +829,32 @@ impl Map {
             self.put_away(key)?;
             self.spills += 1;
         }
+        self.forget_beyond_store_bound()
+    }
+
+    /// Forgets the least recently seen stored tiles beyond `max_stored_tiles`: the store
+    /// is bounded whatever the poses do.
+    fn forget_beyond_store_bound(&mut self) -> Result<()> {
+        let excess = self
+            .stored
+            .len()
+            .saturating_sub(self.params.max_stored_tiles);
+        if excess == 0 {
+            return Ok(());
+        }
+        let mut oldest: Vec<(u64, Key)> = self.stored.iter().map(|(k, v)| (v.2, *k)).collect();
+        oldest.select_nth_unstable(excess - 1);
+        for &(_, key) in &oldest[..excess] {
+            self.stored.remove(&key);
+            self.store.take(key).map_err(Error::TileStore)?;
+            self.dropped += 1;
+        }
+        if self.dropped == excess as u64 {
+            tracing::warn!(
+                max_stored_tiles = self.params.max_stored_tiles,
+                "the map's store is full: the least recently seen tiles are forgotten"
+            );
+        }
         Ok(())
     }
 
@@ -773,7 +866,7 @@ impl Map {
         if let Some(t) = self.tiles.get(&key) {
             return Some(t.sample(k));
         }
-        let (border, _) = self.stored.get(&key)?;
+        let (border, _, _) = self.stored.get(&key)?;
         let (li, lj) = (k % side, k / side);
         if lj == 0 {
             Some(border.row[li])
@@ -846,7 +939,7 @@ impl Map {
         self.store
             .put(key, tile.to_bytes())
             .map_err(Error::TileStore)?;
-        self.stored.insert(key, (border, pieces));
+        self.stored.insert(key, (border, pieces, tile.seen));
         Ok(())
     }
 

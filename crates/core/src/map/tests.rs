@@ -392,3 +392,130 @@ fn curves_past_the_beams_reach_stay_out_of_the_map() {
     let (curves, _) = map.finish().unwrap();
     assert!(curves.is_empty(), "{curves:?}");
 }
+
+#[test]
+fn a_pose_beyond_the_lattice_is_refused_and_the_map_goes_on() {
+    let scene = Scene::room();
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(9);
+    let params = MapParams::default();
+    let mut map = Map::new(params, Box::new(MemoryStore::default())).unwrap();
+    let pose = [3.0, 2.0, 0.0];
+    let scan = scene.scan(pose, 0.01, &mut rng);
+    let curves = reconstruct_scan(&scan, &Params::default())
+        .unwrap()
+        .polylines;
+    // The scan's own frame is the world's here: place it by a pose that moves it far.
+    let local = laser(
+        -135f64.to_radians(),
+        0.5f64.to_radians(),
+        &[Some(2.0); 541],
+        10.0,
+    );
+    let limit = params.max_coordinate();
+    // Beyond the limit (2^31 cells), up to the point where the index would saturate
+    // and the ray walk would never end: refused, counted, nothing touched.
+    for far in [limit * 1.01, 1e12, 2.8e17, 1e300] {
+        let e = map.insert(&local, [far, 0.0, 0.0], &[], 0.01).unwrap_err();
+        assert!(matches!(e, Error::PoseOutOfReach { .. }), "{e}");
+        assert_eq!(map.stats().tiles_resident, 0);
+    }
+    assert_eq!(map.stats().scans_refused, 4);
+    assert_eq!(map.stats().scans, 0);
+    // Within it, far from the origin (1,000 km), the map is as good as at home.
+    let worst = |map: &Map, at: [f64; 2]| {
+        let walls = map.curves().unwrap();
+        assert!(!walls.is_empty());
+        walls
+            .iter()
+            .flat_map(|w| &w.points)
+            .map(|q| scene.distance([q[0] - at[0], q[1] - at[1]]))
+            .fold(0.0, f64::max)
+    };
+    let mut home = Map::new(params, Box::new(MemoryStore::default())).unwrap();
+    let away = [1e6, -1e6];
+    for _ in 0..3 {
+        home.insert(&scan, pose, &curves, 0.01).unwrap();
+        let p = [pose[0] + away[0], pose[1] + away[1], 0.0];
+        map.insert(&scan, p, &curves, 0.01).unwrap();
+    }
+    let (w_home, w_away) = (worst(&home, [0.0, 0.0]), worst(&map, away));
+    // The lattice lies differently under the walls there: within a cell of home's.
+    assert!(w_away <= w_home + params.cell, "{w_away} vs {w_home}");
+}
+
+#[test]
+fn tolerances_that_would_break_the_memory_bound_are_refused_or_capped() {
+    let base = MapParams {
+        tile: 16,
+        max_range: 3.0,
+        ..MapParams::default()
+    };
+    for tol in [50.0, 1000.0] {
+        let p = MapParams {
+            hit_tolerance: tol,
+            ..base
+        };
+        let e = p.validate().unwrap_err().join("; ");
+        assert!(e.contains("map.hit_tolerance"), "{e}");
+    }
+    // A scan's range noise is the data's: one of 50 m or 1000 m (a wrong estimate, a
+    // wrong setting) is taken at most as wide as the bound counts, and the tiles in
+    // memory stay within max_tiles.
+    let tight = MapParams {
+        max_tiles: base.tiles_per_scan(),
+        ..base
+    };
+    let scene = Scene::room();
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(4);
+    let mut map = Map::new(tight, Box::new(MemoryStore::default())).unwrap();
+    for (k, pose) in drive(8).into_iter().enumerate() {
+        let scan = scene.scan(pose, 0.01, &mut rng);
+        let curves = reconstruct_scan(&scan, &Params::default())
+            .unwrap()
+            .polylines;
+        let noise = if k % 2 == 0 { 50.0 } else { 1000.0 };
+        map.insert(&scan, pose, &curves, noise).unwrap();
+        assert!(
+            map.stats().tiles_resident <= tight.max_tiles,
+            "{:?}",
+            map.stats()
+        );
+    }
+}
+
+#[test]
+fn the_store_holds_at_most_max_stored_tiles() {
+    let scene = Scene::room();
+    let params = MapParams {
+        tile: 16,
+        max_range: 3.0,
+        max_stored_tiles: 40,
+        ..MapParams::default()
+    };
+    let params = MapParams {
+        max_tiles: params.tiles_per_scan(),
+        ..params
+    };
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
+    let mut map = Map::new(params, Box::new(MemoryStore::default())).unwrap();
+    // Poses that jump 100 m every other scan: each pair needs tiles of its own.
+    for k in 0..60 {
+        let pose = [3.0, 2.0, 0.0];
+        let scan = scene.scan(pose, 0.01, &mut rng);
+        let curves = reconstruct_scan(&scan, &Params::default())
+            .unwrap()
+            .polylines;
+        map.insert(&scan, [100.0 * (k / 2) as f64, 0.0, 0.0], &curves, 0.01)
+            .unwrap();
+        let s = map.stats();
+        assert!(
+            s.tiles_stored <= 40 && s.tiles_resident <= params.max_tiles,
+            "{s:?}"
+        );
+    }
+    let s = map.stats();
+    assert!(s.tiles_dropped > 0, "{s:?}");
+    // What is left is the most recently seen: the last scan's walls are in the map.
+    let (walls, _) = map.finish().unwrap();
+    assert!(walls.iter().flat_map(|w| &w.points).any(|q| q[0] > 2900.0));
+}

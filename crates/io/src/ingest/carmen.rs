@@ -9,13 +9,13 @@
 //! Returns reach less than the laser's maximum range as the log declares it
 //! (`PARAM robot_front_laser_max` and `robot_rear_laser_max`, CARMEN's own
 //! parameters), and at most [`FLASER_RANGE_MAX`] (SICK scanners report 81.9 m for
-//! none). The readings SICK LMS scanners log in millimetre mode for no return, dazzle
-//! and other errors, 32.759 to 32.767 m ([`SICK_MM_CODES`], the top of the 15-bit range
-//! in millimetres), are no returns either: a log of the Örebro corridors holds 968 of
-//! them, which would otherwise draw arcs 32.76 m from the sensor. A scanner that reports
-//! no return as its largest reading without the log saying so (the ACES log's SICK,
-//! 620 readings of exactly 50 m) is found by the pile its code makes at the top of the
-//! log's readings ([`reading_piles`]), and that reading is its reach.
+//! none). A scanner that reports no return as a reading within its range, without the
+//! log saying so, is found by the pile its code makes at the top of the log's readings
+//! ([`reading_piles`]): the ACES log's SICK reads exactly 50 m 620 times, an Örebro
+//! log's 32.759 to 32.767 m (the top of the 15-bit range in millimetres, SICK's codes for
+//! no return, dazzle and other errors) 968 times, where true far readings come once
+//! each. Readings in the pile are no returns, and each frame's record says how many
+//! were dropped.
 
 use std::io::{BufRead, Seek};
 use std::path::Path;
@@ -27,15 +27,6 @@ use crate::format::FrameRecord;
 /// Old-style laser lines: ranges at or beyond this are no returns, metres.
 pub const FLASER_RANGE_MAX: f64 = 80.0;
 
-/// The SICK LMS error codes of millimetre mode (`0x7FF7..=0x7FFF` mm), in metres: no
-/// returns. A true reading there is lost with them: one beam in a scan, at 32.76 m.
-pub const SICK_MM_CODES: std::ops::RangeInclusive<f64> = 32.759..=32.767;
-
-/// Whether the reading `r` (metres, as the log writes it) is one of [`SICK_MM_CODES`].
-fn is_sick_code(r: f64) -> bool {
-    (SICK_MM_CODES.start() - 1e-6..=SICK_MM_CODES.end() + 1e-6).contains(&r)
-}
-
 /// What a log's `PARAM` lines say of its lasers' reach, metres.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct LaserReach {
@@ -43,6 +34,11 @@ pub struct LaserReach {
     pub front: Option<f64>,
     /// `robot_rear_laser_max`: the `RLASER` laser's.
     pub rear: Option<f64>,
+    /// Where the pile of the `FLASER` laser's no-return code starts ([`reading_piles`]):
+    /// its readings from here on are no returns.
+    pub front_code: Option<f64>,
+    /// The same for the `RLASER` laser.
+    pub rear_code: Option<f64>,
 }
 
 impl LaserReach {
@@ -68,21 +64,29 @@ impl LaserReach {
     }
 }
 
-/// The reading each old-style laser of a log reports for no return, if it reports it as
-/// its largest: `[FLASER, RLASER]`. A log's true ranges thin out towards their largest,
-/// each far distance read about once; a code is read whenever a beam sees nothing, so
-/// it piles up. The largest reading (below [`FLASER_RANGE_MAX`], SICK's millimetre codes
-/// left out) is taken for a code when it is read more often than any other reading of at
-/// least half its range. In the ACES log 50 m is read 620 times, the readings below it
-/// once each; a log whose largest reading is a far wall has none (`None`). An
-/// unreadable log has none either: the reading pass says what is wrong with it.
+/// Readings are counted in bins this wide, metres: the finest resolution logs write.
+const BIN: f64 = 1e-3;
+
+/// The widest a scanner's no-return codes spread, metres: SICK's millimetre-mode codes
+/// span 9 mm; one code read at one value spans none.
+const PILE_WIDTH: f64 = 0.01;
+
+/// Where each old-style laser's no-return code starts, if it reports no return as its
+/// largest readings: `[FLASER, RLASER]`. A log's true ranges thin out towards their
+/// largest, each far distance read about once; a code is read whenever a beam sees
+/// nothing, so it piles up. The readings within [`PILE_WIDTH`] of the largest (below
+/// [`FLASER_RANGE_MAX`]) are taken for a code when they are more than any other
+/// [`PILE_WIDTH`] of readings of at least half that range: in the ACES log 50 m is read
+/// 620 times and the readings below it about once each. A log whose largest reading is
+/// a far wall has none (`None`); so has an unreadable log (the reading pass says what
+/// is wrong with it). Memory is one counter a millimetre up to [`FLASER_RANGE_MAX`] per
+/// laser, whatever the log's length.
 pub fn reading_piles(path: &Path) -> [Option<f64>; 2] {
-    use std::collections::HashMap;
     let Ok(reader) = open(path) else {
         return [None, None];
     };
-    // Readings counted by their text: a log writes a code the same way every time.
-    let mut counts: [HashMap<u64, u64>; 2] = Default::default();
+    let bins = (FLASER_RANGE_MAX / BIN) as usize + 1;
+    let mut counts: [Vec<u32>; 2] = [Vec::new(), Vec::new()];
     let _ = super::bounded_lines(reader, path, MAX_LINE_BYTES, |_, line| {
         let Ok(text) = line else { return true };
         let mut w = text.split_whitespace();
@@ -94,30 +98,41 @@ pub fn reading_piles(path: &Path) -> [Option<f64>; 2] {
         let Some(n) = w.next().and_then(|n| n.parse::<usize>().ok()) else {
             return true;
         };
+        let c = &mut counts[k];
+        if c.is_empty() {
+            c.resize(bins, 0);
+        }
         for v in w.take(n).filter_map(|f| f.parse::<f64>().ok()) {
-            let code = is_sick_code(v);
-            if v.is_finite() && v > 0.0 && v < FLASER_RANGE_MAX && !code {
-                *counts[k].entry(v.to_bits()).or_insert(0) += 1;
+            if v.is_finite() && v > 0.0 && v < FLASER_RANGE_MAX {
+                let b = ((v / BIN).round() as usize).min(bins - 1);
+                c[b] = c[b].saturating_add(1);
             }
         }
         true
     });
-    counts.map(|c| {
-        let (&top, &n) = c
-            .iter()
-            .max_by(|a, b| f64::from_bits(*a.0).total_cmp(&f64::from_bits(*b.0)))?;
-        let top = f64::from_bits(top);
-        let rival = c
-            .iter()
-            .filter(|(v, _)| {
-                let v = f64::from_bits(**v);
-                v < top && v >= 0.5 * top
-            })
-            .map(|(_, &m)| m)
-            .max()
-            .unwrap_or(0);
-        (n > rival.max(1)).then_some(top)
-    })
+    counts.map(|c| top_pile(&c))
+}
+
+/// The reading where the pile at the top of `counts` (per [`BIN`]) starts, if there is
+/// one (see [`reading_piles`]).
+fn top_pile(counts: &[u32]) -> Option<f64> {
+    let top = counts.iter().rposition(|&n| n > 0)?;
+    let w = (PILE_WIDTH / BIN).round() as usize;
+    let from = (top + 1).saturating_sub(w);
+    let sum = |a: usize, b: usize| counts[a..b].iter().map(|&n| u64::from(n)).sum::<u64>();
+    let pile = sum(from, top + 1);
+    // Every other window as wide among the readings of at least half the top's range.
+    let low = top / 2;
+    let mut rival = 0u64;
+    if from > low + w {
+        let mut s = sum(low, low + w);
+        rival = s;
+        for a in low + 1..=from - w {
+            s = s + u64::from(counts[a + w - 1]) - u64::from(counts[a - 1]);
+            rival = rival.max(s);
+        }
+    }
+    (pile > rival.max(1)).then_some((from as f64 - 0.5) * BIN)
 }
 
 /// The longest line read; a longer one is an error record, not memory.
@@ -246,6 +261,7 @@ pub fn parse_line_with(
     };
     let result = (|| {
         let (angle_min, increment, range_max, ranges, pose);
+        let mut code: Option<f64> = None;
         if key == "ROBOTLASER1" {
             let _laser_type = num("laser_type")?;
             angle_min = num("start_angle")?;
@@ -292,29 +308,44 @@ pub fn parse_line_with(
                 reach.front
             };
             range_max = declared.map_or(FLASER_RANGE_MAX, |m| m.min(FLASER_RANGE_MAX));
+            code = if key == "RLASER" {
+                reach.rear_code
+            } else {
+                reach.front_code
+            };
             pose = [num("x")?, num("y")?, num("theta")?];
             for what in ["odom_x", "odom_y", "odom_theta"] {
                 num(what)?;
             }
         }
         let t = num("ipc_timestamp")?;
+        // Readings in the code's pile are no returns; the record says how many.
+        let reach = code.map_or(range_max, |c| c.min(range_max));
+        let coded = code.map_or(0, |c| {
+            ranges.iter().filter(|&&r| r >= c && r < range_max).count()
+        });
+        let notes = (coded > 0).then(|| {
+            vec![format!(
+                "{coded} readings of {:.3} m or more dropped: the scanner's no-return code \
+                 (the pile at the top of the log's readings)",
+                code.unwrap_or(0.0)
+            )]
+        });
         Ok(FrameRecord {
+            notes,
             stream: Some(stream.into()),
             t: Some(t),
             pose: Some(pose),
             ranges: Some(
                 ranges
                     .into_iter()
-                    .map(|r| {
-                        let code = key != "ROBOTLASER1" && is_sick_code(r);
-                        (r > 0.0 && r < range_max && !code).then_some(r)
-                    })
+                    .map(|r| (r > 0.0 && r < reach).then_some(r))
                     .collect(),
             ),
             angle_min: Some(angle_min),
             angle_increment: Some(increment),
             range_min: Some(0.0),
-            range_max: Some(range_max),
+            range_max: Some(reach),
             ..Default::default()
         })
     })();
@@ -373,14 +404,11 @@ pub fn read_carmen_with<T>(
             reach.read_param(fields);
             return true;
         }
-        // A pile at the top of the readings is the reach, whatever the log declares.
-        let capped = |declared: Option<f64>, pile: Option<f64>| match (declared, pile) {
-            (Some(d), Some(p)) => Some(d.min(p)),
-            (d, p) => d.or(p),
-        };
+        // A pile at the top of the readings is no return, whatever the log declares.
         let reach = LaserReach {
-            front: capped(reach.front, piles[0]),
-            rear: capped(reach.rear, piles[1]),
+            front_code: piles[0],
+            rear_code: piles[1],
+            ..reach
         };
         let Some(parsed) = parse_line_with(text, &reach) else {
             return true;
@@ -473,10 +501,10 @@ mod tests {
         ranges
     }
 
-    /// A log's declared reach bounds its returns, per laser, and SICK's millimetre-mode
-    /// error codes are no returns.
+    /// A log's declared reach bounds its returns, per laser; a single reading where a
+    /// scanner's codes lie (32.763 m) is a reading like any other.
     #[test]
-    fn declared_reach_and_error_codes_are_no_returns() {
+    fn declared_reach_bounds_the_returns() {
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("run.log");
         std::fs::write(
@@ -489,9 +517,47 @@ PARAM robot_rear_laser_max 120 host 0
         )
         .unwrap();
         let ranges = ranges_of(&path);
-        assert_eq!(ranges[0], [Some(49.9), None, None, Some(32.7)]);
-        // A declared reach beyond the SICK codes' 80 m keeps them out.
-        assert_eq!(ranges[1], [Some(49.9), Some(50.0), None, None]);
+        assert_eq!(ranges[0], [Some(49.9), None, Some(32.763), Some(32.7)]);
+        // A declared reach beyond 80 m keeps SICK's 81.9 m out all the same.
+        assert_eq!(ranges[1], [Some(49.9), Some(50.0), None, Some(32.767)]);
+    }
+
+    /// Codes spread over a few millimetres at the top of the readings (SICK's
+    /// millimetre mode: 32.759 to 32.767 m) are one pile, found from the log's own
+    /// readings; each frame's record says how many of its readings were dropped.
+    #[test]
+    fn a_pile_of_codes_a_few_millimetres_wide_is_no_return_and_said() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("run.log");
+        let mut log = String::new();
+        for k in 0..20 {
+            let code = 32.759 + 0.001 * (k % 9) as f64;
+            let wall = 10.0 + 0.37 * k as f64;
+            log += &format!(
+                "FLASER 4 {wall:.3} {code:.3} {:.3} 2.5 1 2 0.5 1 2 0.5 {k} host {k}\n",
+                wall + 11.3
+            );
+        }
+        std::fs::write(&path, log).unwrap();
+        let piles = reading_piles(&path);
+        let from = piles[0].expect("a pile");
+        // Within a centimetre below the largest code, 32.767 m.
+        assert!((32.757..=32.759).contains(&from), "{from}");
+        let mut notes = Vec::new();
+        let mut ranges = Vec::new();
+        read_carmen_with(&path, Ok, |r| {
+            let rec = r.unwrap();
+            notes.push(rec.notes.clone());
+            ranges.push(rec.ranges.unwrap());
+            true
+        })
+        .unwrap();
+        assert!(ranges
+            .iter()
+            .all(|r| r[1].is_none() && r[0].is_some() && r[2].is_some()));
+        assert!(notes.iter().all(|n| n
+            .as_ref()
+            .is_some_and(|n| n[0].starts_with("1 readings of 32.75"))));
     }
 
     /// A log that reports no return as its largest reading, without declaring its
@@ -510,7 +576,11 @@ PARAM robot_rear_laser_max 120 host 0
              FLASER 4 12.4 50.0 31.0 27.4 1 2 0.5 1 2 0.5 12.6 host 0.2
 ",
         );
-        assert_eq!(piles, [Some(50.0), None]);
+        assert!(
+            piles[0].is_some_and(|p| (49.99..50.0).contains(&p)),
+            "{piles:?}"
+        );
+        assert_eq!(piles[1], None);
         assert_eq!(ranges[0], [Some(12.3), None, None, Some(27.5)]);
         assert_eq!(ranges[1], [Some(12.4), None, Some(31.0), Some(27.4)]);
         let (piles, ranges) = read(

@@ -30,6 +30,8 @@ pub struct Frame {
     pub scan: Option<Scan>,
     /// The pose of the frame's coordinates in a world frame.
     pub pose: Option<[f64; 3]>,
+    /// What the reader did to the frame's readings, for its result's warnings.
+    pub notes: Vec<String>,
 }
 
 impl Frame {
@@ -109,6 +111,7 @@ impl Frame {
             points,
             scan,
             pose: r.pose,
+            notes: r.notes.unwrap_or_default(),
         })
     }
 }
@@ -159,7 +162,7 @@ pub fn read_items(path: &Path, bag: &bag::BagOptions) -> Result<Vec<Item>> {
             true
         })?;
     } else if is_compressed_frame_stream(path) {
-        each_frame_item(path, |i| {
+        each_frame_item(path, MAX_FRAME_LINE_BYTES, |i| {
             items.push(i);
             true
         })?;
@@ -294,15 +297,16 @@ pub(crate) fn bounded_lines(
 /// (its stream and frame number when the line names them); blank lines are skipped.
 fn read_frame_items(path: &Path) -> Result<Vec<Item>> {
     let mut out = Vec::new();
-    each_frame_item(path, |item| {
+    each_frame_item(path, MAX_FRAME_LINE_BYTES, |item| {
         out.push(item);
         true
     })?;
     Ok(out)
 }
 
-/// [`read_frame_items`] one at a time, until `each` says stop.
-fn each_frame_item(path: &Path, mut each: impl FnMut(Item) -> bool) -> Result<()> {
+/// [`read_frame_items`] one at a time, lines up to `max_line` bytes, until `each` says
+/// stop.
+fn each_frame_item(path: &Path, max_line: usize, mut each: impl FnMut(Item) -> bool) -> Result<()> {
     let f = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
     let name = path.display().to_string();
     let reader: Box<dyn std::io::BufRead> = if is_compressed_frame_stream(path) {
@@ -312,7 +316,7 @@ fn each_frame_item(path: &Path, mut each: impl FnMut(Item) -> bool) -> Result<()
     } else {
         Box::new(std::io::BufReader::new(f))
     };
-    bounded_lines(reader, path, MAX_FRAME_LINE_BYTES, |i, line| {
+    bounded_lines(reader, path, max_line, |i, line| {
         let item = match line {
             Ok(t) if t.trim().is_empty() => return true,
             Ok(t) => parse_frame(t, &name, i as usize).map_err(|e| {
@@ -342,12 +346,24 @@ fn each_frame_item(path: &Path, mut each: impl FnMut(Item) -> bool) -> Result<()
 pub fn for_each_item(
     path: &Path,
     bag: &bag::BagOptions,
+    each: impl FnMut(Item) -> bool,
+) -> Result<()> {
+    for_each_item_capped(path, bag, MAX_FRAME_LINE_BYTES, each)
+}
+
+/// [`for_each_item`] with an NDJSON stream's lines read up to `max_line` bytes (a longer
+/// one is a bad frame, skipped without being held): a frame of a million points is a
+/// line of about 21 MB, beyond the default [`MAX_FRAME_LINE_BYTES`].
+pub fn for_each_item_capped(
+    path: &Path,
+    bag: &bag::BagOptions,
+    max_line: usize,
     mut each: impl FnMut(Item) -> bool,
 ) -> Result<()> {
     if is_bag(path) {
         bag::read_bag(path, bag, each)?;
     } else if is_compressed_frame_stream(path) || is_frame_stream(path) {
-        each_frame_item(path, each)?;
+        each_frame_item(path, max_line, each)?;
     } else if carmen::is_carmen(path) {
         carmen::read_carmen(path, each)?;
     } else {

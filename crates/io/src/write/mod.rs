@@ -58,19 +58,116 @@ impl Format {
 /// The records as the text of `format` (not SVG, which needs the points and mesh: see
 /// `super::svg`).
 pub fn render(format: Format, recs: &[ResultRecord]) -> String {
-    match format {
-        Format::Ndjson => {
-            let mut buf = Vec::new();
-            for r in recs {
-                write_ndjson(&mut buf, r).expect("writing to memory");
-            }
-            String::from_utf8(buf).expect("JSON is UTF-8")
-        }
-        Format::Json => to_json(recs),
-        Format::GeoJson => to_geojson(recs),
-        Format::Csv => to_csv(recs),
-        Format::Svg => panic!("SVG needs the drawing, not only the records"),
+    assert!(
+        format != Format::Svg,
+        "SVG needs the drawing, not only the records"
+    );
+    let mut w = RecordWriter::new(format, Vec::new()).expect("writing to memory");
+    for r in recs {
+        w.push(r).expect("writing to memory");
     }
+    String::from_utf8(w.finish().expect("writing to memory")).expect("the formats are UTF-8")
+}
+
+/// Writes records one at a time in a text format, holding none but a JSON output's first
+/// (one record is written as an object, several as an array): a run's memory does not
+/// grow with its number of frames.
+#[derive(Debug)]
+pub struct RecordWriter<W: Write> {
+    out: W,
+    format: Format,
+    written: u64,
+    /// A JSON output's first record, until the second says it is an array.
+    first: Option<String>,
+    /// Whether a GeoJSON feature was written (the next one needs a comma).
+    features: bool,
+}
+
+impl<W: Write> RecordWriter<W> {
+    /// A writer of `format` (not SVG) to `out`; writes the format's header.
+    pub fn new(format: Format, mut out: W) -> std::io::Result<Self> {
+        match format {
+            Format::Svg => {
+                return Err(std::io::Error::other(
+                    "SVG needs the drawing, not only the records",
+                ))
+            }
+            Format::GeoJson => out.write_all(b"{\"type\":\"FeatureCollection\",\"features\":[")?,
+            Format::Csv => out.write_all(b"stream,frame,polyline,closed,vertex,x,y,junction\n")?,
+            Format::Ndjson | Format::Json => {}
+        }
+        Ok(RecordWriter {
+            out,
+            format,
+            written: 0,
+            first: None,
+            features: false,
+        })
+    }
+
+    /// Records written so far.
+    pub fn written(&self) -> u64 {
+        self.written
+    }
+
+    /// Writes one record.
+    pub fn push(&mut self, rec: &ResultRecord) -> std::io::Result<()> {
+        match self.format {
+            Format::Ndjson => write_ndjson(&mut self.out, rec)?,
+            Format::Json => {
+                let text = indent(&serde_json::to_string_pretty(rec)?);
+                match (self.written, self.first.take()) {
+                    (0, _) => self.first = Some(text),
+                    (_, Some(first)) => write!(self.out, "[\n{first},\n{text}")?,
+                    _ => write!(self.out, ",\n{text}")?,
+                }
+            }
+            Format::GeoJson => {
+                for f in geojson_features(rec) {
+                    if std::mem::replace(&mut self.features, true) {
+                        self.out.write_all(b",")?;
+                    }
+                    serde_json::to_writer(&mut self.out, &f)?;
+                }
+            }
+            Format::Csv => {
+                let mut s = String::new();
+                csv_rows(&mut s, rec);
+                self.out.write_all(s.as_bytes())?;
+            }
+            Format::Svg => unreachable!("refused by new"),
+        }
+        self.written += 1;
+        Ok(())
+    }
+
+    /// Writes the format's end and gives back the output, flushed.
+    pub fn finish(mut self) -> std::io::Result<W> {
+        match self.format {
+            Format::Json => match (self.written, self.first.take()) {
+                (0, _) => self.out.write_all(b"[]\n")?,
+                (1, Some(first)) => writeln!(self.out, "{}", first.replace("\n  ", "\n"))?,
+                _ => self.out.write_all(b"\n]\n")?,
+            },
+            Format::GeoJson => self.out.write_all(b"]}\n")?,
+            _ => {}
+        }
+        self.out.flush()?;
+        Ok(self.out)
+    }
+}
+
+/// Pretty JSON indented by two spaces, as an array's element.
+fn indent(text: &str) -> String {
+    let mut s = String::with_capacity(text.len() + 64);
+    for (i, line) in text.lines().enumerate() {
+        if i > 0 {
+            s.push('\n');
+        }
+        s.push_str("  ");
+        s.push_str(line);
+    }
+    s
 }
 
 /// A file written beside its final name and renamed into place once complete: a run
@@ -128,6 +225,12 @@ impl PartFile {
         }
     }
 
+    /// Whether a file can be written at `path`: creates its temporary file (and its
+    /// folder) and removes it, so that a run checks its outputs before it works.
+    pub fn probe(path: &Path) -> std::io::Result<()> {
+        Self::create(path).map(drop)
+    }
+
     /// The temporary file's path.
     pub fn part(&self) -> &Path {
         &self.part
@@ -167,13 +270,7 @@ pub fn write_ndjson(out: &mut impl Write, rec: &ResultRecord) -> std::io::Result
 
 /// The records as pretty JSON: one object for one record, else an array.
 pub fn to_json(recs: &[ResultRecord]) -> String {
-    let v = if recs.len() == 1 {
-        serde_json::to_value(&recs[0])
-    } else {
-        serde_json::to_value(recs)
-    }
-    .expect("records serialise");
-    serde_json::to_string_pretty(&v).expect("values serialise") + "\n"
+    render(Format::Json, recs)
 }
 
 /// The curves of `recs` as a GeoJSON FeatureCollection: one LineString per polyline
@@ -183,40 +280,41 @@ pub fn to_json(recs: &[ResultRecord]) -> String {
 /// `polylines` that end there. Error records become features without geometry that
 /// carry the error.
 pub fn to_geojson(recs: &[ResultRecord]) -> String {
+    render(Format::GeoJson, recs)
+}
+
+/// The GeoJSON features of one record (see [`to_geojson`]).
+fn geojson_features(r: &ResultRecord) -> Vec<serde_json::Value> {
     let mut features = Vec::new();
-    for r in recs {
-        if let Some(e) = &r.error {
-            features.push(json!({
-                "type": "Feature", "geometry": null,
-                "properties": {"stream": r.stream, "frame": r.frame, "error": e}
-            }));
-        }
-        for (k, pl) in r.polylines.iter().flatten().enumerate() {
-            let mut coords = pl.points.clone();
-            if pl.closed && !coords.is_empty() {
-                coords.push(coords[0]);
-            }
-            let poly = isoline_core::geom::Polyline::from(pl.clone());
-            features.push(json!({
-                "type": "Feature",
-                "geometry": {"type": "LineString", "coordinates": coords},
-                "properties": {
-                    "stream": r.stream, "frame": r.frame, "polyline": k, "closed": pl.closed,
-                    "area": if pl.closed { Some(poly.signed_area()) } else { None },
-                }
-            }));
-        }
-        for j in r.junctions.iter().flatten() {
-            features.push(json!({
-                "type": "Feature",
-                "geometry": {"type": "Point", "coordinates": j.at},
-                "properties": {"stream": r.stream, "frame": r.frame, "polylines": j.polylines}
-            }));
-        }
+    if let Some(e) = &r.error {
+        features.push(json!({
+            "type": "Feature", "geometry": null,
+            "properties": {"stream": r.stream, "frame": r.frame, "error": e}
+        }));
     }
-    serde_json::to_string(&json!({"type": "FeatureCollection", "features": features}))
-        .expect("values serialise")
-        + "\n"
+    for (k, pl) in r.polylines.iter().flatten().enumerate() {
+        let mut coords = pl.points.clone();
+        if pl.closed && !coords.is_empty() {
+            coords.push(coords[0]);
+        }
+        let poly = isoline_core::geom::Polyline::from(pl.clone());
+        features.push(json!({
+            "type": "Feature",
+            "geometry": {"type": "LineString", "coordinates": coords},
+            "properties": {
+                "stream": r.stream, "frame": r.frame, "polyline": k, "closed": pl.closed,
+                "area": if pl.closed { Some(poly.signed_area()) } else { None },
+            }
+        }));
+    }
+    for j in r.junctions.iter().flatten() {
+        features.push(json!({
+            "type": "Feature",
+            "geometry": {"type": "Point", "coordinates": j.at},
+            "properties": {"stream": r.stream, "frame": r.frame, "polylines": j.polylines}
+        }));
+    }
+    features
 }
 
 /// The curves as CSV rows `stream,frame,polyline,closed,vertex,x,y,junction`: the last
@@ -224,53 +322,51 @@ pub fn to_geojson(recs: &[ResultRecord]) -> String {
 /// junction in the record (empty elsewhere), so that a reader of rows alone knows which
 /// polylines meet there (those whose ends carry the same index).
 pub fn to_csv(recs: &[ResultRecord]) -> String {
-    let mut s = String::from(
-        "stream,frame,polyline,closed,vertex,x,y,junction
-",
-    );
-    for r in recs {
-        let stream = r.stream.as_deref().unwrap_or("");
-        let frame = r.frame.map_or(String::new(), |f| f.to_string());
-        let polylines: Vec<&PolylineJson> = r.polylines.iter().flatten().collect();
-        // Each junction at the end of each polyline it names that lies nearer it (both
-        // ends where they lie equally near: a stroke from the junction back to it).
-        let mut at_end: Vec<[Option<usize>; 2]> = vec![[None, None]; polylines.len()];
-        for (j, junction) in r.junctions.iter().flatten().enumerate() {
-            for &k in &junction.polylines {
-                let Some(pl) = polylines.get(k).filter(|pl| !pl.points.is_empty()) else {
-                    continue;
-                };
-                let (first, last) = (pl.points[0], pl.points[pl.points.len() - 1]);
-                let (d0, d1) = (dist(first, junction.at), dist(last, junction.at));
-                if d0 <= d1 {
-                    at_end[k][0] = Some(j);
-                }
-                if d1 <= d0 {
-                    at_end[k][1] = Some(j);
-                }
+    render(Format::Csv, recs)
+}
+
+/// The CSV rows of one record (see [`to_csv`]).
+fn csv_rows(s: &mut String, r: &ResultRecord) {
+    let stream = r.stream.as_deref().unwrap_or("");
+    let frame = r.frame.map_or(String::new(), |f| f.to_string());
+    let polylines: Vec<&PolylineJson> = r.polylines.iter().flatten().collect();
+    // Each junction at the end of each polyline it names that lies nearer it (both
+    // ends where they lie equally near: a stroke from the junction back to it).
+    let mut at_end: Vec<[Option<usize>; 2]> = vec![[None, None]; polylines.len()];
+    for (j, junction) in r.junctions.iter().flatten().enumerate() {
+        for &k in &junction.polylines {
+            let Some(pl) = polylines.get(k).filter(|pl| !pl.points.is_empty()) else {
+                continue;
+            };
+            let (first, last) = (pl.points[0], pl.points[pl.points.len() - 1]);
+            let (d0, d1) = (dist(first, junction.at), dist(last, junction.at));
+            if d0 <= d1 {
+                at_end[k][0] = Some(j);
             }
-        }
-        for (k, pl) in polylines.iter().enumerate() {
-            let n = pl.points.len();
-            for (i, p) in pl.points.iter().enumerate() {
-                let junction = match i {
-                    _ if pl.closed => None,
-                    0 => at_end[k][0],
-                    _ if i + 1 == n => at_end[k][1],
-                    _ => None,
-                };
-                let _ = writeln!(
-                    s,
-                    "{stream},{frame},{k},{},{i},{},{},{}",
-                    pl.closed,
-                    p[0],
-                    p[1],
-                    junction.map_or(String::new(), |j| j.to_string())
-                );
+            if d1 <= d0 {
+                at_end[k][1] = Some(j);
             }
         }
     }
-    s
+    for (k, pl) in polylines.iter().enumerate() {
+        let n = pl.points.len();
+        for (i, p) in pl.points.iter().enumerate() {
+            let junction = match i {
+                _ if pl.closed => None,
+                0 => at_end[k][0],
+                _ if i + 1 == n => at_end[k][1],
+                _ => None,
+            };
+            let _ = writeln!(
+                s,
+                "{stream},{frame},{k},{},{i},{},{},{}",
+                pl.closed,
+                p[0],
+                p[1],
+                junction.map_or(String::new(), |j| j.to_string())
+            );
+        }
+    }
 }
 
 #[cfg(test)]
