@@ -23,7 +23,7 @@ pub enum Warning {
         tolerance: f64,
     },
     /// Curve stretches farther than `reach` from every sample were cut: no data
-    /// support them (the invariant of [`crate::repair::invariants::supported`]).
+    /// support them (the invariant `repair::invariants::supported` keeps).
     OffData {
         /// The length cut, in data units.
         length: f64,
@@ -34,7 +34,7 @@ pub enum Warning {
     /// crossing each other were split where they cross, meeting there at a junction
     /// (or, for a crossing that dropping a repeated point made, lost a segment).
     /// Curves are simple and meet only at shared ends
-    /// ([`crate::repair::invariants::uncrossed`]).
+    /// (the invariant `repair::invariants::uncrossed` keeps).
     Crossings {
         /// The crossings undone.
         removed: usize,

@@ -61,7 +61,7 @@ pub fn thin(points: &[Point], cell: f64) -> Vec<Point> {
 }
 
 impl Surface {
-    /// The surface of `points`: each kept where its [`NEIGHBOURS`] nearest points
+    /// The surface of `points`: each kept where its six nearest points
     /// within `radius` lie on a line (the smaller principal spread below a quarter of
     /// the larger: a stretch four times as long as it is thick), with that line's
     /// normal. Nearest points, not a fixed disc: a scanner's returns thin out with

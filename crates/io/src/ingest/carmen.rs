@@ -74,9 +74,9 @@ const PILE_WIDTH: f64 = 0.01;
 /// Where each old-style laser's no-return code starts, if it reports no return as its
 /// largest readings: `[FLASER, RLASER]`. A log's true ranges thin out towards their
 /// largest, each far distance read about once; a code is read whenever a beam sees
-/// nothing, so it piles up. The readings within [`PILE_WIDTH`] of the largest (below
+/// nothing, so it piles up. The readings within a centimetre of the largest (below
 /// [`FLASER_RANGE_MAX`]) are taken for a code when they are more than any other
-/// [`PILE_WIDTH`] of readings of at least half that range: in the ACES log 50 m is read
+/// centimetre of readings of at least half that range: in the ACES log 50 m is read
 /// 620 times and the readings below it about once each. A log whose largest reading is
 /// a far wall has none (`None`); so has an unreadable log (the reading pass says what
 /// is wrong with it). Memory is one counter a millimetre up to [`FLASER_RANGE_MAX`] per
