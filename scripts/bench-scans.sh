@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# The CPU-per-frame benches of docs/benchmarks.md (crates/io/benches/scans.rs), with the
+# The CPU-per-frame benches of docs/benchmarks.md (benches/benches/scans.rs), with the
 # real frames: the ACES CARMEN log (SICK LMS, 180 beams) and the Mines Hokuyo stream
 # (URG-04LX, 683 beams) from $ISOLINE_REAL are unpacked into target/bench-scans/ and
 # named to the bench. Extra arguments go to criterion (e.g. a filter).
@@ -23,4 +23,4 @@ if [ "${QUICK:-0}" = 1 ]; then
   echo "QUICK=1: recordings unpacked; the bench itself runs under cargo bench" >&2
   exit 0
 fi
-cargo bench -p isoline-io --bench scans -- "$@"
+cargo bench -p isoline-bench --bench scans -- "$@"

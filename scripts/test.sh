@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
 # The whole test suite, what CI runs: installs OpenSSL's headers for Kafka over TLS
 # (scripts/deps.sh) and the Kafka-compatible broker the Kafka tests start
-# (scripts/kafka-broker.sh, into .tools/), runs every Rust test, then builds
-# the Python package into a fresh virtual environment and runs its tests
+# (scripts/kafka-broker.sh, into .tools/), checks the formatting, the lints (clippy,
+# warnings denied) and the docs (rustdoc, warnings denied), runs every Rust test, then
+# builds the Python package into a fresh virtual environment and runs its tests
 # (scripts/python.sh).
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -15,13 +16,18 @@ scripts/kafka-broker.sh install
 mkdir -p target
 scripts/python.sh setup > target/python-setup.log 2>&1 &
 setup=$!
+# Style, lints and docs first: they fail in seconds to minutes, the tests take longer.
+# The docs reuse the lints' check build of the dependencies (same features).
+cargo fmt --all --check
+cargo clippy --workspace --all-targets --features isoline/kafka-tls --locked -- -D warnings
+RUSTDOCFLAGS="-D warnings" cargo doc --workspace --no-deps --features isoline/kafka-tls --locked
 # Every crate in one invocation: the Python bindings have no Rust tests, but their
 # dependencies' features are unified with the others', so that their build below
 # reuses these crates (crates/py/Cargo.toml).
 # Four test threads on CI's two cores: the integration tests spend much of their time
 # waiting (on the Kafka broker, child daemons, sockets and timeouts), and four overlap
 # those waits: the integration suite 195 -> 159 s on two cores.
-cargo test --workspace --features isoline/kafka-tls --locked -- --test-threads=4
+cargo test --workspace --exclude isoline-bench --features isoline/kafka-tls --locked -- --test-threads=4
 if ! wait "$setup"; then
   cat target/python-setup.log >&2
   exit 1

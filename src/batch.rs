@@ -190,9 +190,9 @@ impl Job {
     /// override, the inputs (each glob must match a file) and the output names (two
     /// inputs may not share one). Every problem is listed at once, with its key path.
     pub fn load(path: &Path) -> Result<Job> {
-        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
-        let mut table: toml::Table = toml::from_str(&text)
-            .map_err(|e| config_error(path, vec![e.to_string().trim().replace('\n', "\n  ")]))?;
+        let text = std::fs::read_to_string(path).map_err(|e| isoline_io::Error::io(path, e))?;
+        let mut table =
+            crate::config::parse_table(&text).map_err(|e| config_error(path, vec![e]))?;
         let base_dir = path.parent().unwrap_or(Path::new(".")).to_path_buf();
         let mut problems = Vec::new();
         let batch = match table.remove("batch") {
@@ -202,20 +202,13 @@ impl Job {
                     vec!["missing table [batch] (inputs, output, formats, workers)".into()],
                 ))
             }
-            Some(v) => v.try_into::<BatchTable>().map_err(|e| {
-                config_error(path, vec![crate::config::value_problem(&e, "batch.")])
-            })?,
-        };
-        let files = match table.remove("files") {
-            None => toml::Table::new(),
-            Some(toml::Value::Table(t)) => t,
-            Some(_) => {
-                return Err(config_error(
-                    path,
-                    vec!["files: must be a table of per-file overrides".into()],
-                ))
+            Some(v) => {
+                let mut p = Vec::new();
+                crate::config::read_value::<BatchTable>(v, "batch.", &mut p)
+                    .ok_or_else(|| config_error(path, p))?
             }
         };
+        let files = crate::config::take_table(&mut table, "files", &mut problems);
         let name = path.display().to_string();
         let base = match Config::from_table(table.clone(), &name, "").map_err(Error::from) {
             Ok(c) => Some(c),
@@ -456,7 +449,8 @@ impl Job {
         progress: impl Fn(&FileSummary) + Sync,
         process: impl Fn(&Task) -> FileSummary + Sync,
     ) -> Result<Summary> {
-        std::fs::create_dir_all(&self.output).map_err(|e| Error::io(&self.output, e))?;
+        std::fs::create_dir_all(&self.output)
+            .map_err(|e| isoline_io::Error::io(&self.output, e))?;
         let pool = rayon::ThreadPoolBuilder::new()
             .num_threads(self.workers)
             .build()
@@ -511,10 +505,11 @@ impl Job {
         let summary = Summary { files, totals };
         let json = serde_json::to_string_pretty(&summary).expect("summary serialises") + "\n";
         let path = self.output.join(SUMMARY_JSON);
-        writers::write_atomic(&path, json.as_bytes()).map_err(|e| Error::io(&path, e))?;
+        writers::write_atomic(&path, json.as_bytes())
+            .map_err(|e| isoline_io::Error::io(&path, e))?;
         let path = self.output.join(SUMMARY_CSV);
         writers::write_atomic(&path, summary_csv(&summary).as_bytes())
-            .map_err(|e| Error::io(&path, e))?;
+            .map_err(|e| isoline_io::Error::io(&path, e))?;
         Ok(summary)
     }
 

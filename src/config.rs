@@ -5,19 +5,6 @@ use std::path::Path;
 
 pub use isoline_io::config::*;
 
-/// Reads `value` as a `T`; on failure adds the problem, with its key path under
-/// `prefix` (`"input."`), to `problems`.
-pub(crate) fn read<T: serde::de::DeserializeOwned>(
-    value: toml::Value,
-    prefix: &str,
-    problems: &mut Vec<String>,
-) -> Option<T> {
-    value
-        .try_into()
-        .map_err(|e| problems.push(value_problem(&e, prefix)))
-        .ok()
-}
-
 /// `v` if set and in `lo..=hi`, `default` if unset; out of range, `default` and a
 /// problem naming `key`.
 pub(crate) fn bounded(

@@ -1,8 +1,6 @@
 //! The daemon's and batch jobs' errors: the file layer's pass through, and the ones the
 //! daemon adds (its configuration, Kafka, its own threads).
 
-use std::path::PathBuf;
-
 /// Errors of the daemon, batch jobs and the commands.
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
@@ -10,15 +8,6 @@ pub enum Error {
     /// A file could not be read or written, or its data are wrong for the method.
     #[error(transparent)]
     File(isoline_io::Error),
-    /// Reading or writing a file, a socket or a pipe failed.
-    #[error("{path}: {source}")]
-    Io {
-        /// What was read or written.
-        path: PathBuf,
-        /// The operating system's error.
-        #[source]
-        source: std::io::Error,
-    },
     /// The configuration is invalid; every problem found is listed.
     #[error("invalid configuration {path}:\n  {}", problems.join("\n  "))]
     Config {
@@ -47,15 +36,6 @@ pub enum Error {
 
 /// `Result` with the daemon's [`Error`].
 pub type Result<T> = std::result::Result<T, Error>;
-
-impl Error {
-    pub(crate) fn io(path: impl Into<PathBuf>, source: std::io::Error) -> Self {
-        Error::Io {
-            path: path.into(),
-            source,
-        }
-    }
-}
 
 /// An invalid configuration is the daemon's [`Error::Config`], whichever layer read it.
 impl From<isoline_io::Error> for Error {

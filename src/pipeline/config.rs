@@ -18,7 +18,7 @@ use super::kafka::{KafkaInput, KafkaInputConfig, KafkaOutputConfig, KafkaTopic};
 pub use super::sink::FileOutput;
 use super::source::{line_limit, Limits};
 pub use super::source::{FileInput, FileSource, Replay, StdinInput, TcpInput};
-use crate::config::{bounded, listen_address, read, resolve, Config};
+use crate::config::{bounded, listen_address, read_value, resolve, take_table, Config};
 use crate::error::{Error, Result};
 use isoline_core::Params;
 use isoline_core::WindowLimits;
@@ -175,11 +175,11 @@ impl InputConfig {
         let (kind, rest) = kind_of("input", t, default, INPUT_KINDS, problems)?;
         let p = "input.";
         match kind.as_str() {
-            "file" => read(rest, p, problems).map(InputConfig::File),
-            "stdin" => read(rest, p, problems).map(InputConfig::Stdin),
-            "tcp" => read(rest, p, problems).map(InputConfig::Tcp),
+            "file" => read_value(rest, p, problems).map(InputConfig::File),
+            "stdin" => read_value(rest, p, problems).map(InputConfig::Stdin),
+            "tcp" => read_value(rest, p, problems).map(InputConfig::Tcp),
             #[cfg(feature = "kafka")]
-            "kafka" => read(rest, p, problems).map(InputConfig::Kafka),
+            "kafka" => read_value(rest, p, problems).map(InputConfig::Kafka),
             _ => unreachable!("kind_of admits only these"),
         }
     }
@@ -210,9 +210,9 @@ impl OutputConfig {
     fn read(t: toml::Table, problems: &mut Vec<String>) -> Option<OutputConfig> {
         let (kind, rest) = kind_of("output", t, "file", OUTPUT_KINDS, problems)?;
         match kind.as_str() {
-            "file" => read(rest, "output.", problems).map(OutputConfig::File),
+            "file" => read_value(rest, "output.", problems).map(OutputConfig::File),
             #[cfg(feature = "kafka")]
-            "kafka" => read(rest, "output.", problems).map(OutputConfig::Kafka),
+            "kafka" => read_value(rest, "output.", problems).map(OutputConfig::Kafka),
             _ => unreachable!("kind_of admits only these"),
         }
     }
@@ -366,27 +366,15 @@ fn take<T: serde::de::DeserializeOwned + Default>(
     problems: &mut Vec<String>,
 ) -> T {
     t.remove(key)
-        .and_then(|v| read(v, &format!("{key}."), problems))
+        .and_then(|v| read_value(v, &format!("{key}."), problems))
         .unwrap_or_default()
-}
-
-/// Takes the tagged table `key` out of `t`: an empty table when absent.
-fn take_table(t: &mut toml::Table, key: &str, problems: &mut Vec<String>) -> toml::Table {
-    match t.remove(key) {
-        None => toml::Table::new(),
-        Some(toml::Value::Table(table)) => table,
-        Some(other) => {
-            problems.push(format!("{key} = {other}: expected a table"));
-            toml::Table::new()
-        }
-    }
 }
 
 impl DaemonConfig {
     /// Reads and validates a daemon configuration file, paths included
     /// ([`DaemonConfig::check_paths`]).
     pub fn load(path: &Path) -> Result<DaemonConfig> {
-        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+        let text = std::fs::read_to_string(path).map_err(|e| isoline_io::Error::io(path, e))?;
         let base = path.parent().unwrap_or(Path::new(".")).to_path_buf();
         let name = path.display().to_string();
         let cfg = Self::parse(&text, &name, &base)?;
@@ -464,8 +452,7 @@ impl DaemonConfig {
             path: name.to_string(),
             problems,
         };
-        let mut t: toml::Table = toml::from_str(text)
-            .map_err(|e| fail(vec![e.to_string().trim().replace('\n', "\n  ")]))?;
+        let mut t = crate::config::parse_table(text).map_err(|e| fail(vec![e]))?;
         let mut problems = Vec::new();
         let input = take_table(&mut t, "input", &mut problems);
         let input = InputConfig::read(input, &mut problems);

@@ -99,7 +99,7 @@ impl Server {
     where
         F: Fn(TcpStream, SocketAddr, &AtomicBool) + Send + Sync + 'static,
     {
-        let io = |e| Error::Io {
+        let io = |e| isoline_io::Error::Io {
             path: format!("{name} {bind}").into(),
             source: e,
         };

@@ -113,7 +113,8 @@ pub(crate) fn spawn_map(
     stop: Arc<AtomicBool>,
 ) -> Result<JoinHandle<Result<MapReport>>> {
     let spill = out.spill.clone().unwrap_or_else(std::env::temp_dir);
-    let store = isoline_io::DiskTiles::new(Some(&spill)).map_err(|e| Error::io(&spill, e))?;
+    let store =
+        isoline_io::DiskTiles::new(Some(&spill)).map_err(|e| isoline_io::Error::io(&spill, e))?;
     let map = Map::new(out.params, Box::new(store))?;
     let mut m = Mapper {
         map,

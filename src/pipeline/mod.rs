@@ -200,6 +200,17 @@ impl std::fmt::Display for RunSummary {
     }
 }
 
+/// Starts a named thread of the daemon (a source, a stage), or says why it could not.
+pub(crate) fn spawn<T: Send + 'static>(
+    name: &str,
+    f: impl FnOnce() -> T + Send + 'static,
+) -> Result<std::thread::JoinHandle<T>> {
+    std::thread::Builder::new()
+        .name(name.into())
+        .spawn(f)
+        .map_err(|e| Error::Internal(format!("cannot start thread {name}: {e}")))
+}
+
 /// A stage's thread, by the stage's name.
 type StageThread = (&'static str, std::thread::JoinHandle<()>);
 
@@ -433,7 +444,7 @@ impl Daemon {
         #[cfg(not(feature = "kafka"))]
         let sink = sink::Sink::open(cfg.output.as_deref())?;
         if let Some(dir) = &cfg.svg_dir {
-            std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+            std::fs::create_dir_all(dir).map_err(|e| isoline_io::Error::io(dir, e))?;
         }
         // Read lines wait here for ingest; on shutdown each still gets its record, so
         // this queue is no longer than the others.

@@ -83,12 +83,12 @@ impl Sink {
             return Ok(Sink::Stdout(std::io::stdout()));
         };
         if let Some(dir) = p.parent().filter(|d| !d.as_os_str().is_empty()) {
-            std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+            std::fs::create_dir_all(dir).map_err(|e| isoline_io::Error::io(dir, e))?;
         }
         if isoline_io::is_bag(p) {
             return Ok(Sink::Mcap(Box::new(McapOut::create(p)?)));
         }
-        let file = File::create(p).map_err(|e| Error::io(p, e))?;
+        let file = File::create(p).map_err(|e| isoline_io::Error::io(p, e))?;
         Ok(Sink::File {
             out: Box::new(file),
             path: p.to_path_buf(),
@@ -158,7 +158,7 @@ impl Sink {
                 let mut out = out.lock();
                 out.write_all(&line)
                     .and_then(|()| out.flush())
-                    .map_err(|e| Error::io(Path::new("standard output"), e))
+                    .map_err(|e| isoline_io::Error::io(Path::new("standard output"), e).into())
             }
             Sink::File { out, path, len } => {
                 match out.write_all(&line).and_then(|()| out.flush()) {
@@ -171,7 +171,7 @@ impl Sink {
                             tracing::error!(path = %path.display(), error = %t,
                                 "could not cut the output back to its last whole record");
                         }
-                        Err(Error::io(path.clone(), e))
+                        Err(isoline_io::Error::io(path.clone(), e).into())
                     }
                 }
             }

@@ -20,8 +20,9 @@ use crossbeam_channel::Sender;
 use serde::Deserialize;
 
 use super::ledger::Receipt;
+use super::spawn;
 use crate::config::{bounded, listen_address, resolve};
-use crate::error::{Error, Result};
+use crate::error::Result;
 
 /// One line as read, with where it came from.
 #[derive(Debug)]
@@ -428,17 +429,18 @@ pub fn spawn_file(
     tx: Sender<Line>,
     stop: Arc<AtomicBool>,
 ) -> Result<JoinHandle<Result<()>>> {
-    let file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
+    let file = std::fs::File::open(path).map_err(|e| isoline_io::Error::io(path, e))?;
     let is_dir = file
         .metadata()
-        .map_err(|e| Error::io(path, e))?
+        .map_err(|e| isoline_io::Error::io(path, e))?
         .file_type()
         .is_dir();
     if is_dir {
-        return Err(Error::io(
+        return Err(isoline_io::Error::io(
             path,
             std::io::Error::new(ErrorKind::InvalidInput, "is a directory, not a frame file"),
-        ));
+        )
+        .into());
     }
     let origin: Arc<str> = path.display().to_string().into();
     let owned = path.to_path_buf();
@@ -468,7 +470,7 @@ pub fn spawn_file(
             &stop,
             pace,
         )
-        .map_err(|e| Error::io(&owned, e))
+        .map_err(|e| isoline_io::Error::io(&owned, e).into())
     })
 }
 
@@ -484,7 +486,7 @@ pub fn spawn_recording(
     stop: Arc<AtomicBool>,
 ) -> Result<JoinHandle<Result<()>>> {
     // Opened here so that a missing file fails the start, as for NDJSON.
-    std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
+    std::fs::File::open(path).map_err(|e| isoline_io::Error::io(path, e))?;
     let origin: Arc<str> = path.display().to_string().into();
     let owned = path.to_path_buf();
     spawn("source-recording", move || {
@@ -537,7 +539,7 @@ pub fn spawn_stdin(
             &stop,
             |_, _| {},
         )
-        .map_err(|e| Error::io(Path::new("standard input"), e))
+        .map_err(|e| isoline_io::Error::io(Path::new("standard input"), e).into())
     })
 }
 
@@ -554,7 +556,7 @@ pub fn spawn_tcp(
     stop: Arc<AtomicBool>,
     poll: Duration,
 ) -> Result<(SocketAddr, JoinHandle<Result<()>>)> {
-    let io = |e| Error::Io {
+    let io = |e| isoline_io::Error::Io {
         path: format!("tcp {bind}").into(),
         source: e,
     };
@@ -645,16 +647,6 @@ fn reap(clients: &mut Vec<JoinHandle<()>>, all: bool) {
             i += 1;
         }
     }
-}
-
-fn spawn<T: Send + 'static>(
-    name: &str,
-    f: impl FnOnce() -> T + Send + 'static,
-) -> Result<JoinHandle<T>> {
-    std::thread::Builder::new()
-        .name(name.into())
-        .spawn(f)
-        .map_err(|e| Error::Internal(format!("cannot start thread {name}: {e}")))
 }
 
 #[cfg(test)]

@@ -19,8 +19,9 @@ use super::ledger::{Leases, Receipt};
 use super::metrics::{Counted, Metrics};
 use super::sink::Sink;
 use super::source::Line;
+use super::spawn;
 use super::RunSummary;
-use crate::error::{Error, Result};
+use crate::error::Result;
 use isoline_core::geom::{Point, Pose};
 use isoline_core::stages::{self as reconstruct, Prepared};
 use isoline_core::stages::{AdaptedMesh, LevelSet, LevelSetMemory, MeshMemory, Solved};
@@ -197,16 +198,6 @@ enum Work {
 pub(crate) struct Feedback {
     key: String,
     level_set: Option<(LevelSet, Option<Pose>)>,
-}
-
-fn spawn<T: Send + 'static>(
-    name: &str,
-    f: impl FnOnce() -> T + Send + 'static,
-) -> Result<JoinHandle<T>> {
-    std::thread::Builder::new()
-        .name(name.into())
-        .spawn(f)
-        .map_err(|e| Error::Internal(format!("cannot start thread {name}: {e}")))
 }
 
 /// Under [`Policy::Latest`], takes everything waiting in `rx` behind `first` and marks
@@ -1002,7 +993,7 @@ impl Tally {
         }
     }
 
-    fn stages(&mut self, ms: &isoline_io::format::StageMs) {
+    fn stages(&mut self, ms: &isoline_core::StageMs) {
         self.stages_us
             .saturating_record((ms.total.max(0.0) * 1e3).round() as u64);
         let parts = [ms.distance, ms.adapt, ms.solve, ms.renormalize, ms.export];
@@ -1212,7 +1203,7 @@ mod tests {
         assert_eq!((s.stage_ms_p50, s.stage_ms_mean), (None, None));
         for k in 1..=3 {
             let k = k as f64;
-            t.stages(&isoline_io::format::StageMs {
+            t.stages(&isoline_core::StageMs {
                 distance: k,
                 adapt: 2.0 * k,
                 solve: 0.5,

@@ -852,6 +852,7 @@ fn stage_ms(
         renormalize: report.ms_renormalize + solved.ms_renormalize,
         export: ms_export,
         total: 0.0,
+        latency: None,
     };
     StageMs {
         total: ms.distance + ms.adapt + ms.solve + ms.renormalize + ms.export,

@@ -19,6 +19,13 @@ pub struct StageMs {
     pub export: f64,
     /// The whole frame: the sum of the stages.
     pub total: f64,
+    /// From the frame's arrival to its result, queueing included: what a caller that
+    /// queues frames measures (the daemon); `None` from the library.
+    #[cfg_attr(
+        feature = "serde",
+        serde(default, skip_serializing_if = "Option::is_none")
+    )]
+    pub latency: Option<f64>,
 }
 
 /// The window of frames a refined frame was reconstructed from.
@@ -33,9 +40,11 @@ pub struct WindowStats {
     pub bytes: usize,
 }
 
-/// Per-frame statistics of a [`crate::Reconstruction`].
+/// Per-frame statistics of a [`crate::Reconstruction`], as a result record's `stats`
+/// (docs/formats.md) writes them: a field a record leaves out reads as its default.
 #[derive(Clone, Debug, Default, PartialEq)]
 #[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
+#[cfg_attr(feature = "serde", serde(default))]
 #[non_exhaustive]
 pub struct Stats {
     /// Data points given.
@@ -57,6 +66,7 @@ pub struct Stats {
     pub warm_start: bool,
     /// Earlier frames were tried and rejected (`start` is `Fallback`; `warm_start` is
     /// then false).
+    #[cfg_attr(feature = "serde", serde(skip_serializing_if = "std::ops::Not::not"))]
     pub cold_fallback: bool,
     /// Time per stage.
     pub ms: StageMs,
@@ -74,14 +84,18 @@ pub struct Stats {
     pub eps: f64,
     /// Scan frames: returns that no curve explains (the features' returns); point
     /// clouds with outliers: how many.
+    #[cfg_attr(feature = "serde", serde(skip_serializing_if = "Option::is_none"))]
     pub unexplained: Option<usize>,
     /// Scan frames: the range noise used (configured, or estimated from the returns).
+    #[cfg_attr(feature = "serde", serde(skip_serializing_if = "Option::is_none"))]
     pub range_noise: Option<f64>,
     /// The share of the points within `3 sigma + 2 hmin` of a curve.
     pub explained: f64,
     /// The 90th percentile of the points' distances to the curves; `None` without
     /// curves.
+    #[cfg_attr(feature = "serde", serde(skip_serializing_if = "Option::is_none"))]
     pub fit_p90: Option<f64>,
     /// Refinement over frames: the window the frame was reconstructed from.
+    #[cfg_attr(feature = "serde", serde(skip_serializing_if = "Option::is_none"))]
     pub window: Option<WindowStats>,
 }

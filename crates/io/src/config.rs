@@ -244,6 +244,38 @@ pub struct ExportConfig {
     pub repair: Option<isoline_core::RepairTolerances>,
 }
 
+/// TOML text as a table, or the parser's message (its lines indented, as one of a list
+/// of problems).
+pub fn parse_table(text: &str) -> std::result::Result<toml::Table, String> {
+    toml::from_str(text).map_err(|e: toml::de::Error| e.to_string().trim().replace('\n', "\n  "))
+}
+
+/// Reads `value` as a `T`; on failure adds the problem, with its key path under
+/// `prefix` (`"input."`), to `problems`.
+pub fn read_value<T: serde::de::DeserializeOwned>(
+    value: toml::Value,
+    prefix: &str,
+    problems: &mut Vec<String>,
+) -> Option<T> {
+    value
+        .try_into()
+        .map_err(|e| problems.push(value_problem(&e, prefix)))
+        .ok()
+}
+
+/// Takes the table `key` out of `t`: an empty table when absent, and a problem naming
+/// `key` when it is not a table.
+pub fn take_table(t: &mut toml::Table, key: &str, problems: &mut Vec<String>) -> toml::Table {
+    match t.remove(key) {
+        None => toml::Table::new(),
+        Some(toml::Value::Table(table)) => table,
+        Some(other) => {
+            problems.push(format!("{key} = {other}: expected a table"));
+            toml::Table::new()
+        }
+    }
+}
+
 /// A deserialisation error of an already-parsed TOML value as `prefix.key: message`
 /// (toml reports the key on a line of its own, as ``in `key` ``).
 pub fn value_problem(e: &toml::de::Error, prefix: &str) -> String {
@@ -391,17 +423,16 @@ impl MeshConfig {
 impl Config {
     /// Parses and validates TOML text; `name` labels errors.
     pub fn parse(text: &str, name: &str) -> Result<Config> {
-        let cfg: Config = toml::from_str(text)
-            .map_err(|e| invalid(name, vec![e.to_string().trim().replace('\n', "\n  ")]))?;
-        cfg.validate(name, "")
+        let table = parse_table(text).map_err(|e| invalid(name, vec![e]))?;
+        Config::from_table(table, name, "")
     }
 
     /// Builds and validates a configuration from parsed TOML (the `[mesh]`, `[solver]`
     /// and `[export]` tables); `prefix` is put before every key path in messages.
     pub fn from_table(table: toml::Table, name: &str, prefix: &str) -> Result<Config> {
-        let cfg: Config = toml::Value::Table(table)
-            .try_into()
-            .map_err(|e: toml::de::Error| invalid(name, vec![value_problem(&e, prefix)]))?;
+        let mut problems = Vec::new();
+        let cfg: Config = read_value(toml::Value::Table(table), prefix, &mut problems)
+            .ok_or_else(|| invalid(name, problems))?;
         cfg.validate(name, prefix)
     }
 

@@ -209,104 +209,6 @@ impl TruthFile {
     }
 }
 
-/// Milliseconds per stage of one frame.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
-pub struct StageMs {
-    /// kd-tree and distances at the mesh vertices.
-    pub distance: f64,
-    /// Metric and mesh adaptation.
-    pub adapt: f64,
-    /// Time stepping and stopping tests.
-    pub solve: f64,
-    /// Fast-marching renormalization.
-    pub renormalize: f64,
-    /// Isoline extraction and simplification.
-    pub export: f64,
-    /// The whole frame: the sum of the stages.
-    pub total: f64,
-    /// Daemon only: from the frame's arrival to its record, queueing included.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub latency: Option<f64>,
-}
-
-/// The `stats` of a result record (docs/formats.md), plus what a user tuning the
-/// solver wants to see.
-#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
-pub struct FrameStats {
-    /// Data points.
-    pub points: usize,
-    /// Mesh vertices.
-    pub vertices: usize,
-    /// Mesh triangles.
-    pub triangles: usize,
-    /// Solver time steps.
-    pub iterations: usize,
-    /// Eq. 11 residual: the largest `|u|` at a data point.
-    pub residual: f64,
-    /// Whether the residual got below `eps`.
-    pub converged: bool,
-    /// Whether earlier frames shaped the result: a point frame warm-started from the
-    /// previous one's level set, or a scan refined over its window.
-    pub warm_start: bool,
-    /// Where the level set came from: `cold`, `warm` or `fallback` (a warm start
-    /// rejected for a cold one) for point frames; `scan` (its own scan), `fused`
-    /// (refined over its window) or `fallback` (the refinement explained fewer returns
-    /// than the frame's own level set, which it kept) for scans.
-    #[serde(default)]
-    pub start: String,
-    /// Time per stage.
-    pub ms: StageMs,
-    /// Why the solver stopped: `converged`, `stagnated` or `max_iterations`.
-    #[serde(default)]
-    pub stop: String,
-    /// `explicit` or `semi-implicit`.
-    #[serde(default)]
-    pub scheme: String,
-    /// Conjugate-gradient iterations (semi-implicit).
-    #[serde(default)]
-    pub linear_iterations: usize,
-    /// Renormalizations.
-    #[serde(default)]
-    pub renormalizations: usize,
-    /// Smallest element size used.
-    #[serde(default)]
-    pub hmin: f64,
-    /// Stopping tolerance used.
-    #[serde(default)]
-    pub eps: f64,
-    /// Scan frames: returns that no curve explains (the `features`' returns).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub unexplained: Option<usize>,
-    /// Scan frames: the range noise used (configured, or estimated from the returns).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub range_noise: Option<f64>,
-    /// The share of the points within `3 sigma + 2 hmin` of a curve (the accuracy bound;
-    /// sigma the noise used).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub explained: Option<f64>,
-    /// The 90th percentile of the points' distances to the curves.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub fit_p90: Option<f64>,
-    /// Earlier frames were tried and rejected (`start` is `fallback`).
-    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
-    pub cold_fallback: bool,
-    /// With refinement over frames (`[pipeline] accumulate`): the window the frame was
-    /// reconstructed from; its curves are then in the world's coordinates.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub window: Option<WindowStats>,
-}
-
-/// The window of frames a record was reconstructed from.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
-pub struct WindowStats {
-    /// Frames in it, this one included.
-    pub frames: usize,
-    /// Their returns.
-    pub points: usize,
-    /// Bytes the stream's window holds, roughly.
-    pub bytes: usize,
-}
-
 /// A cluster of returns that no curve explains, on the wire:
 /// `{"center":[x,y],"returns":n}`.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -383,7 +285,7 @@ pub struct ResultRecord {
     pub junctions: Option<Vec<JunctionJson>>,
     /// How they were made.
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub stats: Option<FrameStats>,
+    pub stats: Option<isoline_core::Stats>,
     /// Why the frame has no curves.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub error: Option<String>,
@@ -422,62 +324,10 @@ impl ResultRecord {
                 .map(|_| r.features.iter().map(FeatureJson::from).collect()),
             junctions: (!r.junctions.is_empty())
                 .then(|| r.junctions.iter().map(JunctionJson::from).collect()),
-            stats: Some(FrameStats::from(&r.stats)),
+            stats: Some(r.stats.clone()),
             warnings: (!r.warnings.is_empty())
                 .then(|| r.warnings.iter().map(ToString::to_string).collect()),
             ..Default::default()
-        }
-    }
-}
-
-impl From<&isoline_core::StageMs> for StageMs {
-    fn from(ms: &isoline_core::StageMs) -> Self {
-        StageMs {
-            distance: ms.distance,
-            adapt: ms.adapt,
-            solve: ms.solve,
-            renormalize: ms.renormalize,
-            export: ms.export,
-            total: ms.total,
-            latency: None,
-        }
-    }
-}
-
-impl From<isoline_core::WindowStats> for WindowStats {
-    fn from(w: isoline_core::WindowStats) -> Self {
-        WindowStats {
-            frames: w.frames,
-            points: w.points,
-            bytes: w.bytes,
-        }
-    }
-}
-
-impl From<&isoline_core::Stats> for FrameStats {
-    fn from(s: &isoline_core::Stats) -> Self {
-        FrameStats {
-            points: s.points,
-            vertices: s.vertices,
-            triangles: s.triangles,
-            iterations: s.iterations,
-            residual: s.residual,
-            converged: s.converged,
-            warm_start: s.warm_start,
-            start: s.start.name().into(),
-            ms: StageMs::from(&s.ms),
-            stop: s.stop.as_str().into(),
-            scheme: s.scheme.to_string(),
-            linear_iterations: s.linear_iterations,
-            renormalizations: s.renormalizations,
-            hmin: s.hmin,
-            eps: s.eps,
-            unexplained: s.unexplained,
-            range_noise: s.range_noise,
-            explained: Some(s.explained),
-            fit_p90: s.fit_p90,
-            cold_fallback: s.cold_fallback,
-            window: s.window.map(WindowStats::from),
         }
     }
 }

@@ -7,17 +7,11 @@
 //! isoline-io's `scans` bench, beside a line extractor.
 
 use criterion::{criterion_group, criterion_main, Criterion};
+use isoline_bench::circle;
 use isoline_core::{
     reconstruct, reconstruct_warm, stages, ExportParams, MeshParams, Params, SolverParams,
 };
 use isoline_sim::{generate, Shape, SynthParams};
-
-fn circle(points: usize, noise: f64) -> Vec<[f64; 2]> {
-    let mut p = SynthParams::new(Shape::Circle);
-    p.points = points;
-    p.noise = noise;
-    generate(&p).unwrap().remove(0).points
-}
 
 fn cold(c: &mut Criterion) {
     let mut g = c.benchmark_group("reconstruct");

@@ -3,17 +3,10 @@
 //! 100k-vertex polylines. Data come from `isoline_sim`, the generator the tests use.
 
 use criterion::{criterion_group, criterion_main, Criterion};
+use isoline_bench::circle;
 use isoline_core::DistanceField;
 use isoline_core::{stages::adapt_to_points, MeshParams};
-use isoline_sim::{generate, Shape, SynthParams};
 use rand::{Rng, SeedableRng};
-
-fn circle(points: usize, noise: f64) -> Vec<[f64; 2]> {
-    let mut p = SynthParams::new(Shape::Circle);
-    p.points = points;
-    p.noise = noise;
-    generate(&p).unwrap().remove(0).points
-}
 
 fn distance(c: &mut Criterion) {
     let pts = circle(2000, 0.002);
