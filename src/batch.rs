@@ -513,16 +513,39 @@ impl Job {
         Ok(summary)
     }
 
-    /// The summary of an up-to-date input, read back from its NDJSON output if any.
+    /// The summary of an up-to-date input: the counts of the run that made its outputs
+    /// (from the last `summary.json`, else from its NDJSON records), its status
+    /// `skipped`, its time this run's (none).
     fn skipped(&self, task: &Task) -> FileSummary {
-        let mut s = FileSummary {
-            file: task.input.display().to_string(),
-            status: "skipped".into(),
-            ..Default::default()
+        let file = task.input.display().to_string();
+        let before = std::fs::read_to_string(self.output.join(SUMMARY_JSON))
+            .ok()
+            .and_then(|t| serde_json::from_str::<Summary>(&t).ok())
+            .and_then(|s| {
+                s.files
+                    .into_iter()
+                    .find(|f| f.file == file && f.status != "failed")
+            });
+        let mut s = match before {
+            Some(f) => FileSummary {
+                status: "skipped".into(),
+                reason: None,
+                ms: 0.0,
+                ..f
+            },
+            None => {
+                let mut s = FileSummary {
+                    file,
+                    status: "skipped".into(),
+                    ..Default::default()
+                };
+                for r in self.previous_records(task).iter().flatten() {
+                    tally(&mut s, r);
+                }
+                s
+            }
         };
-        for r in self.previous_records(task).iter().flatten() {
-            tally(&mut s, r);
-        }
+        s.ms = 0.0;
         s
     }
 

@@ -8,38 +8,61 @@ use clap::{Parser, Subcommand};
 #[command(
     name = "isoline",
     version,
-    about = "Level-set curve reconstruction from noisy 2D points"
+    about = "Level-set curve reconstruction from noisy 2D points and laser scans",
+    after_help = "Examples:
+  isoline reconstruct fixtures/circle-500.xy -o circle.svg  # curves through points
+  isoline reconstruct run.log.gz -o curves.ndjson   # every scan of a CARMEN log
+  isoline map run.mcap --odometry /odom -o map.svg  # one map of a whole run
+  isoline run -c config/scan-replay.toml            # the streaming daemon
+
+Configuration: config/example.toml (every key, commented). Documentation: README.md and
+docs/ (formats.md for the files, daemon.md for `run`, method.md for the method)."
 )]
 struct Cli {
     #[command(subcommand)]
     command: Command,
 }
 
+/// The subcommands, in the order a new user reaches for them.
 #[derive(Subcommand)]
 enum Command {
-    /// Simulate a scanner: sample a shape with noise, outliers and motion.
-    Synth(cli::synth::Args),
-    /// Accuracy of a reconstruction against a truth file, as JSON.
-    Eval(cli::eval::Args),
     /// Reconstruct curves from a point file or from each frame of an NDJSON stream, a
     /// ROS 2 bag or a CARMEN log.
     Reconstruct(cli::reconstruct::Args),
-    /// Convert frames between ROS 2 bags (MCAP), CARMEN logs and NDJSON.
-    Convert(cli::convert::Args),
+    /// Fuse every scan of a recording, placed by its pose, into one world-frame curve
+    /// map.
+    Map(cli::map::Args),
+    /// The streaming daemon: frames from a file, stdin, TCP or Kafka through the staged
+    /// pipeline, each warm-started from the previous frame of its stream.
+    Run(cli::run::Args),
     /// Reconstruct many files in parallel, as a TOML job file says.
     Batch(cli::batch::Args),
+    /// Convert frames between ROS 2 bags (MCAP), CARMEN logs and NDJSON.
+    Convert(cli::convert::Args),
     /// Publish a recording's frames to a Kafka topic, keyed by stream, at the recorded
     /// pace.
     #[cfg(feature = "kafka")]
     Publish(cli::publish::Args),
-    /// The streaming daemon: frames from a file, stdin, TCP or Kafka through the staged
-    /// pipeline, each warm-started from the previous frame of its stream.
-    Run(cli::run::Args),
-    /// Fuse every scan of a recording, placed by its pose, into one world-frame curve
-    /// map.
-    Map(cli::map::Args),
+    /// Accuracy of a reconstruction against a truth file, as JSON.
+    Eval(cli::eval::Args),
+    /// Simulate a scanner: sample a shape with noise, outliers and motion.
+    Synth(cli::synth::Args),
     /// Adapt an anisotropic mesh to a point set and draw it.
     Mesh(cli::mesh::Args),
+}
+
+/// The error and its causes, each cause left out when the message before it already
+/// says it (an I/O error's text is in the message that names its file).
+fn message(e: &anyhow::Error) -> String {
+    let mut text = e.to_string();
+    for cause in e.chain().skip(1) {
+        let c = cause.to_string();
+        if !text.contains(&c) {
+            text.push_str(": ");
+            text.push_str(&c);
+        }
+    }
+    text
 }
 
 fn main() {
@@ -61,7 +84,7 @@ fn main() {
         }),
     };
     if let Err(e) = result {
-        eprintln!("isoline: {e:#}");
+        eprintln!("isoline: {}", message(&e));
         std::process::exit(1);
     }
 }

@@ -38,11 +38,23 @@ pub struct Args {
     /// alignment and the relative pose error over 1 m and 10 m of path.
     #[arg(long)]
     reference: Option<PathBuf>,
+    /// A bag's topics, odometry and world frame, for --frames that is a bag (as
+    /// `isoline map` reads it).
+    #[command(flatten)]
+    bag: super::BagArgs,
+    /// What `bag` says, once checked against --frames.
+    #[arg(skip)]
+    bag_options: isoline_io::bag::BagOptions,
 }
 
 /// Prints the accuracy as JSON: one object, or the worst Hausdorff distance and one
 /// object per frame.
-pub fn run(a: Args) -> Result<()> {
+pub fn run(mut a: Args) -> Result<()> {
+    let bag = std::mem::take(&mut a.bag);
+    a.bag_options = match &a.frames {
+        Some(f) => bag.options(f)?,
+        None => bag.options(&a.recon)?,
+    };
     if let Some(reference) = &a.reference {
         return run_trajectory(&a.recon, reference);
     }
@@ -160,7 +172,7 @@ fn run_map(a: &Args) -> Result<()> {
     let mut seen: std::collections::HashSet<(i64, i64)> = Default::default();
     let (mut scans, mut unplaced) = (0u64, 0u64);
     let mut failure = None;
-    isoline_io::for_each_item(frames_path, &Default::default(), |item| {
+    isoline_io::for_each_item(frames_path, &a.bag_options, |item| {
         let Ok(f) = item else {
             unplaced += 1;
             return true;
@@ -273,7 +285,7 @@ fn run_without_truth(a: &Args) -> Result<()> {
     if !(tol.is_finite() && tol > 0.0) {
         bail!("--tolerance {tol}: must be a positive number");
     }
-    let frames = isoline_io::read_items(frames_path, &Default::default())?;
+    let frames = isoline_io::read_items(frames_path, &a.bag_options)?;
     let scans: std::collections::HashMap<(Option<String>, u64), &isoline_core::Scan> = frames
         .iter()
         .flatten()

@@ -22,6 +22,7 @@ pub fn init_tracing(
     default: &str,
     chrome: Option<&Path>,
 ) -> Result<Option<tracing_chrome::FlushGuard>> {
+    use std::io::IsTerminal;
     use tracing_subscriber::prelude::*;
     use tracing_subscriber::EnvFilter;
     let filter = EnvFilter::try_from_default_env().unwrap_or_else(|_| EnvFilter::new(default));
@@ -42,12 +43,20 @@ pub fn init_tracing(
         .with(
             tracing_subscriber::fmt::layer()
                 .with_writer(std::io::stderr)
+                // Colours for a terminal only: a log file or a pipe gets plain text
+                // (NO_COLOR turns them off on a terminal too).
+                .with_ansi(ansi(std::io::stderr().is_terminal()))
                 .with_filter(filter),
         )
         .with(chrome_layer)
         .try_init()
         .context("setting up tracing")?;
     Ok(guard)
+}
+
+/// Whether to colour the log: on a terminal, unless `NO_COLOR` is set (no-color.org).
+fn ansi(terminal: bool) -> bool {
+    terminal && std::env::var_os("NO_COLOR").is_none_or(|v| v.is_empty())
 }
 
 /// Creates (or truncates) `path`, naming it in the error.
@@ -117,7 +126,7 @@ pub fn create_part(path: &Path) -> Result<(isoline_io::write::PartFile, std::fs:
 }
 
 /// What to read from a ROS 2 bag, on the command lines that read one.
-#[derive(clap::Args)]
+#[derive(clap::Args, Default)]
 pub struct BagArgs {
     /// Bag input: read this LaserScan topic (repeat for several; default: all).
     #[arg(long = "topic")]

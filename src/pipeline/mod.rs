@@ -83,6 +83,10 @@ pub struct RunSummary {
     pub warm: usize,
     /// Warm starts found worse than the previous frame and redone cold.
     pub cold_fallbacks: usize,
+    /// Reconstructed frames by where their level set came from (`stats.start`): `cold`,
+    /// `warm` or `fallback` for point frames, `scan`, `fused` or `fallback` for scans
+    /// (a scan is built from its own scan by design, whatever `warm_start` says).
+    pub starts: std::collections::BTreeMap<String, usize>,
     /// Records with warnings (no curve where the data have support, most data
     /// unexplained).
     pub warnings: usize,
@@ -146,12 +150,20 @@ impl std::fmt::Display for RunSummary {
             self.latency_p99
         )?;
         let its = |x: Option<f64>| x.map_or("-".to_string(), |v| format!("{v}"));
+        let starts: Vec<String> = self
+            .starts
+            .iter()
+            .map(|(k, n)| format!("{n} {k}"))
+            .collect();
         write!(
             f,
-            "; {} warm starts ({} cold fallbacks); {} with warnings, {} empty; median \
-             iterations warm {} cold {}; state per stream up to {:.0} KiB",
-            self.warm,
-            self.cold_fallbacks,
+            "; starts: {}; {} with warnings, {} empty; median iterations warm {} cold {}; \
+             state per stream up to {:.0} KiB",
+            if starts.is_empty() {
+                "none".to_string()
+            } else {
+                starts.join(", ")
+            },
             self.warnings,
             self.empty,
             its(self.iterations_warm),

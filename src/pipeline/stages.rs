@@ -919,6 +919,7 @@ impl Exporter {
             summary.warm += 1;
         }
         summary.cold_fallbacks += usize::from(stats.cold_fallback);
+        *summary.starts.entry(stats.start.name().into()).or_default() += 1;
         summary.warnings += usize::from(rec.warnings.is_some());
         summary.empty += usize::from(r.polylines.is_empty());
         if self.warm {

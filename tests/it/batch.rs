@@ -120,3 +120,30 @@ fn good_files_are_done_bad_ones_named_and_a_rerun_skips_what_is_done() {
     assert!(err.contains("batch.workers = 0"), "{err}");
     assert!(!d.join("out2").exists());
 }
+
+/// A rerun that skips a finished file reports what the run that made its outputs did,
+/// whatever the formats (here no NDJSON to read the records back from).
+#[test]
+fn a_skipped_file_reports_the_counts_of_the_run_that_made_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let fixtures = Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures");
+    std::fs::create_dir(d.join("in")).unwrap();
+    std::fs::copy(fixtures.join("circle-500.xy"), d.join("in/circle.xy")).unwrap();
+    let job = d.join("job.toml");
+    std::fs::write(
+        &job,
+        "[batch]\ninputs = [\"in/*.xy\"]\noutput = \"out\"\nformats = [\"svg\", \"csv\"]\n",
+    )
+    .unwrap();
+    assert!(batch(&job, false).status.success());
+    let first = status_of(&summary(d), "circle.xy").clone();
+    assert_eq!(first["points"], 500);
+    assert!(batch(&job, false).status.success());
+    let s = summary(d);
+    let again = status_of(&s, "circle.xy");
+    assert_eq!(again["status"], "skipped");
+    for key in ["frames", "points", "polylines", "vertices", "iterations"] {
+        assert_eq!(again[key], first[key], "{key}: {s}");
+    }
+}

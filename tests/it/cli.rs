@@ -209,3 +209,138 @@ fn degenerate_point_sets_mesh_validly() {
         assert!(v["vertices"].as_u64().unwrap() >= 4, "{name}: {v}");
     }
 }
+
+/// A log that is not a terminal (a file, a pipe: here the test's pipe) holds plain
+/// text, no colour codes.
+#[test]
+fn logs_to_a_file_or_pipe_have_no_colour_codes() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let input = d.join("in.ndjson");
+    std::fs::write(&input, "{\"frame\": 0, \"points\": 7}\nnot json\n").unwrap();
+    let cfg = d.join("run.toml");
+    std::fs::write(
+        &cfg,
+        format!(
+            "[input]\npath = {:?}\nreplay = \"fast\"\n[output]\npath = {:?}\n",
+            p(&input),
+            p(&d.join("out.ndjson"))
+        ),
+    )
+    .unwrap();
+    let out = isoline(&["run", "-c", p(&cfg)]);
+    assert!(out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("bad input line"), "{err}");
+    assert!(!err.contains('\u{1b}'), "{err:?}");
+}
+
+/// `isoline --help` starts with what a new user reaches for, shows examples and says
+/// where the configuration and the docs are.
+#[test]
+fn the_help_shows_examples_and_the_main_commands_first() {
+    let out = isoline(&["--help"]);
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        text.contains("Examples:")
+            && text.contains("config/example.toml")
+            && text.contains("docs/"),
+        "{text}"
+    );
+    let at = |c: &str| {
+        text.find(&format!("\n  {c} "))
+            .unwrap_or_else(|| panic!("{c} in {text}"))
+    };
+    for first in ["reconstruct", "map", "run"] {
+        for later in ["synth", "eval", "mesh"] {
+            assert!(at(first) < at(later), "{first} after {later}: {text}");
+        }
+    }
+}
+
+/// An operating system's error is said once, with the file it concerns.
+#[test]
+fn an_os_error_is_said_once() {
+    let dir = tempfile::tempdir().unwrap();
+    let missing = dir.path().join("missing.xy");
+    let out = isoline(&["reconstruct", p(&missing)]);
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("missing.xy"), "{err}");
+    assert_eq!(err.matches("No such file or directory").count(), 1, "{err}");
+}
+
+/// The README's bag: `isoline map` without `--odometry` says how its scans get poses,
+/// and `isoline eval --map` scores the map with the same options `map` took.
+#[test]
+fn a_bag_without_odometry_says_so_and_eval_reads_the_bag_as_map_does() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let bag = root.join("fixtures/room-laser-80.mcap");
+    let map = d.join("map.geojson");
+    let out = isoline(&["map", p(&bag), "-o", p(&map), "--quiet"]);
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("--odometry TOPIC") && err.contains("--register"),
+        "{err}"
+    );
+    let out = isoline(&[
+        "map",
+        p(&bag),
+        "--odometry",
+        "/odom",
+        "-o",
+        p(&map),
+        "--quiet",
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let e = ok_json(&[
+        "eval",
+        p(&map),
+        "--map",
+        "--frames",
+        p(&bag),
+        "--odometry",
+        "/odom",
+    ]);
+    assert_eq!(e["scans"], 80, "{e}");
+    assert!(e["static_within"].as_f64().unwrap() > 0.9, "{e}");
+}
+
+/// The daemon's summary says where each frame's level set came from: scans are built
+/// from their own scan (not "0 warm starts" with warm starts on), points warm.
+#[test]
+fn the_run_summary_counts_what_each_frame_started_from() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let frames = d.join("f.ndjson");
+    crate::common::synth_room(&frames, 5, 0.1, &[]);
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    for (input, expect) in [
+        (frames.clone(), "starts: 5 scan;"),
+        (root.join("fixtures/ellipse-500-n001.ndjson"), "warm"),
+    ] {
+        let cfg = d.join("run.toml");
+        std::fs::write(
+            &cfg,
+            format!(
+                "[input]\npath = {:?}\nreplay = \"fast\"\n[output]\npath = {:?}\n[pipeline]\nwarm_start = true\n",
+                p(&input),
+                p(&d.join("out.ndjson"))
+            ),
+        )
+        .unwrap();
+        let _ = std::fs::remove_file(d.join("out.ndjson"));
+        let out = isoline(&["run", "-c", p(&cfg)]);
+        assert!(out.status.success());
+        let err = String::from_utf8_lossy(&out.stderr);
+        let line = err.lines().find(|l| l.contains("records (")).unwrap_or_default();
+        assert!(line.contains(expect) && !line.contains("warm starts"), "{err}");
+    }
+}

@@ -225,7 +225,7 @@ pub fn run(mut a: Args) -> Result<()> {
     let stats = run.map.stats();
     if stats.scans == 0 {
         read?;
-        bail!(
+        bail!(format!(
             "{}: no scan with a pose to place ({} without a pose, {} without beams, {} unreadable, {} beyond the map's reach{})",
             a.input.display(),
             run.skipped.no_pose,
@@ -236,7 +236,7 @@ pub fn run(mut a: Args) -> Result<()> {
                 .first()
                 .map(|e| format!("; first: {e}"))
                 .unwrap_or_default()
-        );
+        ) + &pose_hint(&a.input, &bag, run.skipped.no_pose));
     }
     let t = Instant::now();
     let (curves, scores) = run.map.finish()?;
@@ -278,6 +278,21 @@ pub fn run(mut a: Args) -> Result<()> {
             stats.scans
         ))
     })
+}
+
+/// What to do about scans without poses: a bag's come from its odometry or its
+/// transforms, which must be named; any recording's can be estimated.
+fn pose_hint(input: &Path, bag: &isoline_io::bag::BagOptions, no_pose: u64) -> String {
+    if no_pose == 0 {
+        return String::new();
+    }
+    if isoline_io::is_bag(input) && bag.odometry.is_none() && bag.world_frame.is_none() {
+        ". A bag's scans are placed by --odometry TOPIC (a nav_msgs/Odometry topic) or \
+         --world-frame FRAME (through /tf); or estimate their poses with --register"
+            .into()
+    } else {
+        ". Estimate the scans' poses from their returns with --register".into()
+    }
 }
 
 impl Run<'_> {
