@@ -97,6 +97,9 @@ struct Run<'a> {
     /// Each block of [`BLOCK`] scans: what it cost and what memory held at its end.
     blocks: Vec<Block>,
     block: Block,
+    /// `--quiet`, and when the last plain progress line was printed.
+    quiet: bool,
+    last_line: Instant,
 }
 
 /// Scans a row of the summary's `blocks` covers.
@@ -197,6 +200,8 @@ pub fn run(mut a: Args) -> Result<()> {
         since_write: 0,
         blocks: Vec::new(),
         block: Block::default(),
+        quiet: a.quiet,
+        last_line: Instant::now(),
     };
     let mut batch: Vec<(Scan, Pose, f64)> = Vec::with_capacity(BATCH);
     let mut failure: Option<anyhow::Error> = None;
@@ -209,7 +214,7 @@ pub fn run(mut a: Args) -> Result<()> {
                 failure = Some(e);
                 return false;
             }
-            show(&bar, &run, start);
+            show(&bar, &mut run, start);
         }
         true
     });
@@ -221,7 +226,7 @@ pub fn run(mut a: Args) -> Result<()> {
     let read = read.with_context(|| format!("reading {}", a.input.display()));
     run.fuse(&mut batch)?;
     run.close_block();
-    show(&bar, &run, start);
+    show(&bar, &mut run, start);
     let stats = run.map.stats();
     if stats.scans == 0 {
         read?;
@@ -415,7 +420,10 @@ impl Run<'_> {
 }
 
 fn progress(quiet: bool) -> indicatif::ProgressBar {
-    if quiet {
+    use std::io::IsTerminal;
+    // Off a terminal (a log file, a pipe) the bar draws nothing: `show` prints a plain
+    // line now and then instead.
+    if quiet || !std::io::stderr().is_terminal() {
         return indicatif::ProgressBar::hidden();
     }
     let b = indicatif::ProgressBar::new_spinner();
@@ -426,17 +434,30 @@ fn progress(quiet: bool) -> indicatif::ProgressBar {
     b
 }
 
-fn show(bar: &indicatif::ProgressBar, run: &Run<'_>, start: Instant) {
+fn show(bar: &indicatif::ProgressBar, run: &mut Run<'_>, start: Instant) {
     let s = run.map.stats();
-    bar.set_position(s.scans);
-    bar.set_message(format!(
+    let message = format!(
         "({:.0}/s), {} tiles in memory ({:.0} MB), {} stored",
         s.scans as f64 / start.elapsed().as_secs_f64().max(1e-9),
         s.tiles_resident,
         s.bytes as f64 / 1e6,
         s.tiles_stored
-    ));
+    );
+    if !bar.is_hidden() {
+        bar.set_position(s.scans);
+        bar.set_message(message);
+    } else if !run.quiet && run.last_line.elapsed() >= PLAIN_EVERY {
+        run.last_line = Instant::now();
+        eprintln!(
+            "isoline map: {:.0} s, {} scans {message}",
+            start.elapsed().as_secs_f64(),
+            s.scans
+        );
+    }
 }
+
+/// How often `isoline map` says how far it is when stderr is not a terminal.
+const PLAIN_EVERY: std::time::Duration = std::time::Duration::from_secs(10);
 
 /// Writes the map to every output, each atomically (a reader never sees half a map).
 fn write_all(outputs: &[PathBuf], curves: &[Polyline], poses: &[Point], scans: u64) -> Result<()> {
