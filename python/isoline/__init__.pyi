@@ -9,6 +9,9 @@ import numpy.typing as npt
 __version__: str
 
 Pose = Tuple[float, float, float]
+# What a pose argument takes: three numbers (x, y, heading in radians), as a tuple, a
+# list or a numpy array.
+PoseLike = Union[Tuple[float, float, float], Sequence[float], npt.NDArray[np.float64]]
 ArrayLike = npt.ArrayLike
 
 class IsolineError(ValueError):
@@ -29,7 +32,7 @@ class Frame:
         points: ArrayLike,
         *,
         origin: Optional[Tuple[float, float]] = None,
-        pose: Optional[Pose] = None,
+        pose: Optional[PoseLike] = None,
         t: Optional[float] = None,
         frame: int = 0,
         stream: Optional[str] = None,
@@ -43,7 +46,7 @@ class Frame:
         range_max: float,
         *,
         origin: Tuple[float, float] = (0.0, 0.0),
-        pose: Optional[Pose] = None,
+        pose: Optional[PoseLike] = None,
         t: Optional[float] = None,
         frame: int = 0,
         stream: Optional[str] = None,
@@ -60,6 +63,10 @@ class Frame:
     def points(self) -> npt.NDArray[np.float64]: ...
     @property
     def is_scan(self) -> bool: ...
+    @property
+    def ranges(self) -> Optional[npt.NDArray[np.float64]]: ...
+    @property
+    def angles(self) -> Optional[npt.NDArray[np.float64]]: ...
 
 class Result:
     """The curves of one frame, as the isoline binary writes them in a result record."""
@@ -90,7 +97,7 @@ class Result:
     def pose(self) -> Optional[Pose]: ...
     @property
     def registered_pose(self) -> Optional[Pose]: ...
-    def to_world(self) -> list[npt.NDArray[np.float64]]: ...
+    def to_world(self, *, close: bool = False) -> list[npt.NDArray[np.float64]]: ...
     def to_json(self) -> str: ...
 
 class Stream:
@@ -109,7 +116,7 @@ class Stream:
     def push(
         self,
         data: Union[Frame, ArrayLike],
-        pose: Optional[Pose] = None,
+        pose: Optional[PoseLike] = None,
         t: Optional[float] = None,
         frame: Optional[int] = None,
     ) -> Result: ...
@@ -131,7 +138,7 @@ def reconstruct_scan(
     angle_increment: float,
     range_min: float,
     range_max: float,
-    pose: Optional[Pose] = None,
+    pose: Optional[PoseLike] = None,
     params: Optional[Params] = None,
 ) -> Result: ...
 def reconstruct_frame(frame: Frame, params: Optional[Params] = None) -> Result: ...

@@ -485,3 +485,76 @@ def test_the_ndjson_line_cap_is_a_setting(tmp_path):
     with pytest.raises(isoline.IsolineError, match="longer than 100 bytes"):
         list(isoline.read_frames(path, errors="raise", max_line_bytes=100))
     assert len(list(isoline.read_frames(path, max_line_bytes=1 << 20))) == 1
+
+
+# --- poses as numpy users pass them ---------------------------------------------------
+
+
+def room_scan():
+    angles = np.linspace(-math.pi / 2, math.pi / 2, 181)
+    # A wall 2 m ahead: range 2 / cos(bearing), beyond 8 m none.
+    ranges = np.where(np.abs(angles) < 1.3, 2.0 / np.cos(angles), np.nan)
+    return ranges, float(angles[0]), float(angles[1] - angles[0])
+
+
+@pytest.mark.parametrize("pose", [(1.0, 2.0, 0.5), [1.0, 2.0, 0.5], np.array([1.0, 2.0, 0.5])])
+def test_a_pose_is_any_three_numbers(pose):
+    ranges, a0, step = room_scan()
+    r = isoline.reconstruct_scan(ranges, a0, step, 0.0, 8.0, pose=pose)
+    assert r.pose == (1.0, 2.0, 0.5)
+    f = isoline.Frame.from_scan(ranges, a0, step, 0.0, 8.0, pose=pose)
+    assert f.pose == (1.0, 2.0, 0.5)
+    assert isoline.Stream().push(f, pose=pose).pose == (1.0, 2.0, 0.5)
+
+
+def test_bad_poses_say_what_a_pose_is():
+    ranges, a0, step = room_scan()
+    with pytest.raises(TypeError, match="three numbers"):
+        isoline.reconstruct_scan(ranges, a0, step, 0.0, 8.0, pose=(1.0, 2.0))
+    with pytest.raises(TypeError, match="radians"):
+        isoline.reconstruct_scan(ranges, a0, step, 0.0, 8.0, pose="north")
+    with pytest.raises(isoline.IsolineError, match="not finite"):
+        isoline.reconstruct_scan(ranges, a0, step, 0.0, 8.0, pose=(0.0, math.nan, 0.0))
+
+
+def test_a_heading_in_degrees_is_warned_of_once(recwarn):
+    ranges, a0, step = room_scan()
+    isoline.reconstruct_scan(ranges, a0, step, 0.0, 8.0, pose=(0.0, 0.0, 90.0))
+    isoline.reconstruct_scan(ranges, a0, step, 0.0, 8.0, pose=(0.0, 0.0, 180.0))
+    said = [w for w in recwarn if "radians" in str(w.message)]
+    # Once a process: another test may have taken it already.
+    assert len(said) <= 1
+
+
+def test_a_scan_frame_gives_back_its_beams_and_world_curves_close():
+    ranges, a0, step = room_scan()
+    f = isoline.Frame.from_scan(ranges, a0, step, 0.0, 8.0, pose=(0.0, 0.0, 0.0))
+    assert len(f.ranges) == len(f.angles) == 181
+    assert np.isnan(f.ranges[0]) and abs(f.ranges[90] - 2.0) < 1e-12
+    assert abs(f.angles[0] - a0) < 1e-12
+    assert isoline.Frame.from_points(np.random.default_rng(1).random((50, 2))).ranges is None
+    # A closed curve in the world repeats its first point with close=True.
+    a = np.linspace(0, 2 * math.pi, 400, endpoint=False)
+    circle = np.c_[np.cos(a), np.sin(a)]
+    r = isoline.Stream().push(circle, pose=(5.0, 0.0, 0.0))
+    assert r.closed == [True]
+    opened, = r.to_world()
+    closed, = r.to_world(close=True)
+    assert len(closed) == len(opened) + 1
+    np.testing.assert_allclose(closed[0], closed[-1])
+    assert abs(opened[:, 0].mean() - 5.0) < 0.05
+
+
+def test_refinement_without_poses_is_said_once():
+    ranges, a0, step = room_scan()
+    stream = isoline.Stream(accumulate=5)
+    with pytest.warns(UserWarning, match="no"):
+        stream.push(isoline.Frame.from_scan(ranges, a0, step, 0.0, 8.0))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        stream.push(isoline.Frame.from_scan(ranges, a0, step, 0.0, 8.0, frame=1))
+
+
+def test_shape_errors_are_isoline_errors():
+    with pytest.raises(isoline.IsolineError, match="expected \\(N, 2\\)"):
+        isoline.reconstruct(np.ones((5, 3)))

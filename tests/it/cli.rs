@@ -340,7 +340,13 @@ fn the_run_summary_counts_what_each_frame_started_from() {
         let out = isoline(&["run", "-c", p(&cfg)]);
         assert!(out.status.success());
         let err = String::from_utf8_lossy(&out.stderr);
-        let line = err.lines().find(|l| l.contains("records (")).unwrap_or_default();
-        assert!(line.contains(expect) && !line.contains("warm starts"), "{err}");
+        let line = err
+            .lines()
+            .find(|l| l.contains("records ("))
+            .unwrap_or_default();
+        assert!(
+            line.contains(expect) && !line.contains("warm starts"),
+            "{err}"
+        );
     }
 }

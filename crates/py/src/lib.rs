@@ -16,7 +16,7 @@ use std::sync::Mutex;
 use numpy::ndarray::{Array1, Array2};
 use numpy::{AllowTypeChange, IntoPyArray, PyArray1, PyArray2, PyArrayLikeDyn};
 use pyo3::create_exception;
-use pyo3::exceptions::{PyMemoryError, PyOSError, PyStopIteration, PyValueError};
+use pyo3::exceptions::{PyMemoryError, PyOSError, PyStopIteration, PyTypeError, PyValueError};
 use pyo3::prelude::*;
 
 use isoline_core::{Point, WindowLimits};
@@ -64,10 +64,10 @@ fn reserve<T>(n: usize, what: &str) -> PyResult<Vec<T>> {
 fn points_of(obj: &Bound<'_, PyAny>, what: &str) -> PyResult<Vec<Point>> {
     let array: PyArrayLikeDyn<'_, f64, AllowTypeChange> = obj
         .extract()
-        .map_err(|e| PyValueError::new_err(format!("{what}: not an array of numbers ({e})")))?;
+        .map_err(|e| IsolineError::new_err(format!("{what}: not an array of numbers ({e})")))?;
     let view = array.as_array();
     if view.ndim() != 2 || view.shape()[1] != 2 {
-        return Err(PyValueError::new_err(format!(
+        return Err(IsolineError::new_err(format!(
             "{what}: shape {:?}, expected (N, 2)",
             view.shape()
         )));
@@ -81,16 +81,16 @@ fn points_of(obj: &Bound<'_, PyAny>, what: &str) -> PyResult<Vec<Point>> {
 fn vector_of(obj: &Bound<'_, PyAny>, what: &str, max: usize) -> PyResult<Vec<f64>> {
     let array: PyArrayLikeDyn<'_, f64, AllowTypeChange> = obj
         .extract()
-        .map_err(|e| PyValueError::new_err(format!("{what}: not an array of numbers ({e})")))?;
+        .map_err(|e| IsolineError::new_err(format!("{what}: not an array of numbers ({e})")))?;
     let view = array.as_array();
     if view.ndim() != 1 {
-        return Err(PyValueError::new_err(format!(
+        return Err(IsolineError::new_err(format!(
             "{what}: shape {:?}, expected (N,)",
             view.shape()
         )));
     }
     if view.len() > max {
-        return Err(PyValueError::new_err(format!(
+        return Err(IsolineError::new_err(format!(
             "{what}: {} values, at most {max}",
             view.len()
         )));
@@ -107,8 +107,9 @@ fn points_array<'py>(py: Python<'py>, points: &[Point]) -> Bound<'py, PyArray2<f
         .into_pyarray(py)
 }
 
-/// Reconstruction parameters: the `[mesh]`, `[solver]`, `[export]` and `[scan]` tables of
-/// an isoline configuration file (docs/config.md). `Params()` is the defaults, which
+/// Reconstruction parameters: the `[mesh]`, `[solver]`, `[export]`, `[scan]` and
+/// `[register]` tables of an isoline configuration file (every key, commented, in the
+/// repository's config/example.toml; docs/formats.md). `Params()` is the defaults, which
 /// derive every length from the data.
 ///
 /// >>> isoline.Params('[export]\nsimplify = 0.01\n')
@@ -159,15 +160,69 @@ fn params_or_default(params: Option<&Params>) -> isoline_core::Params {
 }
 
 /// One frame: points, or a laser scan's beams, with its stream, number, time and pose.
-/// The readers yield them; `Frame.points` and `Frame.scan` make them.
+/// `read_frames` yields them; `Frame.from_points` and `Frame.from_scan` make them.
 #[pyclass(module = "isoline", frozen)]
 #[derive(Clone)]
 struct Frame {
     inner: isoline_io::Frame,
 }
 
-fn pose_of(pose: Option<(f64, f64, f64)>) -> Option<[f64; 3]> {
-    pose.map(|(x, y, th)| [x, y, th])
+/// A pose as Python gives it: any three numbers (a tuple, a list, a numpy array), `x`
+/// and `y` in the data's units (metres for scans) and the heading in radians,
+/// counter-clockwise: where the frame's coordinates (the sensor's, for a scan) sit in
+/// the world. `None` is no pose. Not three numbers is a `TypeError`; a non-finite one
+/// an `IsolineError`, as the readers refuse it; a heading beyond a turn is taken as
+/// given (unwrapped odometry has them) with one warning that it may be in degrees.
+fn pose_arg(py: Python<'_>, obj: Option<&Bound<'_, PyAny>>) -> PyResult<Option<[f64; 3]>> {
+    let Some(obj) = obj.filter(|o| !o.is_none()) else {
+        return Ok(None);
+    };
+    let shown = || obj.repr().map_or_else(|_| "?".into(), |r| r.to_string());
+    let v: Vec<f64> = obj.extract().map_err(|_| {
+        PyTypeError::new_err(format!(
+            "pose: expected three numbers (x, y, heading in radians), got {}",
+            shown()
+        ))
+    })?;
+    let [x, y, th] = v[..] else {
+        return Err(PyTypeError::new_err(format!(
+            "pose: expected three numbers (x, y, heading in radians), got {} numbers",
+            v.len()
+        )));
+    };
+    if !(x.is_finite() && y.is_finite() && th.is_finite()) {
+        return Err(IsolineError::new_err(format!(
+            "invalid scan: pose ({x}, {y}, {th}) is not finite"
+        )));
+    }
+    if th.abs() > std::f64::consts::TAU {
+        warn_once(
+            py,
+            &HEADING_WARNED,
+            &format!(
+                "pose heading {th} is more than a turn: headings are in radians (degrees?); \
+                 it is taken as given"
+            ),
+        )?;
+    }
+    Ok(Some([x, y, th]))
+}
+
+/// Whether the heading warning was given (once a process).
+static HEADING_WARNED: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
+
+/// A `UserWarning` with `text`, unless `flag` says it was given.
+fn warn_once(py: Python<'_>, flag: &std::sync::atomic::AtomicBool, text: &str) -> PyResult<()> {
+    if flag.swap(true, std::sync::atomic::Ordering::Relaxed) {
+        return Ok(());
+    }
+    let warning = py.get_type::<pyo3::exceptions::PyUserWarning>();
+    PyErr::warn(
+        py,
+        &warning,
+        &std::ffi::CString::new(text.replace('\0', " ")).unwrap_or_default(),
+        1,
+    )
 }
 
 #[pymethods]
@@ -180,11 +235,12 @@ impl Frame {
     fn from_points(
         points: &Bound<'_, PyAny>,
         origin: Option<(f64, f64)>,
-        pose: Option<(f64, f64, f64)>,
+        pose: Option<&Bound<'_, PyAny>>,
         t: Option<f64>,
         frame: u64,
         stream: Option<String>,
     ) -> PyResult<Self> {
+        let pose = pose_arg(points.py(), pose)?;
         let points = points_of(points, "points")?;
         isoline_core::validate_points(&points).map_err(core_error)?;
         let record = FrameRecord {
@@ -193,7 +249,7 @@ impl Frame {
             t,
             points,
             origin: origin.map(|(x, y)| [x, y]),
-            pose: pose_of(pose),
+            pose,
             ..Default::default()
         };
         Ok(Frame {
@@ -216,11 +272,12 @@ impl Frame {
         range_min: f64,
         range_max: f64,
         origin: (f64, f64),
-        pose: Option<(f64, f64, f64)>,
+        pose: Option<&Bound<'_, PyAny>>,
         t: Option<f64>,
         frame: u64,
         stream: Option<String>,
     ) -> PyResult<Self> {
+        let pose = pose_arg(ranges.py(), pose)?;
         let ranges = vector_of(ranges, "ranges", isoline_core::MAX_BEAMS)?
             .into_iter()
             .map(|r| (r.is_finite() && r >= range_min && r <= range_max).then_some(r))
@@ -230,7 +287,7 @@ impl Frame {
             frame,
             t,
             origin: Some([origin.0, origin.1]),
-            pose: pose_of(pose),
+            pose,
             ranges: Some(ranges),
             angle_min: Some(angle_min),
             angle_increment: Some(angle_increment),
@@ -277,6 +334,22 @@ impl Frame {
     #[getter]
     fn is_scan(&self) -> bool {
         self.inner.scan.is_some()
+    }
+
+    /// A scan's ranges, one a beam in bearing order, NaN where a beam returned nothing
+    /// (metres); `None` for points without a sensor.
+    #[getter]
+    fn ranges<'py>(&self, py: Python<'py>) -> Option<Bound<'py, PyArray1<f64>>> {
+        let scan = self.inner.scan.as_ref()?;
+        Some(PyArray1::from_slice(py, &scan.ranges))
+    }
+
+    /// A scan's beam bearings, radians, counter-clockwise from the frame's x axis, one a
+    /// range; `None` for points without a sensor.
+    #[getter]
+    fn angles<'py>(&self, py: Python<'py>) -> Option<Bound<'py, PyArray1<f64>>> {
+        let scan = self.inner.scan.as_ref()?;
+        Some(PyArray1::from_slice(py, &scan.angles))
     }
 
     fn __repr__(&self) -> String {
@@ -422,8 +495,16 @@ impl Result {
         self.record.registered_pose.map(|[x, y, th]| (x, y, th))
     }
 
-    /// The curves placed in the world by the frame's pose (`ValueError` without one).
-    fn to_world<'py>(&self, py: Python<'py>) -> PyResult<Vec<Bound<'py, PyArray2<f64>>>> {
+    /// The curves placed in the world by the frame's pose (`ValueError` without one),
+    /// in the order of `polylines` and `closed`; with `close=True` a closed curve
+    /// repeats its first point at its end (as GeoJSON rings do), so that it draws
+    /// closed.
+    #[pyo3(signature = (*, close = false))]
+    fn to_world<'py>(
+        &self,
+        py: Python<'py>,
+        close: bool,
+    ) -> PyResult<Vec<Bound<'py, PyArray2<f64>>>> {
         let pose = self
             .record
             .pose
@@ -434,11 +515,14 @@ impl Result {
             .iter()
             .flatten()
             .map(|p| {
-                let world: Vec<Point> = p
+                let mut world: Vec<Point> = p
                     .points
                     .iter()
                     .map(|&q| isoline_core::geom::to_world(pose, q))
                     .collect();
+                if close && p.closed && !world.is_empty() {
+                    world.push(world[0]);
+                }
                 points_array(py, &world)
             })
             .collect())
@@ -497,7 +581,7 @@ fn reconstruct_scan(
     angle_increment: f64,
     range_min: f64,
     range_max: f64,
-    pose: Option<(f64, f64, f64)>,
+    pose: Option<&Bound<'_, PyAny>>,
     params: Option<&Params>,
 ) -> PyResult<Result> {
     let frame = Frame::from_scan(
@@ -536,6 +620,10 @@ struct Stream {
     next: u64,
     /// With `register=True`: the stream's pose stage (isoline-map).
     registrar: Option<isoline_map::Registrar>,
+    /// The refinement window's frames (`accumulate`).
+    accumulate: usize,
+    /// Whether the warning that a scan without a pose is not refined was given.
+    warned_no_pose: std::sync::atomic::AtomicBool,
 }
 
 #[pymethods]
@@ -582,6 +670,8 @@ impl Stream {
             inner,
             next: 0,
             registrar,
+            accumulate,
+            warned_no_pose: std::sync::atomic::AtomicBool::new(false),
         })
     }
 
@@ -593,10 +683,11 @@ impl Stream {
         &mut self,
         py: Python<'_>,
         data: &Bound<'_, PyAny>,
-        pose: Option<(f64, f64, f64)>,
+        pose: Option<&Bound<'_, PyAny>>,
         t: Option<f64>,
         frame: Option<u64>,
     ) -> PyResult<Result> {
+        let pose = pose_arg(py, pose)?;
         let mut f = match data.cast::<Frame>() {
             Ok(f) => f.get().inner.clone(),
             Err(_) => {
@@ -607,19 +698,26 @@ impl Stream {
         if let Some(n) = frame {
             f.frame = n;
         }
-        // What every constructor and reader refuses, refused here too.
-        if let Some(p) = pose.filter(|p| ![p.0, p.1, p.2].iter().all(|v| v.is_finite())) {
-            return Err(IsolineError::new_err(format!(
-                "invalid scan: pose {p:?} is not finite"
-            )));
-        }
+        // What every constructor and reader refuses, refused here too (the pose by
+        // pose_arg).
         if let Some(t) = t.filter(|t| !t.is_finite()) {
             return Err(IsolineError::new_err(format!(
                 "invalid scan: t = {t} is not finite"
             )));
         }
         if pose.is_some() {
-            f.pose = pose_of(pose);
+            f.pose = pose;
+        }
+        // Refinement places each scan by its pose: a scan without one is built from
+        // itself alone, which is said once.
+        if self.accumulate > 1 && f.scan.is_some() && f.pose.is_none() && self.registrar.is_none() {
+            warn_once(
+                py,
+                &self.warned_no_pose,
+                "Stream(accumulate=...) refines scans over frames placed by their poses: this \
+                 scan has none, so it is built from itself alone (give pose=, or \
+                 register=True to estimate poses)",
+            )?;
         }
         if t.is_some() {
             f.t = t;
