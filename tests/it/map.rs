@@ -73,8 +73,8 @@ fn a_drive_through_the_room_is_one_map_near_the_walls_without_the_person() {
         }
     }
     // The room's 28 m of walls, less its two doorways' 1.8 m, and walls outside seen
-    // through them.
-    assert!(length > 26.0, "{length} m");
+    // through them: 41.9 m measured; at most a twentieth less.
+    assert!(length > 39.8, "{length} m");
     let s: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&stats).unwrap()).unwrap();
     assert_eq!(s["scans"], 100);

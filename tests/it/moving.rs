@@ -42,8 +42,8 @@ fn replay_with(dir: &Path, frames: &Path, name: &str, pipeline: &str) -> Vec<Val
 
 /// Per frame: a warm frame has a curve wherever the cold one has; at least 90% of the
 /// frames are warm; the robust fit (90th percentile of the points' distances to the
-/// curves) and, if `compare_residuals`, the eq. 11 residual are within twice the cold
-/// ones; the share of points explained within `slack`
+/// curves) and, if `compare_residuals`, the eq. 11 residual are within a quarter of the
+/// cold ones; the share of points explained within `slack`
 /// of the cold one; no warnings. Returns the warm share.
 fn warm_is_never_worse(warm: &[Value], cold: &[Value], slack: f64, compare_residuals: bool) -> f64 {
     assert_eq!(warm.len(), cold.len());
@@ -63,7 +63,9 @@ fn warm_is_never_worse(warm: &[Value], cold: &[Value], slack: f64, compare_resid
             sw["fit_p90"].as_f64().unwrap(),
             sc["fit_p90"].as_f64().unwrap(),
         );
-        assert!(pw <= 2.0 * pc, "frame {f}: fit p90 {pw} warm, {pc} cold");
+        // Measured at most 1.09 (fit) and 1.15 (residual) over these streams; the bound
+        // is a quarter above the cold one.
+        assert!(pw <= 1.25 * pc, "frame {f}: fit p90 {pw} warm, {pc} cold");
         let (rw, rc) = (
             sw["residual"].as_f64().unwrap(),
             sc["residual"].as_f64().unwrap(),
@@ -72,7 +74,7 @@ fn warm_is_never_worse(warm: &[Value], cold: &[Value], slack: f64, compare_resid
         // that differ anywhere place the curve's end differently (it moves by a factor
         // of 2.6 between consecutive cold frames): there the robust fit is compared.
         assert!(
-            !compare_residuals || rw <= 2.0 * rc,
+            !compare_residuals || rw <= 1.25 * rc,
             "frame {f}: residual {rw} warm, {rc} cold"
         );
         let (ew, ec) = (
@@ -192,11 +194,11 @@ fn moving_scanner_is_built_from_each_scan(scene: &str) {
     }
     // Against the scene: per frame, the Hausdorff distance to the walls in view and
     // the walls the curves miss. A wall seen at grazing incidence by a few returns may
-    // be missed; a wall no further than the band's reach (8 (sigma + hmin), 16 cm)
-    // from every curve point is the bound on the median frame.
+    // be missed. The median frame measured 0.050 m (room) and 0.066 m (corridor, whose
+    // far ends are seen at grazing incidence); the bound is a quarter above the worse.
     let (h, missed) = accuracy(dir.path(), "warm", &frames, &truth);
     eprintln!("{scene}: median Hausdorff {h:.4}; walls missed {missed} in {FRAMES} frames");
-    assert!(h <= 0.16, "{scene}: median Hausdorff {h}");
+    assert!(h <= 0.085, "{scene}: median Hausdorff {h}");
     // At most one frame in a hundred misses a wall.
     assert!(
         100 * missed <= FRAMES,

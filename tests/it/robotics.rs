@@ -1009,7 +1009,9 @@ fn the_daemon_writes_the_map_as_it_grows_and_shows_it_live() {
         }
         length += f["properties"]["length"].as_f64().unwrap();
     }
-    assert!(length > 20.0, "{length} m of map");
+    // The room's walls and those seen through its doorways: 42.2 m measured; at most a
+    // twentieth less.
+    assert!(length > 40.0, "{length} m of map");
     // The live view kept the map for a viewer that connects after the run.
     let got = watch(
         &addr.expect("the live view's address"),
