@@ -115,11 +115,13 @@ impl<W: Write> RecordWriter<W> {
         match self.format {
             Format::Ndjson => write_ndjson(&mut self.out, rec)?,
             Format::Json => {
-                let text = indent(&serde_json::to_string_pretty(rec)?);
+                let text = serde_json::to_string_pretty(rec)?;
                 match (self.written, self.first.take()) {
                     (0, _) => self.first = Some(text),
-                    (_, Some(first)) => write!(self.out, "[\n{first},\n{text}")?,
-                    _ => write!(self.out, ",\n{text}")?,
+                    (_, Some(first)) => {
+                        write!(self.out, "[\n{},\n{}", indent(&first), indent(&text))?;
+                    }
+                    _ => write!(self.out, ",\n{}", indent(&text))?,
                 }
             }
             Format::GeoJson => {
@@ -146,7 +148,7 @@ impl<W: Write> RecordWriter<W> {
         match self.format {
             Format::Json => match (self.written, self.first.take()) {
                 (0, _) => self.out.write_all(b"[]\n")?,
-                (1, Some(first)) => writeln!(self.out, "{}", first.replace("\n  ", "\n"))?,
+                (1, Some(first)) => writeln!(self.out, "{first}")?,
                 _ => self.out.write_all(b"\n]\n")?,
             },
             Format::GeoJson => self.out.write_all(b"]}\n")?,
@@ -383,6 +385,24 @@ mod tests {
                 points: vec![[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]],
             }]),
             ..Default::default()
+        }
+    }
+
+    /// Written one at a time, JSON is an empty array, one object or an array, each as
+    /// the whole would be; GeoJSON and CSV parse for any count.
+    #[test]
+    fn records_written_one_at_a_time_make_whole_documents() {
+        for n in 0..4 {
+            let recs: Vec<ResultRecord> = (0..n).map(|_| rec()).collect();
+            let v: serde_json::Value = serde_json::from_str(&to_json(&recs)).unwrap();
+            match n {
+                1 => assert_eq!(serde_json::from_value::<ResultRecord>(v).unwrap(), rec()),
+                _ => assert_eq!(v.as_array().map(Vec::len), Some(n)),
+            }
+            assert!(!to_json(&recs).starts_with(' '));
+            let g: serde_json::Value = serde_json::from_str(&to_geojson(&recs)).unwrap();
+            assert_eq!(g["features"].as_array().unwrap().len(), n);
+            assert_eq!(to_csv(&recs).lines().count(), 1 + 3 * n);
         }
     }
 
