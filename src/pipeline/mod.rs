@@ -114,6 +114,10 @@ pub struct RunSummary {
     /// Median milliseconds a reconstructed frame spent in the compute stages (its
     /// record's `stats.ms.total`).
     pub stage_ms_p50: Option<f64>,
+    /// Median milliseconds a reconstructed frame waited: its latency less its time in
+    /// the compute stages (queues, stages busy with other frames, a CPU busy with other
+    /// work shows in the stages' own time and in `cpu_seconds` instead).
+    pub wait_ms_p50: Option<f64>,
     /// Mean milliseconds a reconstructed frame spent in each stage: distance, adapt,
     /// solve, renormalize, export (they add up to the mean total).
     pub stage_ms_mean: Option<[f64; 5]>,
@@ -178,6 +182,12 @@ impl std::fmt::Display for RunSummary {
                 f,
                 "; stages {p50:.2} ms a frame (median; mean distance {d:.2}, adapt {a:.2}, \
                  solve {s:.2}, renormalize {r:.2}, export {e:.2})"
+            )?;
+        }
+        if let Some(w) = self.wait_ms_p50 {
+            write!(
+                f,
+                "; waiting {w:.2} ms a frame (median: latency less the stages)"
             )?;
         }
         if self.live_dropped > 0 {

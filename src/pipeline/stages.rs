@@ -929,6 +929,8 @@ impl Exporter {
         }
         self.tally.iterations(stats.warm_start, stats.iterations);
         self.tally.stages(&stats.ms);
+        self.tally
+            .wait(latency.as_secs_f64() * 1e3 - stats.ms.total);
         summary.reconstructed += 1;
     }
 
@@ -978,6 +980,9 @@ struct Tally {
     cold_its: Histogram<u64>,
     /// Microseconds in the compute stages, per frame.
     stages_us: Histogram<u64>,
+    /// Microseconds a frame waited (its latency less its time in the stages): queues,
+    /// and a stage busy with other streams' frames.
+    wait_us: Histogram<u64>,
     /// Milliseconds per stage, summed over the frames.
     stage_sums: [f64; 5],
 }
@@ -990,6 +995,7 @@ impl Tally {
             warm_its: h(isoline_core::stages::MAX_STEPS as u64),
             cold_its: h(isoline_core::stages::MAX_STEPS as u64),
             stages_us: h(3_600_000_000),
+            wait_us: h(3_600_000_000),
             stage_sums: [0.0; 5],
         }
     }
@@ -1001,6 +1007,11 @@ impl Tally {
         for (sum, x) in self.stage_sums.iter_mut().zip(parts) {
             *sum += x;
         }
+    }
+
+    fn wait(&mut self, ms: f64) {
+        self.wait_us
+            .saturating_record((ms.max(0.0) * 1e3).round() as u64);
     }
 
     fn latency(&mut self, d: Duration) {
@@ -1024,6 +1035,7 @@ impl Tally {
         s.iterations_warm = q(&self.warm_its, 0.5).map(|n| n as f64);
         s.iterations_cold = q(&self.cold_its, 0.5).map(|n| n as f64);
         s.stage_ms_p50 = q(&self.stages_us, 0.5).map(|us| us as f64 / 1e3);
+        s.wait_ms_p50 = q(&self.wait_us, 0.5).map(|us| us as f64 / 1e3);
         let frames = self.stages_us.len();
         s.stage_ms_mean = (frames > 0).then(|| self.stage_sums.map(|sum| sum / frames as f64));
     }
@@ -1220,10 +1232,16 @@ mod tests {
         let mean = s.stage_ms_mean.expect("three frames");
         assert_eq!(mean, [2.0, 4.0, 0.5, 0.0, 1.5]);
         assert_eq!(mean.iter().sum::<f64>(), 8.0);
-        let bytes = [&t.latency_us, &t.warm_its, &t.cold_its, &t.stages_us]
-            .iter()
-            .map(|h| h.distinct_values() * 8)
-            .sum::<usize>();
+        let bytes = [
+            &t.latency_us,
+            &t.warm_its,
+            &t.cold_its,
+            &t.stages_us,
+            &t.wait_us,
+        ]
+        .iter()
+        .map(|h| h.distinct_values() * 8)
+        .sum::<usize>();
         assert!(bytes < 1 << 20, "{bytes}");
     }
 
