@@ -129,10 +129,19 @@ fn svg(curves: &[Polyline], path_taken: &[Point]) -> String {
             dots.push(p);
         }
     }
+    // A margin of 3% of the diagonal round everything drawn.
+    let all: Vec<Point> = curves
+        .iter()
+        .flat_map(|c| c.points.iter().copied())
+        .chain(dots.iter().copied())
+        .collect();
+    let view = isoline_core::geom::BBox::of(&all).map(|b| b.padded(0.03 * b.diag()));
     crate::write::svg::render(
         &crate::write::svg::Drawing {
             points: &dots,
             polylines: curves,
+            view,
+            map: true,
             ..Default::default()
         },
         1600.0,
@@ -170,6 +179,14 @@ mod tests {
             serde_json::from_str(&std::fs::read_to_string(dir.path().join("m.ndjson")).unwrap())
                 .unwrap();
         assert_eq!((rec.stream.as_deref(), rec.frame), (Some("map"), Some(7)));
+        // The drawing says what it shows and at what scale, with a margin round it.
+        let svg = std::fs::read_to_string(dir.path().join("m.svg")).unwrap();
+        assert!(svg.contains("the robot's path") && svg.contains("the map's curves"));
+        assert!(svg.contains(" m</text>"), "a scale bar");
+        assert!(
+            !svg.contains(r#"d="M0.00 "#),
+            "the curves start inside the margin"
+        );
         let e = write_map(&dir.path().join("m.png"), &square(), &[], 1).unwrap_err();
         assert!(e.to_string().contains(".geojson"), "{e}");
     }

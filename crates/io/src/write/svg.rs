@@ -25,10 +25,16 @@ pub struct Drawing<'a> {
     pub features: &'a [Point],
     /// Reference curves (the truth), drawn thin under the curves.
     pub truth: &'a [Polyline],
+    /// A world map: `points` are the robot's path, and the strip below says so, with a
+    /// scale bar.
+    pub map: bool,
 }
 
 /// Height of the strip under a scan's drawing that holds its legend and scale bar.
 const FOOTER: f64 = 118.0;
+
+/// The same under a map's (two legend lines).
+const MAP_FOOTER: f64 = 64.0;
 
 /// Renders `d` as an SVG document `width` pixels wide (and, for a scan, a strip below
 /// with the legend and a scale bar).
@@ -49,8 +55,15 @@ pub fn render(d: &Drawing<'_>, width: f64) -> String {
     let s = width / span;
     let (w, h) = (size[0] * s, size[1] * s);
     let tx = |p: Point| ((p[0] - view.min[0]) * s, (view.max[1] - p[1]) * s);
-    // A scan's legend and scale bar go in a strip below the drawing, never over data.
-    let footer = if d.sensor.is_some() { FOOTER } else { 0.0 };
+    // A scan's or a map's legend and scale bar go in a strip below the drawing, never
+    // over data.
+    let footer = if d.sensor.is_some() {
+        FOOTER
+    } else if d.map {
+        MAP_FOOTER
+    } else {
+        0.0
+    };
     let full = h + footer;
     let mut out = String::new();
     let _ = writeln!(
@@ -86,8 +99,11 @@ pub fn render(d: &Drawing<'_>, width: f64) -> String {
         out.push_str("\"/>\n");
     }
     if !d.points.is_empty() {
-        out.push_str(
-            r##"<path fill="none" stroke="#d1495b" stroke-width="1.6" stroke-linecap="round" d=""##,
+        // A map's path is a dot a metre: drawn larger than a scan's returns.
+        let dot = if d.map { 5.0 } else { 1.6 };
+        let _ = write!(
+            out,
+            r##"<path fill="none" stroke="#d1495b" stroke-width="{dot}" stroke-linecap="round" d=""##
         );
         for &p in d.points {
             let (x, y) = tx(p);
@@ -128,6 +144,8 @@ pub fn render(d: &Drawing<'_>, width: f64) -> String {
             out,
             r##"<circle cx="{x:.2}" cy="{y:.2}" r="6" fill="#f4a261" stroke="#222" stroke-width="1.2"/>"##
         );
+    }
+    if footer > 0.0 {
         // A scale bar: the round length nearest a fifth of the width.
         let target = span / 5.0;
         let mag = 10f64.powf(target.log10().floor());
@@ -147,7 +165,7 @@ pub fn render(d: &Drawing<'_>, width: f64) -> String {
             y0 - 10.0
         );
         // The legend, in the strip below the drawing.
-        let items: [(&str, &str); 5] = [
+        let scan_items: [(&str, &str); 5] = [
             (
                 r##"<circle cx="8" cy="-4" r="6" fill="#f4a261" stroke="#222" stroke-width="1.2"/>"##,
                 "sensor",
@@ -169,6 +187,21 @@ pub fn render(d: &Drawing<'_>, width: f64) -> String {
                 "returns no curve explains",
             ),
         ];
+        let map_items: [(&str, &str); 2] = [
+            (
+                r##"<path d="M0 -4H16" stroke="#222" stroke-width="1.2"/>"##,
+                "the map's curves (free side on the left)",
+            ),
+            (
+                r##"<circle cx="8" cy="-4" r="2.5" fill="#d1495b"/>"##,
+                "the robot's path (a dot a metre)",
+            ),
+        ];
+        let items: &[(&str, &str)] = if d.sensor.is_some() {
+            &scan_items
+        } else {
+            &map_items
+        };
         let _ = writeln!(
             out,
             r##"<path d="M0 {h:.2}H{w:.2}" stroke="#ccc" stroke-width="1"/>"##
@@ -208,5 +241,6 @@ pub fn of_reconstruction<'a>(
         free: r.free_space.as_ref().map(|f| &f.1),
         features,
         truth,
+        map: false,
     }
 }
