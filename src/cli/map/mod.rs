@@ -100,6 +100,8 @@ struct Run<'a> {
     /// `--quiet`, and when the last plain progress line was printed.
     quiet: bool,
     last_line: Instant,
+    /// The scans to fuse, when known (registration counted them).
+    total: Option<u64>,
 }
 
 /// Scans a row of the summary's `blocks` covers.
@@ -183,6 +185,19 @@ pub fn run(mut a: Args) -> Result<()> {
     } else {
         None
     };
+    // Registration has counted the scans: the map's pass knows its total, and the bar
+    // its time left.
+    let total = registration.as_ref().map(|r| r.poses.len() as u64);
+    if let Some(n) = total {
+        bar.set_length(n);
+        bar.set_position(0);
+        bar.set_style(
+            indicatif::ProgressStyle::with_template(
+                "{elapsed} {pos}/{len} scans, {eta} left {msg}",
+            )
+            .expect("a valid template"),
+        );
+    }
     let mut run = Run {
         map,
         params: cfg.params(),
@@ -202,6 +217,7 @@ pub fn run(mut a: Args) -> Result<()> {
         block: Block::default(),
         quiet: a.quiet,
         last_line: Instant::now(),
+        total,
     };
     let mut batch: Vec<(Scan, Pose, f64)> = Vec::with_capacity(BATCH);
     let mut failure: Option<anyhow::Error> = None;
@@ -448,8 +464,9 @@ fn show(bar: &indicatif::ProgressBar, run: &mut Run<'_>, start: Instant) {
         bar.set_message(message);
     } else if !run.quiet && run.last_line.elapsed() >= PLAIN_EVERY {
         run.last_line = Instant::now();
+        let of = run.total.map_or(String::new(), |n| format!(" of {n}"));
         eprintln!(
-            "isoline map: {:.0} s, {} scans {message}",
+            "isoline map: {:.0} s, {} scans{of} {message}",
             start.elapsed().as_secs_f64(),
             s.scans
         );
