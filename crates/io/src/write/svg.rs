@@ -146,76 +146,82 @@ pub fn render(d: &Drawing<'_>, width: f64) -> String {
         );
     }
     if footer > 0.0 {
-        // A scale bar: the round length nearest a fifth of the width.
-        let target = span / 5.0;
-        let mag = 10f64.powf(target.log10().floor());
-        let len = [1.0, 2.0, 5.0, 10.0]
-            .iter()
-            .map(|m| m * mag)
-            .min_by(|a, b| (a - target).abs().total_cmp(&(b - target).abs()))
-            .unwrap_or(mag);
-        let x1 = w - 20.0;
-        let (x0, y0) = (x1 - len * s, h + footer - 20.0);
-        let _ = writeln!(
-            out,
-            r##"<path fill="none" stroke="#222" stroke-width="2" d="M{x0:.2} {:.2}V{y0:.2}H{x1:.2}V{:.2}"/><text x="{:.2}" y="{:.2}" font-family="sans-serif" font-size="14" text-anchor="middle">{len} m</text>"##,
-            y0 - 6.0,
-            y0 - 6.0,
-            0.5 * (x0 + x1),
-            y0 - 10.0
-        );
-        // The legend, in the strip below the drawing.
-        let scan_items: [(&str, &str); 5] = [
-            (
-                r##"<circle cx="8" cy="-4" r="6" fill="#f4a261" stroke="#222" stroke-width="1.2"/>"##,
-                "sensor",
-            ),
-            (
-                r##"<rect x="0" y="-10" width="16" height="12" fill="#cfe8f7" stroke="#9cc9e6"/>"##,
-                "free space the rays swept",
-            ),
-            (
-                r##"<circle cx="8" cy="-4" r="2" fill="#d1495b"/>"##,
-                "returns",
-            ),
-            (
-                r##"<path d="M0 -4H16" stroke="#1d3557" stroke-width="2.2"/>"##,
-                "curves (free side on the left)",
-            ),
-            (
-                r##"<circle cx="8" cy="-4" r="5" fill="none" stroke="#e76f51" stroke-width="1.5"/>"##,
-                "returns no curve explains",
-            ),
-        ];
-        let map_items: [(&str, &str); 2] = [
-            (
-                r##"<path d="M0 -4H16" stroke="#222" stroke-width="1.2"/>"##,
-                "the map's curves (free side on the left)",
-            ),
-            (
-                r##"<circle cx="8" cy="-4" r="2.5" fill="#d1495b"/>"##,
-                "the robot's path (a dot a metre)",
-            ),
-        ];
-        let items: &[(&str, &str)] = if d.sensor.is_some() {
-            &scan_items
-        } else {
-            &map_items
-        };
-        let _ = writeln!(
-            out,
-            r##"<path d="M0 {h:.2}H{w:.2}" stroke="#ccc" stroke-width="1"/>"##
-        );
-        for (k, (swatch, label)) in items.iter().enumerate() {
-            let y = h + 24.0 + 20.0 * k as f64;
-            let _ = writeln!(
-                out,
-                r##"<g transform="translate(18 {y:.0})">{swatch}<text x="24" y="0" font-family="sans-serif" font-size="14">{label}</text></g>"##
-            );
-        }
+        scale_bar(&mut out, span, s, w, h + footer);
+        legend(&mut out, d.sensor.is_some(), w, h);
     }
     out.push_str("</svg>\n");
     out
+}
+
+/// A scale bar at the bottom right of a drawing `w` wide whose strip ends at `bottom`:
+/// the round length (1, 2 or 5 times a power of ten) nearest a fifth of the `span` in
+/// view, drawn at `s` pixels a unit.
+fn scale_bar(out: &mut String, span: f64, s: f64, w: f64, bottom: f64) {
+    let target = span / 5.0;
+    let mag = 10f64.powf(target.log10().floor());
+    let len = [1.0, 2.0, 5.0, 10.0]
+        .iter()
+        .map(|m| m * mag)
+        .min_by(|a, b| (a - target).abs().total_cmp(&(b - target).abs()))
+        .unwrap_or(mag);
+    let x1 = w - 20.0;
+    let (x0, y0) = (x1 - len * s, bottom - 20.0);
+    let _ = writeln!(
+        out,
+        r##"<path fill="none" stroke="#222" stroke-width="2" d="M{x0:.2} {:.2}V{y0:.2}H{x1:.2}V{:.2}"/><text x="{:.2}" y="{:.2}" font-family="sans-serif" font-size="14" text-anchor="middle">{len} m</text>"##,
+        y0 - 6.0,
+        y0 - 6.0,
+        0.5 * (x0 + x1),
+        y0 - 10.0
+    );
+}
+
+/// The legend in the strip below a drawing `w` by `h`: a scan's items, or a map's.
+fn legend(out: &mut String, scan: bool, w: f64, h: f64) {
+    let scan_items: [(&str, &str); 5] = [
+        (
+            r##"<circle cx="8" cy="-4" r="6" fill="#f4a261" stroke="#222" stroke-width="1.2"/>"##,
+            "sensor",
+        ),
+        (
+            r##"<rect x="0" y="-10" width="16" height="12" fill="#cfe8f7" stroke="#9cc9e6"/>"##,
+            "free space the rays swept",
+        ),
+        (
+            r##"<circle cx="8" cy="-4" r="2" fill="#d1495b"/>"##,
+            "returns",
+        ),
+        (
+            r##"<path d="M0 -4H16" stroke="#1d3557" stroke-width="2.2"/>"##,
+            "curves (free side on the left)",
+        ),
+        (
+            r##"<circle cx="8" cy="-4" r="5" fill="none" stroke="#e76f51" stroke-width="1.5"/>"##,
+            "returns no curve explains",
+        ),
+    ];
+    let map_items: [(&str, &str); 2] = [
+        (
+            r##"<path d="M0 -4H16" stroke="#222" stroke-width="1.2"/>"##,
+            "the map's curves (free side on the left)",
+        ),
+        (
+            r##"<circle cx="8" cy="-4" r="2.5" fill="#d1495b"/>"##,
+            "the robot's path (a dot a metre)",
+        ),
+    ];
+    let items: &[(&str, &str)] = if scan { &scan_items } else { &map_items };
+    let _ = writeln!(
+        out,
+        r##"<path d="M0 {h:.2}H{w:.2}" stroke="#ccc" stroke-width="1"/>"##
+    );
+    for (k, (swatch, label)) in items.iter().enumerate() {
+        let y = h + 24.0 + 20.0 * k as f64;
+        let _ = writeln!(
+            out,
+            r##"<g transform="translate(18 {y:.0})">{swatch}<text x="24" y="0" font-family="sans-serif" font-size="14">{label}</text></g>"##
+        );
+    }
 }
 
 /// A drawing of a reconstruction over its `points`: the curves, and for a scan frame the
