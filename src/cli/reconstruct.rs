@@ -56,6 +56,13 @@ enum Sink {
     Svg(std::path::PathBuf, Option<Box<Drawn>>),
 }
 
+/// A frame done: its record, the frame (when it could be read) and its reconstruction.
+type Done = (
+    ResultRecord,
+    Option<isoline_io::Frame>,
+    Option<isoline_core::Reconstruction>,
+);
+
 /// The frame an SVG draws: its points and reconstruction.
 type Drawn = (Vec<isoline_core::geom::Point>, isoline_core::Reconstruction);
 
@@ -192,32 +199,58 @@ impl StatsSink {
     }
 }
 
-/// Reconstructs every frame (or `--frame`) and writes one record per frame in the
-/// output's format, each as it is done; fails when a frame failed, after writing the
-/// others, and when the input could not be read to its end (a download cut short), after
-/// writing the records of the frames before the damage.
-pub fn run(a: Args) -> Result<()> {
-    use isoline_io::write::Format;
-
-    let cfg = super::load_config(a.config.as_deref())?;
-    let mut params = cfg.params();
+/// The configuration's parameters with the command line's overrides.
+fn params_of(a: &Args) -> Result<isoline_core::Params> {
+    let mut params = super::load_config(a.config.as_deref())?.params();
     if let Some(s) = a.scheme {
         params.solver.scheme = s;
     }
     if let Some(i) = a.init {
         params.solver.init = i;
     }
-    let params = &params;
-    let (input, output, stats, only) = (
-        a.input.as_path(),
-        a.output.as_deref(),
-        a.stats.as_deref(),
-        a.frame,
-    );
-    let mcap = output.is_some_and(isoline_io::is_bag);
-    let format = match output {
+    Ok(params)
+}
+
+/// The run's outputs: the records' sink and, with `--stats`, the statistics'.
+struct Outputs {
+    sink: Sink,
+    stats: Option<StatsSink>,
+}
+
+impl Outputs {
+    fn emit(&mut self, (rec, f, r): Done) -> Result<()> {
+        self.sink.push(&rec, f.as_ref(), r)?;
+        if let Some(s) = &mut self.stats {
+            s.push(&rec.stats)?;
+        }
+        Ok(())
+    }
+
+    fn finish(self, draw_mesh: bool) -> Result<()> {
+        self.sink.finish(draw_mesh)?;
+        match self.stats {
+            Some(s) => s.finish(),
+            None => Ok(()),
+        }
+    }
+}
+
+/// Says on stderr why the frame of `item` failed, naming the file and, where there are
+/// several, the frame.
+fn say_failure(item: &isoline_io::Item, error: &str, input: &std::path::Path) {
+    match item {
+        Err(_) => eprintln!("isoline: {error}"),
+        Ok(f) => eprintln!("isoline: {}, frame {}: {error}", input.display(), f.frame),
+    }
+}
+
+/// The text format of `output` by its extension (NDJSON on standard output, and for a
+/// bag, whose records are written as Foxglove messages).
+fn output_format(output: Option<&std::path::Path>) -> Result<isoline_io::write::Format> {
+    use isoline_io::write::Format;
+    Ok(match output {
         None => Format::Ndjson,
-        Some(_) if mcap => Format::Ndjson,
+        Some(p) if isoline_io::is_bag(p) => Format::Ndjson,
         Some(p) => Format::from_path(p).with_context(|| {
             format!(
                 "{}: unknown output extension (use .ndjson, .json, .geojson, .csv, .svg or \
@@ -225,35 +258,56 @@ pub fn run(a: Args) -> Result<()> {
                 p.display()
             )
         })?,
-    };
+    })
+}
+
+/// The record of one item read: the frame's reconstruction, or the error record of a
+/// frame that could not be read.
+fn record_of(
+    item: &isoline_io::Item,
+    params: &isoline_core::Params,
+) -> (ResultRecord, Option<isoline_core::Reconstruction>) {
+    match item {
+        Ok(f) => isoline_io::reconstruct_frame(f, params),
+        Err(b) => (
+            ResultRecord {
+                stream: b.stream.clone(),
+                frame: b.frame,
+                error: Some(b.message.clone()),
+                ..Default::default()
+            },
+            None,
+        ),
+    }
+}
+
+/// Reconstructs every frame (or `--frame`) and writes one record per frame in the
+/// output's format, each as it is done; fails when a frame failed, after writing the
+/// others, and when the input could not be read to its end (a download cut short), after
+/// writing the records of the frames before the damage.
+pub fn run(a: Args) -> Result<()> {
+    use isoline_io::write::Format;
+
+    let params = &params_of(&a)?;
+    let (input, output, stats, only) = (
+        a.input.as_path(),
+        a.output.as_deref(),
+        a.stats.as_deref(),
+        a.frame,
+    );
+    let format = output_format(output)?;
     super::refuse_overwrite(input, &[output, stats])?;
     let cap = a.bag.line_cap();
     let bag = a.bag.options(input)?;
-    let mut sink = Sink::open(output, format)?;
-    let mut stats_sink = stats.map(StatsSink::open).transpose()?;
+    let mut outputs = Outputs {
+        sink: Sink::open(output, format)?,
+        stats: stats.map(StatsSink::open).transpose()?,
+    };
     // The first record waits for a second frame: one frame of points that fails has its
     // error as the answer, and no output.
-    let mut held: Option<(
-        ResultRecord,
-        Option<isoline_io::Frame>,
-        Option<isoline_core::Reconstruction>,
-    )> = None;
+    let mut held: Option<Done> = None;
     let (mut seen, mut failed) = (0u64, 0u64);
     let mut stop: Option<anyhow::Error> = None;
-    let emit = |sink: &mut Sink,
-                stats_sink: &mut Option<StatsSink>,
-                (rec, f, r): (
-        ResultRecord,
-        Option<isoline_io::Frame>,
-        Option<isoline_core::Reconstruction>,
-    )|
-     -> Result<()> {
-        sink.push(&rec, f.as_ref(), r)?;
-        if let Some(s) = stats_sink {
-            s.push(&rec.stats)?;
-        }
-        Ok(())
-    };
     let read = isoline_io::for_each_item_capped(input, &bag, cap, |item| {
         let number = match &item {
             Ok(f) => Some(f.frame),
@@ -270,29 +324,12 @@ pub fn run(a: Args) -> Result<()> {
             ));
             return false;
         }
-        let (rec, r) = match &item {
-            Ok(f) => isoline_io::reconstruct_frame(f, params),
-            Err(b) => (
-                ResultRecord {
-                    stream: b.stream.clone(),
-                    frame: b.frame,
-                    error: Some(b.message.clone()),
-                    ..Default::default()
-                },
-                None,
-            ),
-        };
+        let (rec, r) = record_of(&item, params);
         if let Some(e) = &rec.error {
             failed += 1;
-            let what = match &item {
-                Err(_) => e.clone(),
-                Ok(f) if seen > 1 || f.stream.is_some() || isoline_io::is_recording(input) => {
-                    format!("{}, frame {}: {e}", input.display(), f.frame)
-                }
-                Ok(_) => format!("{}: {e}", input.display()),
-            };
+            // The first frame of a file of points waits: its error may be the answer.
             if seen > 1 || isoline_io::is_recording(input) {
-                eprintln!("isoline: {what}");
+                say_failure(&item, e, input);
             }
         }
         let next = (rec, item.ok(), r);
@@ -305,14 +342,14 @@ pub fn run(a: Args) -> Result<()> {
                         first.0.frame.unwrap_or(0)
                     );
                 }
-                emit(&mut sink, &mut stats_sink, first)
+                outputs.emit(first)
             }
-            .and_then(|()| emit(&mut sink, &mut stats_sink, next)),
+            .and_then(|()| outputs.emit(next)),
             None if seen == 1 => {
                 held = Some(next);
                 Ok(())
             }
-            None => emit(&mut sink, &mut stats_sink, next),
+            None => outputs.emit(next),
         };
         if let Err(e) = out {
             stop = Some(e);
@@ -341,12 +378,20 @@ pub fn run(a: Args) -> Result<()> {
                 None => bail!("{}: {e}", input.display()),
             }
         }
-        emit(&mut sink, &mut stats_sink, (rec, f, r))?;
+        outputs.emit((rec, f, r))?;
     }
-    sink.finish(a.mesh)?;
-    if let Some(s) = stats_sink {
-        s.finish()?;
-    }
+    outputs.finish(a.mesh)?;
+    outcome(read, seen, failed, input)
+}
+
+/// How a run whose records are all written ends: the read error that stopped it (a
+/// file damaged part way), or the count of frames that failed, or success.
+fn outcome(
+    read: isoline_io::Result<()>,
+    seen: u64,
+    failed: u64,
+    input: &std::path::Path,
+) -> Result<()> {
     if let Err(e) = read {
         return Err(anyhow::Error::new(e).context(format!(
             "{}: read {seen} frames, then could not read on (their records are written)",
