@@ -218,16 +218,7 @@ fn logs_to_a_file_or_pipe_have_no_colour_codes() {
     let d = dir.path();
     let input = d.join("in.ndjson");
     std::fs::write(&input, "{\"frame\": 0, \"points\": 7}\nnot json\n").unwrap();
-    let cfg = d.join("run.toml");
-    std::fs::write(
-        &cfg,
-        format!(
-            "[input]\npath = {:?}\nreplay = \"fast\"\n[output]\npath = {:?}\n",
-            p(&input),
-            p(&d.join("out.ndjson"))
-        ),
-    )
-    .unwrap();
+    let cfg = crate::common::replay_config(d, &input, &d.join("out.ndjson"), "");
     let out = isoline(&["run", "-c", p(&cfg)]);
     assert!(out.status.success());
     let err = String::from_utf8_lossy(&out.stderr);
@@ -326,16 +317,9 @@ fn the_run_summary_counts_what_each_frame_started_from() {
         (frames.clone(), "starts: 5 scan;"),
         (root.join("fixtures/ellipse-500-n001.ndjson"), "warm"),
     ] {
-        let cfg = d.join("run.toml");
-        std::fs::write(
-            &cfg,
-            format!(
-                "[input]\npath = {:?}\nreplay = \"fast\"\n[output]\npath = {:?}\n[pipeline]\nwarm_start = true\n",
-                p(&input),
-                p(&d.join("out.ndjson"))
-            ),
-        )
-        .unwrap();
+        let out_path = d.join("out.ndjson");
+        let cfg =
+            crate::common::replay_config(d, &input, &out_path, "[pipeline]\nwarm_start = true\n");
         let _ = std::fs::remove_file(d.join("out.ndjson"));
         let out = isoline(&["run", "-c", p(&cfg)]);
         assert!(out.status.success());

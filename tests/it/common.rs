@@ -65,3 +65,31 @@ pub fn synth_room(out: &Path, frames: usize, motion: f64, extra: &[&str]) {
     args.extend(["-o", p(out)]);
     ok(&args);
 }
+
+/// Runs `isoline` with `args`, checks that it failed, and gives its stderr.
+#[allow(dead_code)] // Not every test file expects failures.
+pub fn fails(args: &[&str]) -> String {
+    let out = Command::new(env!("CARGO_BIN_EXE_isoline"))
+        .args(args)
+        .output()
+        .expect("run isoline");
+    assert!(!out.status.success(), "{args:?} succeeded");
+    String::from_utf8_lossy(&out.stderr).into_owned()
+}
+
+/// A daemon configuration in `dir` (`run.toml`) that replays `input` as fast as it can
+/// into the NDJSON file `output`, with the further tables `extra`; its path.
+#[allow(dead_code)] // Only some test files run the daemon.
+pub fn replay_config(dir: &Path, input: &Path, output: &Path, extra: &str) -> std::path::PathBuf {
+    let cfg = dir.join("run.toml");
+    std::fs::write(
+        &cfg,
+        format!(
+            "[input]\npath = {:?}\nreplay = \"fast\"\n[output]\npath = {:?}\n{extra}",
+            p(input),
+            p(output)
+        ),
+    )
+    .expect("write the configuration");
+    cfg
+}

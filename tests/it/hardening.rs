@@ -9,7 +9,7 @@ use std::process::{Command, Stdio};
 
 use serde_json::Value;
 
-use super::common::{ok, p, synth_room};
+use super::common::{fails, ok, p, replay_config, synth_room};
 
 /// Runs `isoline` with `args`; its exit status, stderr and peak resident memory (kB,
 /// from /proc while it runs: VmHWM only grows).
@@ -43,15 +43,6 @@ fn run_measured(args: &[&str], dir: &Path) -> (bool, String, u64) {
         std::fs::read_to_string(err_path).unwrap(),
         peak,
     )
-}
-
-fn fails(args: &[&str]) -> String {
-    let out = Command::new(env!("CARGO_BIN_EXE_isoline"))
-        .args(args)
-        .output()
-        .unwrap();
-    assert!(!out.status.success(), "{args:?} succeeded");
-    String::from_utf8_lossy(&out.stderr).into_owned()
 }
 
 fn records(path: &Path) -> Vec<Value> {
@@ -223,17 +214,8 @@ fn outputs_that_cannot_be_written_fail_the_run_before_the_work() {
     assert!(!d.join("m.geojson").exists());
     // The daemon names the key at start and reads no frame.
     let out = d.join("out.ndjson");
-    let cfg = d.join("run.toml");
-    std::fs::write(
-        &cfg,
-        format!(
-            "[input]\npath = {:?}\nreplay = \"fast\"\n[output]\npath = {:?}\n[map]\noutput = {:?}\n",
-            p(&frames),
-            p(&out),
-            p(&file.join("map.geojson"))
-        ),
-    )
-    .unwrap();
+    let map = format!("[map]\noutput = {:?}\n", p(&file.join("map.geojson")));
+    let cfg = replay_config(d, &frames, &out, &map);
     let err = fails(&["run", "-c", p(&cfg)]);
     assert!(
         err.contains("map.output") && err.contains("cannot be written"),
@@ -279,17 +261,8 @@ fn a_pose_the_map_cannot_hold_is_left_out_and_counted_and_the_run_goes_on() {
     assert_eq!(s["skipped"]["far"], 2, "{s:#}");
     // The daemon: every frame its record, the map's report counts the two.
     let out = d.join("out.ndjson");
-    let cfg = d.join("run.toml");
-    std::fs::write(
-        &cfg,
-        format!(
-            "[input]\npath = {:?}\nreplay = \"fast\"\n[output]\npath = {:?}\n[map]\noutput = {:?}\n",
-            p(&jumpy),
-            p(&out),
-            p(&d.join("daemon-map.geojson"))
-        ),
-    )
-    .unwrap();
+    let map = format!("[map]\noutput = {:?}\n", p(&d.join("daemon-map.geojson")));
+    let cfg = replay_config(d, &jumpy, &out, &map);
     let o = ok(&["run", "-c", p(&cfg)]);
     assert_eq!(records(&out).len(), 30);
     let err = String::from_utf8_lossy(&o.stderr);

@@ -9,7 +9,7 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
-use crate::common::{ok, p};
+use crate::common::{fails, ok, p};
 use isoline_io::format::FrameRecord;
 use isoline_io::ros;
 use serde_json::Value;
@@ -367,15 +367,6 @@ fn the_daemon_replays_a_bag_and_writes_curves_for_foxglove() {
 }
 
 /// Runs `isoline` expecting failure; its stderr.
-fn fails(args: &[&str]) -> String {
-    let out = Command::new(env!("CARGO_BIN_EXE_isoline"))
-        .args(args)
-        .output()
-        .unwrap();
-    assert!(!out.status.success(), "{args:?} succeeded");
-    String::from_utf8_lossy(&out.stderr).into_owned()
-}
-
 #[test]
 fn damaged_bags_unknown_topics_and_undecodable_messages_are_named_and_the_rest_goes_on() {
     let dir = tempfile::tempdir().unwrap();
