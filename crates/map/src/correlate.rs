@@ -43,7 +43,10 @@ impl Likelihood {
         if w.saturating_mul(h) > 4_000_000 {
             return None;
         }
-        let mut v = vec![0.0f32; w * h];
+        // The nearest point's squared distance a cell, then one exponential a cell: the
+        // likelihood falls with the distance, so the largest is the nearest's.
+        let cut = 4.0 * s * s;
+        let mut v = vec![f32::INFINITY; w * h];
         let r = (2.0 * s / res).ceil() as i64;
         for p in points {
             let (ci, cj) = (
@@ -61,14 +64,17 @@ impl Likelihood {
                         origin[1] + j as f64 * res - p[1],
                     ];
                     let d2 = c[0] * c[0] + c[1] * c[1];
-                    if d2 > 4.0 * s * s {
-                        continue;
-                    }
-                    let l = (-0.5 * d2 / (s * s)).exp() as f32;
                     let k = j as usize * w + i as usize;
-                    v[k] = v[k].max(l);
+                    v[k] = v[k].min(d2 as f32);
                 }
             }
+        }
+        for x in &mut v {
+            *x = if f64::from(*x) <= cut {
+                (-0.5 * f64::from(*x) / (s * s)).exp() as f32
+            } else {
+                0.0
+            };
         }
         Some(Likelihood {
             origin,
@@ -79,13 +85,68 @@ impl Likelihood {
         })
     }
 
-    fn at(&self, p: Point) -> f32 {
-        let i = ((p[0] - self.origin[0]) / self.res).round();
-        let j = ((p[1] - self.origin[1]) / self.res).round();
-        if i < 0.0 || j < 0.0 || i >= self.w as f64 || j >= self.h as f64 {
+    /// The cell of `p` (nearest lattice node), which may lie outside the lattice.
+    fn cell(&self, p: Point) -> (i64, i64) {
+        // Rounding by adding a half and flooring through the integer cast: `f64::round`
+        // is a library call on the baseline x86-64, and this is the search's inner loop.
+        let x = (p[0] - self.origin[0]) / self.res + 0.5;
+        let y = (p[1] - self.origin[1]) / self.res + 0.5;
+        (x.floor_fast(), y.floor_fast())
+    }
+
+    /// The likelihood at cell `(i, j)`, zero outside the lattice.
+    fn at_cell(&self, i: i64, j: i64) -> f32 {
+        if i < 0 || j < 0 || i >= self.w as i64 || j >= self.h as i64 {
             return 0.0;
         }
         self.v[j as usize * self.w + i as usize]
+    }
+}
+
+/// `floor` through an integer cast, for values well within `i64`.
+trait FloorFast {
+    fn floor_fast(self) -> i64;
+}
+
+impl FloorFast for f64 {
+    fn floor_fast(self) -> i64 {
+        // Non-finite and huge values saturate in the cast: far outside any lattice.
+        let t = self as i64;
+        if (t as f64) > self {
+            t - 1
+        } else {
+            t
+        }
+    }
+}
+
+/// Whether a target point lies where a search of `source` within `window` of `guess`
+/// can score on it: within `pad` of the box the source sweeps (its box at `guess`,
+/// grown by the window's shift and by the chord its farthest point turns through).
+/// The lattice is built over those alone: a loop's target holds tens of old keyframes,
+/// a search's window covers a few of them.
+pub fn in_reach(
+    source: &[Point],
+    guess: Pose,
+    window: Window,
+    pad: f64,
+) -> impl Fn(&Point) -> bool {
+    let (s, c) = guess[2].sin_cos();
+    let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+    let mut reach = 0.0f64;
+    for p in source {
+        let q = [
+            c * p[0] - s * p[1] + guess[0],
+            s * p[0] + c * p[1] + guess[1],
+        ];
+        lo = [lo[0].min(q[0]), lo[1].min(q[1])];
+        hi = [hi[0].max(q[0]), hi[1].max(q[1])];
+        reach = reach.max(p[0].hypot(p[1]));
+    }
+    let grow =
+        window.linear + 2.0 * reach * (0.5 * window.angular.min(std::f64::consts::PI)).sin() + pad;
+    move |q: &Point| {
+        q[0] >= lo[0] - grow && q[0] <= hi[0] + grow && q[1] >= lo[1] - grow && q[1] <= hi[1] + grow
     }
 }
 
@@ -136,24 +197,25 @@ pub fn search(points: &[Point], grid: &Likelihood, guess: Pose, window: Window) 
     let na = (window.angular / ang_step).ceil() as i64;
     let side = (2 * nl + 1) as usize;
     let mut scores = vec![0.0f64; side * side * (2 * na + 1) as usize];
-    let mut rotated = Vec::with_capacity(points.len());
+    // A translation step is one lattice cell: each rotated point's cell is found once,
+    // and a shift moves every cell by whole steps (Olson 2009).
+    let mut cells: Vec<(i64, i64)> = Vec::with_capacity(points.len());
     for a in -na..=na {
         let theta = guess[2] + a as f64 * ang_step;
         let (s, c) = theta.sin_cos();
-        rotated.clear();
-        rotated.extend(points.iter().map(|p| {
-            [
+        cells.clear();
+        cells.extend(points.iter().map(|p| {
+            grid.cell([
                 c * p[0] - s * p[1] + guess[0],
                 s * p[0] + c * p[1] + guess[1],
-            ]
+            ])
         }));
         let layer = (a + na) as usize * side * side;
         for dj in -nl..=nl {
             for di in -nl..=nl {
-                let t = [di as f64 * lin_step, dj as f64 * lin_step];
-                let score: f32 = rotated
+                let score: f32 = cells
                     .iter()
-                    .map(|q| grid.at([q[0] + t[0], q[1] + t[1]]))
+                    .map(|&(i, j)| grid.at_cell(i + di, j + dj))
                     .sum();
                 scores[layer + (dj + nl) as usize * side + (di + nl) as usize] =
                     f64::from(score) / points.len().max(1) as f64;
@@ -195,6 +257,35 @@ pub fn search(points: &[Point], grid: &Likelihood, guess: Pose, window: Window) 
 mod tests {
     use super::*;
     use isoline_core::geom::to_sensor;
+
+    #[test]
+    fn the_target_within_reach_scores_as_the_whole_target() {
+        // A long wall with a short scan of its middle: the far ends are out of reach,
+        // and the search on what is kept finds what it finds on the whole.
+        let world: Vec<Point> = (0..2000).map(|i| [i as f64 * 0.02 - 20.0, 1.0]).collect();
+        let scan: Vec<Point> = (0..100).map(|i| [i as f64 * 0.02 - 1.0, 1.0]).collect();
+        let mut scan_l = scan.clone();
+        scan_l.extend((0..50).map(|i| [-1.0, 1.0 - i as f64 * 0.02]));
+        let mut world_l = world.clone();
+        world_l.extend((0..50).map(|i| [-0.9, 1.0 - i as f64 * 0.02]));
+        let window = Window {
+            linear: 0.3,
+            angular: 0.1,
+        };
+        let guess = [0.0, 0.0, 0.0];
+        let keep = in_reach(&scan_l, guess, window, 0.1);
+        let kept: Vec<Point> = world_l.iter().copied().filter(|q| keep(q)).collect();
+        assert!(kept.len() < world_l.len() / 4, "{}", kept.len());
+        let whole = Likelihood::new(&world_l, 0.02, 0.02, window.linear).unwrap();
+        let near = Likelihood::new(&kept, 0.02, 0.02, window.linear).unwrap();
+        let (a, b) = (
+            search(&scan_l, &whole, guess, window),
+            search(&scan_l, &near, guess, window),
+        );
+        assert_eq!(a.pose, b.pose);
+        assert!((a.score - b.score).abs() < 1e-9, "{a:?} {b:?}");
+        assert!((a.pose[0] - 0.1).abs() < 0.03, "{a:?}");
+    }
 
     #[test]
     fn a_scan_a_metre_and_ten_degrees_off_is_found() {

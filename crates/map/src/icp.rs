@@ -81,6 +81,14 @@ pub fn register(
     let mut pose = start;
     let mut k = (reach / 5.0).max(noise);
     let mut residuals: Vec<f64> = Vec::with_capacity(points.len());
+    // Converged when a step moves no return by more than a hundredth of the noise:
+    // the rest is far below what the returns can tell.
+    let tiny = 0.01 * noise;
+    let far = points
+        .iter()
+        .map(|p| p[0].hypot(p[1]))
+        .fold(0.0f64, f64::max)
+        .max(1.0);
     for _ in 0..STEPS {
         let gate = (5.0 * k).min(reach);
         let (mut h, mut g) = (Matrix3::zeros(), Vector3::zeros());
@@ -109,7 +117,7 @@ pub fn register(
             let median = median(&mut residuals);
             k = (1.4826 * median).clamp(noise, k);
         }
-        if step.xy().norm() < 1e-6 && step[2].abs() < 1e-7 {
+        if step.xy().norm() + far * step[2].abs() < tiny {
             break;
         }
     }

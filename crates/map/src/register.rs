@@ -12,10 +12,10 @@
 use isoline_core::{Point, Polyline, Pose, Scan};
 use nalgebra::Matrix3;
 
-use crate::correlate::{search, Likelihood, Window};
+use crate::correlate::{in_reach, search, Likelihood, Window};
 use crate::graph::{Edge, PoseGraph};
 use crate::icp::{register, Match, Prior};
-use crate::se2::{between, compose, compose_cov, diag, diff, rotate_cov, Cov3};
+use crate::se2::{between, compose, compose_cov, diag, diff, inverse_cov, rotate_cov, Cov3};
 use crate::submap::{thin, Surface};
 
 /// How scans are registered and loops closed.
@@ -162,8 +162,6 @@ struct Keyframe {
     surface: Surface,
     /// Path travelled when it opened, metres.
     path: f64,
-    /// The covariance of its edge from the previous keyframe, in that one's frame.
-    edge_cov: Cov3,
 }
 
 /// Registers a stream of scans, keeps the pose graph and closes loops.
@@ -184,6 +182,12 @@ pub struct Registrar {
     local: Option<Surface>,
     path: f64,
     loops: usize,
+    /// Each node's edges: the node at the other end and the edge's index.
+    links: Vec<Vec<(usize, usize)>>,
+    /// Each edge's covariance, in its `from` node's frame.
+    edge_covs: Vec<Cov3>,
+    /// Loops closed since the graph was last solved.
+    unsolved: bool,
 }
 
 impl std::fmt::Debug for Registrar {
@@ -203,6 +207,9 @@ const MAX_LOOP_SHIFT: f64 = 10.0;
 /// Old keyframes a loop's search matches against at once, nearest first: a bound on
 /// the search's cost.
 const MAX_LOOP_TARGETS: usize = 30;
+
+/// The 95th percentile of a chi-square with three degrees of freedom.
+const CHI2_3_95: f64 = 7.815;
 
 /// Wide uncertainty of a still-standing prior for scans without input poses: a person
 /// walks half a metre and turns half a radian between scans at most.
@@ -224,6 +231,9 @@ impl Registrar {
             local: None,
             path: 0.0,
             loops: 0,
+            links: Vec::new(),
+            edge_covs: Vec::new(),
+            unsolved: false,
         })
     }
 
@@ -376,7 +386,17 @@ impl Registrar {
         if !self.keyframes.is_empty() {
             self.close_keyframe();
         }
+        if self.unsolved {
+            self.solve();
+        }
         self.trajectory()
+    }
+
+    /// Solves the graph with every loop closed so far.
+    fn solve(&mut self) {
+        let solved = self.graph.optimize(20);
+        tracing::debug!(?solved, "graph solved");
+        self.unsolved = false;
     }
 
     /// The scan's returns within `max_range`, thinned to the lattice.
@@ -430,15 +450,19 @@ impl Registrar {
     fn open_keyframe(&mut self, pose: Pose, points: &[Point], cov: Cov3) {
         let k = self.keyframes.len();
         self.graph.nodes.push(pose);
+        self.links.push(Vec::new());
         if k > 0 {
             let info = cov.try_inverse().unwrap_or_else(Matrix3::identity);
-            self.graph.edges.push(Edge {
-                from: k - 1,
-                to: k,
-                z: between(self.graph.nodes[k - 1], pose),
-                info,
-                loop_closure: false,
-            });
+            self.add_edge(
+                Edge {
+                    from: k - 1,
+                    to: k,
+                    z: between(self.graph.nodes[k - 1], pose),
+                    info,
+                    loop_closure: false,
+                },
+                cov,
+            );
         }
         self.open = points.to_vec();
         let surface = Surface::new(points, self.normal_radius());
@@ -447,7 +471,6 @@ impl Registrar {
             points: Vec::new(),
             surface,
             path: self.path,
-            edge_cov: cov,
         });
         if let Some(old) = self
             .keyframes
@@ -459,6 +482,73 @@ impl Registrar {
             kf.surface = Surface::with_normals(Vec::new(), Vec::new());
         }
         self.rebuild_local();
+    }
+
+    fn add_edge(&mut self, edge: Edge, cov: Cov3) {
+        let e = self.graph.edges.len();
+        self.links[edge.from].push((edge.to, e));
+        self.links[edge.to].push((edge.from, e));
+        self.graph.edges.push(edge);
+        self.edge_covs.push(cov);
+    }
+
+    /// For every node `j`, the covariance of node `k` seen from `j` (in `j`'s frame)
+    /// along the graph's least uncertain path between them: the Dijkstra projection of
+    /// Bosse et al. (2003, ATLAS), the path's length the trace of the translation's
+    /// covariance. Once a loop has closed, a place on it is near in uncertainty though
+    /// far along the chain of keyframes, so the loop search there looks within the
+    /// metres the graph leaves open, not those the whole path since would.
+    fn uncertainty_from(&self, k: usize) -> Vec<Option<Cov3>> {
+        use std::cmp::Reverse;
+        use std::collections::BinaryHeap;
+        /// A length ordered as its float.
+        #[derive(PartialEq)]
+        struct Len(f64);
+        impl Eq for Len {}
+        impl PartialOrd for Len {
+            fn partial_cmp(&self, other: &Self) -> Option<std::cmp::Ordering> {
+                Some(self.cmp(other))
+            }
+        }
+        impl Ord for Len {
+            fn cmp(&self, other: &Self) -> std::cmp::Ordering {
+                self.0.total_cmp(&other.0)
+            }
+        }
+        let nodes = &self.graph.nodes;
+        let mut best: Vec<Option<Cov3>> = vec![None; nodes.len()];
+        let mut done = vec![false; nodes.len()];
+        let mut heap = BinaryHeap::new();
+        best[k] = Some(Cov3::zeros());
+        heap.push(Reverse((Len(0.0), k)));
+        while let Some(Reverse((_, m))) = heap.pop() {
+            if std::mem::replace(&mut done[m], true) {
+                continue;
+            }
+            let chain = best[m].expect("pushed with one");
+            // k seen from m.
+            let rel = between(nodes[m], nodes[k]);
+            for &(n, e) in &self.links[m] {
+                if done[n] {
+                    continue;
+                }
+                let edge = &self.graph.edges[e];
+                // The step from n to m and its covariance in n's frame.
+                let step = between(nodes[n], nodes[m]);
+                let step_cov = if edge.from == n {
+                    self.edge_covs[e]
+                } else {
+                    inverse_cov(between(nodes[m], nodes[n]), &self.edge_covs[e])
+                };
+                let cov = compose_cov(step, &step_cov, rel, &chain);
+                let len = cov[(0, 0)] + cov[(1, 1)];
+                if best[n].is_none_or(|b| len < b[(0, 0)] + b[(1, 1)]) {
+                    best[n] = Some(cov);
+                    heap.push(Reverse((Len(len), n)));
+                }
+            }
+        }
+        best
     }
 
     /// The farthest a normal's neighbours may lie: returns farther apart than half a
@@ -508,15 +598,11 @@ impl Registrar {
         let here = self.graph.nodes[k];
         let path = self.keyframes[k].path;
         // The candidates: far enough back along the path, within reach of the
-        // uncertainty the chain of edges since them adds.
+        // uncertainty the graph leaves between them and here.
+        let uncertainty = self.uncertainty_from(k);
         let mut candidates: Vec<(f64, usize, Cov3)> = Vec::new();
-        let mut chain = Cov3::zeros();
-        let mut rel = [0.0, 0.0, 0.0];
-        for j in (0..k).rev() {
-            // The chain's covariance of k seen from j, built backwards edge by edge.
-            let step = between(self.graph.nodes[j], self.graph.nodes[j + 1]);
-            chain = compose_cov(step, &self.keyframes[j + 1].edge_cov, rel, &chain);
-            rel = compose(step, rel);
+        for (j, chain) in uncertainty.into_iter().enumerate().take(k) {
+            let Some(chain) = chain else { continue };
             if path - self.keyframes[j].path < p.loop_min_path {
                 continue;
             }
@@ -539,17 +625,24 @@ impl Registrar {
             .take(MAX_LOOP_TARGETS)
             .map(|c| c.1)
             .collect();
-        let found = candidates
-            .first()
-            .and_then(|&(_, j, chain)| Some((j, self.verify(j, k, &chain, &others)?)));
+        let found = candidates.first().and_then(|&(_, j, chain)| {
+            let (edge, cov) = self.verify(j, k, &chain, &others)?;
+            Some((j, edge, cov))
+        });
         let mut closed = 0;
-        if let Some((_, edge)) = found {
-            self.graph.edges.push(edge);
+        if let Some((_, edge, cov)) = found {
+            // A loop the graph already agrees with (its error within the 95% of a
+            // chi-square with three degrees of freedom) would move the nodes by less
+            // than its own noise: it is kept, and solved with the next loop that
+            // disagrees, or at the end.
+            let disagrees = self.graph.edge_chi2(&edge) > CHI2_3_95;
+            self.add_edge(edge, cov);
             closed = 1;
-        }
-        if closed > 0 {
-            let solved = self.graph.optimize(20);
-            tracing::debug!(keyframe = k, closed, ?solved, "loops closed");
+            self.unsolved = true;
+            if disagrees {
+                self.solve();
+            }
+            tracing::debug!(keyframe = k, closed, disagrees, "loop closed");
             self.loops += closed;
         }
         closed
@@ -563,7 +656,7 @@ impl Registrar {
     /// standard errors of its score), the match is good (overlap, more informative than
     /// the chain along every direction) and consistent with the graph (its correction
     /// within the chain's 99.9% ellipsoid).
-    fn verify(&self, j: usize, k: usize, chain: &Cov3, others: &[usize]) -> Option<Edge> {
+    fn verify(&self, j: usize, k: usize, chain: &Cov3, others: &[usize]) -> Option<(Edge, Cov3)> {
         let p = self.params;
         let guess = between(self.graph.nodes[j], self.graph.nodes[k]);
         let source = &self.keyframes[k].points;
@@ -618,7 +711,10 @@ impl Registrar {
                 .into_iter()
                 .enumerate()
             {
-                let grid = Likelihood::new(&points, res, res.max(p.noise), win.linear)?;
+                let blur = f64::max(res, p.noise);
+                let keep = in_reach(pts, at, win, 2.0 * blur + res);
+                let reachable: Vec<Point> = points.iter().copied().filter(|q| keep(q)).collect();
+                let grid = Likelihood::new(&reachable, res, blur, win.linear)?;
                 let found = search(pts, &grid, at, win);
                 // The whole window's search must point at one place.
                 if level == 0 && found.ambiguous(pts.len()) {
@@ -632,6 +728,18 @@ impl Registrar {
             }
             at
         };
+        // ICP's target: what lies within its reach of the source where the search put
+        // it.
+        let still = Window {
+            linear: 0.0,
+            angular: 0.0,
+        };
+        let keep = in_reach(source, at, still, p.reach);
+        let (points, normals): (Vec<Point>, Vec<Point>) = points
+            .into_iter()
+            .zip(normals)
+            .filter(|(q, _)| keep(q))
+            .unzip();
         let target = Surface::with_normals(points, normals);
         let best = register(source, &target, at, None, p.noise, p.reach);
         let c = diff(best.pose, guess);
@@ -661,13 +769,17 @@ impl Registrar {
             return None;
         }
         let floor = diag(0.5 * p.cell, 0.5 * p.cell, 0.1f64.to_radians());
-        Some(Edge {
-            from: j,
-            to: k,
-            z: best.pose,
-            info: (best.cov + floor).try_inverse()?,
-            loop_closure: true,
-        })
+        let cov = best.cov + floor;
+        Some((
+            Edge {
+                from: j,
+                to: k,
+                z: best.pose,
+                info: cov.try_inverse()?,
+                loop_closure: true,
+            },
+            cov,
+        ))
     }
 }
 

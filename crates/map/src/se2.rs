@@ -65,6 +65,25 @@ pub fn compose_cov(a: Pose, cov_a: &Cov3, b: Pose, cov_b: &Cov3) -> Cov3 {
     ja * cov_a * ja.transpose() + rotate_cov(cov_b, a[2])
 }
 
+/// The covariance of `inverse(z)` (in the frame at `z`) from that of `z` (in its
+/// parent frame), to first order.
+pub fn inverse_cov(z: Pose, cov: &Cov3) -> Cov3 {
+    let (s, c) = z[2].sin_cos();
+    // inverse(z) = (-R^T t, -theta): d/dt = -R^T, d/dtheta = -(dR^T/dtheta) t.
+    let j = Matrix3::new(
+        -c,
+        -s,
+        s * z[0] - c * z[1],
+        s,
+        -c,
+        c * z[0] + s * z[1],
+        0.0,
+        0.0,
+        -1.0,
+    );
+    j * cov * j.transpose()
+}
+
 /// The difference `a - b` of two poses, the heading wrapped.
 pub fn diff(a: Pose, b: Pose) -> Vector3<f64> {
     Vector3::new(a[0] - b[0], a[1] - b[1], wrap(a[2] - b[2]))
@@ -101,6 +120,25 @@ mod tests {
         let cov = compose_cov(a, &diag(0.0, 0.0, 0.1), [10.0, 0.0, 0.0], &Cov3::zeros());
         assert!((cov[(1, 1)] - 1.0).abs() < 1e-12, "{cov}");
         assert_eq!(cov[(0, 0)], 0.0);
+    }
+
+    #[test]
+    fn the_inverse_covariance_matches_a_finite_difference() {
+        let z = [1.3, -0.4, 0.7];
+        let h = 1e-6;
+        for k in 0..3 {
+            let mut dz = z;
+            dz[k] += h;
+            let (a, b) = (inverse(dz), inverse(z));
+            let col = diff(a, b) / h;
+            // A unit variance along k alone: the covariance is that column's outer
+            // product.
+            let mut unit = Cov3::zeros();
+            unit[(k, k)] = 1.0;
+            let cov = inverse_cov(z, &unit);
+            let want = col * col.transpose();
+            assert!((cov - want).abs().max() < 1e-5, "{k}: {cov} {want}");
+        }
     }
 
     #[test]
