@@ -1,10 +1,21 @@
 #!/usr/bin/env bash
-# The Debian packages the full build needs beyond a Rust toolchain and a C compiler:
-# OpenSSL's headers and pkg-config, for Kafka over TLS (the `kafka-tls` feature, which
-# the test suite builds). Installs them with apt-get when missing; scripts/test.sh
-# runs it. A default build (`cargo build`) needs none of them.
+# The Debian packages beyond a Rust toolchain and a C compiler, installed with apt-get
+# when missing; scripts/test.sh runs both.
+#
+#   scripts/deps.sh           # the full build's: OpenSSL's headers and pkg-config, for
+#                             # Kafka over TLS (the `kafka-tls` feature the suite builds)
+#   scripts/deps.sh browser   # Chromium, for the test that opens `isoline map`'s HTML
+#                             # page in a headless browser (tests/it/map.rs)
+#
+# A default build (`cargo build`) needs none of them.
 set -euo pipefail
-if pkg-config --exists openssl 2> /dev/null; then
+what=${1:-build}
+case $what in
+  build) have() { pkg-config --exists openssl 2> /dev/null; }; packages=(libssl-dev pkg-config) ;;
+  browser) have() { command -v chromium > /dev/null; }; packages=(chromium) ;;
+  *) echo "usage: scripts/deps.sh [browser]" >&2; exit 2 ;;
+esac
+if have; then
   exit 0
 fi
 sudo=""
@@ -12,6 +23,6 @@ if [[ $(id -u) -ne 0 ]]; then
   sudo="sudo"
 fi
 $sudo apt-get update -qq
-DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq libssl-dev pkg-config > /dev/null
-pkg-config --exists openssl
-echo "deps: installed libssl-dev and pkg-config" >&2
+DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq "${packages[@]}" > /dev/null
+have
+echo "deps: installed ${packages[*]}" >&2

@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # The whole test suite, what CI runs: installs OpenSSL's headers for Kafka over TLS
-# (scripts/deps.sh) and the Kafka-compatible broker the Kafka tests start
-# (scripts/kafka-broker.sh, into .tools/), checks the formatting, the lints (clippy,
+# and Chromium for the HTML map's test (scripts/deps.sh) and the Kafka-compatible
+# broker the Kafka tests start (scripts/kafka-broker.sh, into .tools/), checks the formatting, the lints (clippy,
 # warnings denied) and the docs (rustdoc, warnings denied), runs every Rust test, then
 # builds the Python package into a fresh virtual environment and runs its tests
 # (scripts/python.sh).
@@ -12,10 +12,13 @@ cd "$(dirname "$0")/.."
 export CARGO_INCREMENTAL=0
 scripts/deps.sh
 scripts/kafka-broker.sh install
-# The Python environment is made (downloads, mostly) while cargo builds.
+# The Python environment and the browser are installed (downloads, mostly) while cargo
+# builds.
 mkdir -p target
 scripts/python.sh setup > target/python-setup.log 2>&1 &
 setup=$!
+scripts/deps.sh browser > target/browser-setup.log 2>&1 &
+browser=$!
 # Style, lints and docs first: they fail in seconds to minutes, the tests take longer.
 # The docs reuse the lints' check build of the dependencies (same features).
 cargo fmt --all --check
@@ -27,7 +30,12 @@ RUSTDOCFLAGS="-D warnings" cargo doc --workspace --no-deps --features isoline/ka
 # Four test threads on CI's two cores: the integration tests spend much of their time
 # waiting (on the Kafka broker, child daemons, sockets and timeouts), and four overlap
 # those waits: the integration suite 195 -> 159 s on two cores.
-cargo test --workspace --exclude isoline-bench --features isoline/kafka-tls --locked -- --test-threads=4
+if ! wait "$browser"; then
+  cat target/browser-setup.log >&2
+  exit 1
+fi
+# The HTML map's test fails rather than skips without the browser.
+ISOLINE_REQUIRE_BROWSER=1 cargo test --workspace --exclude isoline-bench --features isoline/kafka-tls --locked -- --test-threads=4
 if ! wait "$setup"; then
   cat target/python-setup.log >&2
   exit 1

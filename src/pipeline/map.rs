@@ -199,9 +199,26 @@ impl Mapper {
 
     /// Writes every file and shows the map in the live view.
     fn write(&mut self, curves: &[Polyline]) -> Result<()> {
+        use isoline_io::map_files::{write_map, MapDrawing, MapFormat, PAGE_RETURNS};
         let scans = self.report.scans;
+        let layers = if self
+            .out
+            .paths
+            .iter()
+            .any(|p| MapFormat::of(p).is_some_and(MapFormat::draws_layers))
+        {
+            Some(self.map.layers(curves, PAGE_RETURNS)?)
+        } else {
+            None
+        };
+        let drawing = MapDrawing {
+            curves,
+            path: &self.path,
+            scans,
+            layers: layers.as_ref(),
+        };
         for p in &self.out.paths {
-            isoline_io::map_files::write_map(p, curves, &self.path, scans)?;
+            write_map(p, &drawing)?;
         }
         if let Some(l) = &self.live {
             // A viewer that is behind sees the next write.

@@ -113,6 +113,10 @@ fn link(dir: &Path, name: &str) {
 fn run(dir: &Path, page: &Path, command: &str) {
     let bin = env!("CARGO_BIN_EXE_isoline");
     let mut w = words(command);
+    // A trailing comment, as the shell drops it.
+    if let Some(at) = w.iter().position(|x| x.starts_with('#')) {
+        w.truncate(at);
+    }
     // Leading VAR=value assignments.
     let mut env: Vec<(String, String)> = Vec::new();
     while let Some((k, v)) = w.first().and_then(|x| x.split_once('=')) {

@@ -242,3 +242,92 @@ fn frames_without_poses_are_registered_from_their_returns() {
     assert_eq!(s["registration"]["without_pose"], 60);
     assert!(s["scores"]["static_within"].as_f64().unwrap() > 0.9, "{s}");
 }
+
+/// Chromium from the system's packages (scripts/deps.sh browser installs it), or
+/// `$ISOLINE_CHROMIUM`; `None` where neither is, unless `ISOLINE_REQUIRE_BROWSER` is set
+/// (scripts/test.sh sets it, so that CI cannot pass without the browser's test).
+fn chromium() -> Option<std::path::PathBuf> {
+    let named = std::env::var_os("ISOLINE_CHROMIUM").map(std::path::PathBuf::from);
+    let path = std::env::var_os("PATH").unwrap_or_default();
+    let dirs: Vec<std::path::PathBuf> = std::env::split_paths(&path).collect();
+    let found = named.or_else(|| {
+        ["chromium", "chromium-browser", "google-chrome"]
+            .iter()
+            .flat_map(|name| dirs.iter().map(move |dir| dir.join(name)))
+            .find(|p| p.is_file())
+    });
+    if found.is_none() {
+        assert!(
+            std::env::var_os("ISOLINE_REQUIRE_BROWSER").is_none(),
+            "no Chromium: scripts/deps.sh browser installs it"
+        );
+        eprintln!("skipped: no Chromium (scripts/deps.sh browser installs it)");
+    }
+    found
+}
+
+#[test]
+fn the_html_map_loads_in_a_browser_and_draws_every_layer() {
+    let dir = tempfile::tempdir().unwrap();
+    let frames = dir.path().join("f.ndjson");
+    synth_room(&frames, 40, 0.1, &["--noise", "0.01", "--seed", "2"]);
+    let page = dir.path().join("m.html");
+    ok(&["map", p(&frames), "-o", p(&page), "-q"]);
+    let text = std::fs::read_to_string(&page).unwrap();
+    // Self-contained: nothing fetched, so it opens offline and can be mailed.
+    for external in ["http://", "https://", "src=", "href="] {
+        assert!(!text.contains(external), "the page refers to {external}");
+    }
+    let Some(browser) = chromium() else { return };
+    // The page's script writes what it drew (and any error) on the body; the DOM after
+    // the scripts ran says so. The returns' layer starts hidden: shown by its box.
+    let shown = dir.path().join("shown.html");
+    std::fs::write(
+        &shown,
+        text.replace(r#"id="show-returns">"#, r#"id="show-returns" checked>"#),
+    )
+    .unwrap();
+    for (file, returns_drawn) in [(&page, false), (&shown, true)] {
+        let out = std::process::Command::new(&browser)
+            .args([
+                "--headless",
+                "--no-sandbox",
+                "--disable-gpu",
+                "--no-first-run",
+                "--window-size=1000,700",
+                "--virtual-time-budget=5000",
+                "--dump-dom",
+            ])
+            .arg(format!("file://{}", file.display()))
+            .env("HOME", dir.path())
+            .output()
+            .expect("run Chromium");
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let dom = String::from_utf8_lossy(&out.stdout);
+        let body = dom
+            .split("<body")
+            .nth(1)
+            .and_then(|b| b.split('>').next())
+            .unwrap_or_else(|| panic!("no body in {dom}"));
+        assert!(!body.contains("data-error"), "the page failed: {body}");
+        let count = |key: &str| -> usize {
+            body.split(&format!("{key}=\""))
+                .nth(1)
+                .and_then(|v| v.split('"').next())
+                .and_then(|v| v.parse().ok())
+                .unwrap_or_else(|| panic!("no {key} in {body}"))
+        };
+        // The room's four walls and the drive: many segments, a path.
+        assert!(count("data-drawn-segments") >= 20, "{body}");
+        assert!(count("data-drawn-path") >= 2, "{body}");
+        assert_eq!(count("data-drawn-returns") > 0, returns_drawn, "{body}");
+        assert!(
+            body.contains(r#"data-scale-bar=""#) && body.contains(" m\""),
+            "{body}"
+        );
+    }
+}

@@ -89,7 +89,9 @@ pub use fusion::{align_returns, Window, WindowLimits};
 pub use geom::{BBox, Point, Polyline, Pose};
 pub use index::SegmentIndex;
 pub use levelset::{Init, LinearSolver, Scheme, Settle, SolverParams, Start, StopReason};
-pub use map::{Key as TileKey, Map, MapParams, MapScores, MapStats, MemoryStore, TileStore};
+pub use map::{
+    Key as TileKey, Map, MapLayers, MapParams, MapScores, MapStats, MemoryStore, TileStore,
+};
 pub use mesh::Mesh;
 pub use reconstruct::{
     reconstruct, reconstruct_scan, reconstruct_warm, Params, Reconstruction, AREA_SHARE,

@@ -25,11 +25,15 @@ pub enum MapFormat {
     Json,
     /// One `foxglove.SceneUpdate` in frame `map`, placed at the origin of `world`.
     Mcap,
+    /// One self-contained page (no external resource): pan, zoom, a scale bar, and
+    /// layers to toggle (the curves, the path, a sample of the returns, the map seen
+    /// through).
+    Html,
 }
 
 impl MapFormat {
     /// The format `path`'s extension names: `.geojson`, `.svg`, `.ndjson` (or
-    /// `.jsonl`), `.json` or `.mcap`.
+    /// `.jsonl`), `.json`, `.mcap` or `.html`.
     pub fn of(path: &Path) -> Option<MapFormat> {
         let ext = path.extension()?.to_str()?.to_ascii_lowercase();
         Some(match ext.as_str() {
@@ -38,13 +42,41 @@ impl MapFormat {
             "ndjson" | "jsonl" => MapFormat::Ndjson,
             "json" => MapFormat::Json,
             "mcap" => MapFormat::Mcap,
+            "html" | "htm" => MapFormat::Html,
             _ => return None,
         })
     }
 }
 
 /// The extensions a map file may have, for messages.
-pub const MAP_EXTENSIONS: &str = ".geojson, .svg, .ndjson, .json or .mcap";
+pub const MAP_EXTENSIONS: &str = ".geojson, .svg, .ndjson, .json, .mcap or .html";
+
+impl MapFormat {
+    /// Whether the format draws the map's layers ([`MapDrawing::layers`]): computing
+    /// them visits the map's tiles, which the other formats need not.
+    pub fn draws_layers(self) -> bool {
+        matches!(self, MapFormat::Html)
+    }
+}
+
+/// What a map file holds: the curves in the world frame, the sensor's positions, the
+/// scans fused, and the layers a page draws beside the curves (empty when not
+/// computed).
+#[derive(Clone, Copy, Debug)]
+pub struct MapDrawing<'a> {
+    /// The map's curves.
+    pub curves: &'a [Polyline],
+    /// The sensor's positions, in order.
+    pub path: &'a [Point],
+    /// Scans fused.
+    pub scans: u64,
+    /// A sample of the returns and the map seen through.
+    pub layers: Option<&'a isoline_core::MapLayers>,
+}
+
+/// Returns at most drawn on a page: enough to see the walls' texture, few enough to
+/// keep the page a few megabytes.
+pub const PAGE_RETURNS: usize = 20_000;
 
 /// The map's record: stream `map`, frame the number of scans fused so far, the curves
 /// in the world frame.
@@ -67,13 +99,13 @@ pub fn map_view(curves: &[Polyline], scans: u64) -> FrameView {
     }
 }
 
-/// Writes the map to `path` in the format of its extension: `curves` in the world
-/// frame, `path_taken` the sensor's positions (drawn in the SVG), `scans` the scans
-/// fused.
-pub fn write_map(path: &Path, curves: &[Polyline], path_taken: &[Point], scans: u64) -> Result<()> {
+/// Writes the map to `path` in the format of its extension.
+pub fn write_map(path: &Path, map: &MapDrawing<'_>) -> Result<()> {
+    let (curves, scans) = (map.curves, map.scans);
     let text = match MapFormat::of(path) {
         Some(MapFormat::GeoJson) => geojson(curves),
-        Some(MapFormat::Svg) => svg(curves, path_taken),
+        Some(MapFormat::Svg) => svg(curves, map.path),
+        Some(MapFormat::Html) => html(map),
         Some(MapFormat::Ndjson) => {
             serde_json::to_string(&map_record(curves, scans)).expect("records serialise") + "\n"
         }
@@ -121,6 +153,40 @@ fn geojson(curves: &[Polyline]) -> String {
         + "\n"
 }
 
+/// Coordinates to the millimetre, flat: `[x0, y0, x1, y1, ...]`.
+fn flat(points: &[Point]) -> Vec<f64> {
+    let mm = |v: f64| (v * 1000.0).round() / 1000.0;
+    points.iter().flat_map(|p| [mm(p[0]), mm(p[1])]).collect()
+}
+
+/// The page: its data (flat arrays in metres) in a JSON script element of the
+/// template, which draws it.
+fn html(map: &MapDrawing<'_>) -> String {
+    let empty = isoline_core::MapLayers::default();
+    let layers = map.layers.unwrap_or(&empty);
+    // The path thinned to a point every 10 cm: its shape, not the scans' jitter.
+    let mut path: Vec<Point> = Vec::new();
+    for &p in map.path {
+        if path.last().is_none_or(|&q| dist(p, q) >= 0.1) {
+            path.push(p);
+        }
+    }
+    let every = layers.returns.len().div_ceil(PAGE_RETURNS).max(1);
+    let returns: Vec<Point> = layers.returns.iter().step_by(every).copied().collect();
+    let data = json!({
+        "scans": map.scans,
+        "curves": map.curves.iter().map(|c| json!({"closed": c.closed, "xy": flat(&c.points)})).collect::<Vec<_>>(),
+        "path": flat(&path),
+        "returns": flat(&returns),
+        "through": flat(&layers.seen_through),
+    });
+    // Numbers only, but a `</` would end the script element whatever it held.
+    let data = serde_json::to_string(&data)
+        .expect("values serialise")
+        .replace("</", "<\\/");
+    include_str!("write/map_page.html").replace("__ISOLINE_MAP_DATA__", &data)
+}
+
 /// The pieces over the path the sensor took, a dot a metre.
 fn svg(curves: &[Polyline], path_taken: &[Point]) -> String {
     let mut dots: Vec<Point> = Vec::new();
@@ -162,9 +228,20 @@ mod tests {
     #[test]
     fn every_format_is_written_and_read_back() {
         let dir = tempfile::tempdir().unwrap();
-        for ext in ["geojson", "svg", "ndjson", "json", "mcap"] {
+        let curves = square();
+        let layers = isoline_core::MapLayers {
+            returns: vec![[0.0, 0.5], [1.0, 0.5]],
+            seen_through: vec![[0.5, 0.0]],
+        };
+        let drawing = MapDrawing {
+            curves: &curves,
+            path: &[[0.5, 0.5]],
+            scans: 7,
+            layers: Some(&layers),
+        };
+        for ext in ["geojson", "svg", "ndjson", "json", "mcap", "html"] {
             let p = dir.path().join(format!("m.{ext}"));
-            write_map(&p, &square(), &[[0.5, 0.5]], 7).unwrap();
+            write_map(&p, &drawing).unwrap();
             assert!(std::fs::metadata(&p).unwrap().len() > 0, "{ext}");
         }
         let geo: serde_json::Value =
@@ -187,7 +264,12 @@ mod tests {
             !svg.contains(r#"d="M0.00 "#),
             "the curves start inside the margin"
         );
-        let e = write_map(&dir.path().join("m.png"), &square(), &[], 1).unwrap_err();
+        // The page carries its data and needs nothing from the network.
+        let page = std::fs::read_to_string(dir.path().join("m.html")).unwrap();
+        assert!(page.contains(r#""through":[0.5,0.0]"#), "{page}");
+        assert!(page.contains(r#""xy":[0.0,0.0,1.0,0.0,1.0,1.0,0.0,1.0]"#));
+        assert!(!page.contains("http://") && !page.contains("https://") && !page.contains("src="));
+        let e = write_map(&dir.path().join("m.png"), &drawing).unwrap_err();
         assert!(e.to_string().contains(".geojson"), "{e}");
     }
 }

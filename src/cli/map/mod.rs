@@ -10,7 +10,7 @@ use serde_json::json;
 
 use isoline_core::geom::{Point, Polyline, Pose};
 use isoline_core::{Map, MapScores, MapStats, Params, Scan};
-use isoline_io::map_files::{write_map, MapFormat, MAP_EXTENSIONS};
+use isoline_io::map_files::{write_map, MapDrawing, MapFormat, MAP_EXTENSIONS, PAGE_RETURNS};
 use isoline_io::{BadFrame, Frame};
 
 mod register;
@@ -264,7 +264,7 @@ pub fn run(mut a: Args) -> Result<()> {
     let finish_s = t.elapsed().as_secs_f64();
     bar.finish_and_clear();
     let stats = run.map.stats();
-    write_all(&a.output, &curves, &run.poses, stats.scans)?;
+    write_all(&a.output, &mut run.map, &curves, &run.poses)?;
     let wall = start.elapsed().as_secs_f64();
     let cpu_s = cpu.map(|c| c.elapsed().as_secs_f64());
     let mut summary = summary(&a.input, &run, &stats, &scores, wall, cpu_s, finish_s);
@@ -410,7 +410,7 @@ impl Run<'_> {
             if self.every > 0 && self.since_write >= self.every {
                 self.since_write = 0;
                 let curves = self.map.curves()?;
-                write_all(self.outputs, &curves, &self.poses, self.map.stats().scans)?;
+                write_all(self.outputs, &mut self.map, &curves, &self.poses)?;
             }
         }
         self.fuse_s += t.elapsed().as_secs_f64();
@@ -476,10 +476,30 @@ fn show(bar: &indicatif::ProgressBar, run: &mut Run<'_>, start: Instant) {
 /// How often `isoline map` says how far it is when stderr is not a terminal.
 const PLAIN_EVERY: std::time::Duration = std::time::Duration::from_secs(10);
 
-/// Writes the map to every output, each atomically (a reader never sees half a map).
-fn write_all(outputs: &[PathBuf], curves: &[Polyline], poses: &[Point], scans: u64) -> Result<()> {
+/// Writes the map to every output, each atomically (a reader never sees half a map);
+/// the layers a page draws are computed when one is among them.
+fn write_all(
+    outputs: &[PathBuf],
+    map: &mut Map,
+    curves: &[Polyline],
+    poses: &[Point],
+) -> Result<()> {
+    let layers = if outputs
+        .iter()
+        .any(|o| MapFormat::of(o).is_some_and(MapFormat::draws_layers))
+    {
+        Some(map.layers(curves, PAGE_RETURNS)?)
+    } else {
+        None
+    };
+    let drawing = MapDrawing {
+        curves,
+        path: poses,
+        scans: map.stats().scans,
+        layers: layers.as_ref(),
+    };
     for o in outputs {
-        write_map(o, curves, poses, scans).with_context(|| format!("writing {}", o.display()))?;
+        write_map(o, &drawing).with_context(|| format!("writing {}", o.display()))?;
     }
     Ok(())
 }

@@ -34,7 +34,7 @@ use crate::error::{Error, Result};
 use crate::geom::{to_world, Point, Polyline, Pose};
 use crate::scan::Scan;
 
-pub use score::MapScores;
+pub use score::{MapLayers, MapScores};
 use tile::{locate, Border, Sample, Tile};
 
 /// A tile's position in the lattice of tiles.
@@ -912,6 +912,13 @@ impl Map {
     /// votes alone. The union's scores are those of the curves inserted.
     pub fn score(&mut self, curves: &[Polyline]) -> Result<MapScores> {
         score::scores(self, curves)
+    }
+
+    /// What a drawing of `curves` (this map's) shows beside them: a uniform sample of
+    /// at most `max_returns` of the run's returns, and the points along the curves that
+    /// the scans saw through more often than they hit.
+    pub fn layers(&mut self, curves: &[Polyline], max_returns: usize) -> Result<MapLayers> {
+        score::layers(self, curves, max_returns)
     }
 
     fn evict_one_other_than(&mut self, keep: Key) -> Result<()> {

@@ -124,17 +124,7 @@ pub(crate) fn scores(map: &mut Map, curves: &[Polyline]) -> Result<MapScores> {
             .filter(|&&p| index.distance(p) <= tol)
             .count()
     };
-    // The map's length, sampled a cell apart.
-    let mut along = Vec::new();
-    for c in curves {
-        for (a, b) in c.segments() {
-            let steps = (dist(a, b) / cell).ceil().max(1.0) as usize;
-            for s in 0..steps {
-                let t = (s as f64 + 0.5) / steps as f64;
-                along.push([a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1])]);
-            }
-        }
-    }
+    let along = along(curves, cell);
     let through_share = |map: &mut Map, pts: &[Point]| -> Result<f64> {
         let mut through = 0usize;
         map.visit_samples(pts, |_, s| {
@@ -159,6 +149,49 @@ pub(crate) fn scores(map: &mut Map, curves: &[Polyline]) -> Result<MapScores> {
     map.score.returns.points = returns;
     map.score.curve_points.points = union_points;
     Ok(out)
+}
+
+/// Points along `curves`, `cell` apart (at the middles of equal steps).
+fn along(curves: &[Polyline], cell: f64) -> Vec<Point> {
+    let mut out = Vec::new();
+    for c in curves {
+        for (a, b) in c.segments() {
+            let steps = (dist(a, b) / cell).ceil().max(1.0) as usize;
+            for s in 0..steps {
+                let t = (s as f64 + 0.5) / steps as f64;
+                out.push([a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1])]);
+            }
+        }
+    }
+    out
+}
+
+/// What a drawing of the map shows beside its curves.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct MapLayers {
+    /// A uniform sample of the run's returns, placed by their scans' poses.
+    pub returns: Vec<Point>,
+    /// Points along the curves, a cell apart, that the scans saw through more often
+    /// than they hit: where the map is wrong by the scans' own evidence.
+    pub seen_through: Vec<Point>,
+}
+
+/// The layers of `curves` on `map`, at most `max_returns` of the returns.
+pub(crate) fn layers(map: &mut Map, curves: &[Polyline], max_returns: usize) -> Result<MapLayers> {
+    let kept = &map.score.returns.points;
+    let every = kept.len().div_ceil(max_returns.max(1)).max(1);
+    let returns: Vec<Point> = kept.iter().step_by(every).copied().collect();
+    let along = along(curves, map.params.cell);
+    let mut seen_through = Vec::new();
+    map.visit_samples(&along, |n, s| {
+        if s.is_some_and(|s| s.through > s.hits) {
+            seen_through.push(along[n]);
+        }
+    })?;
+    Ok(MapLayers {
+        returns,
+        seen_through,
+    })
 }
 
 fn share(part: usize, whole: usize) -> f64 {
