@@ -331,3 +331,29 @@ fn the_html_map_loads_in_a_browser_and_draws_every_layer() {
         );
     }
 }
+
+#[test]
+fn off_a_terminal_the_progress_is_a_plain_line_with_the_total() {
+    let dir = tempfile::tempdir().unwrap();
+    let frames = dir.path().join("f.ndjson");
+    synth_room(&frames, 300, 0.02, &["--noise", "0.01"]);
+    // stderr is a pipe here: no bar, no escape codes; a line each time the interval
+    // passes (0 s: every batch), the total once the counting thread has it.
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_isoline"))
+        .args(["map", p(&frames), "-o", p(&dir.path().join("m.geojson"))])
+        .env("ISOLINE_PROGRESS_EVERY", "0")
+        .output()
+        .unwrap();
+    assert!(out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    let lines: Vec<&str> = err.lines().filter(|l| l.contains("frames read")).collect();
+    assert!(lines.len() >= 2, "{err}");
+    assert!(
+        !err.contains('\u{1b}'),
+        "escape codes off a terminal: {err:?}"
+    );
+    assert!(
+        lines.iter().any(|l| l.contains("of 300, about")),
+        "no total: {err}"
+    );
+}

@@ -2,6 +2,7 @@
 //! world-frame curve map (docs/method.md, "A map of the whole run").
 
 use std::path::{Path, PathBuf};
+use std::sync::{Arc, OnceLock};
 use std::time::Instant;
 
 use anyhow::{bail, Context, Result};
@@ -100,8 +101,8 @@ struct Run<'a> {
     /// `--quiet`, and when the last plain progress line was printed.
     quiet: bool,
     last_line: Instant,
-    /// The scans to fuse, when known (registration counted them).
-    total: Option<u64>,
+    /// The input's frames, once a thread of its own has counted them.
+    total: Arc<OnceLock<u64>>,
 }
 
 /// Scans a row of the summary's `blocks` covers.
@@ -173,6 +174,10 @@ pub fn run(mut a: Args) -> Result<()> {
     let map_params = cfg.map_params();
     let map = Map::new(map_params, Box::new(store))?;
     let bar = progress(a.quiet);
+    let total = Arc::new(OnceLock::new());
+    if !a.quiet {
+        count_frames(&a.input, &bag, cap, &total);
+    }
     let start = Instant::now();
     let cpu = cpu_time::ProcessTime::try_now().ok();
     let registration = if a.register {
@@ -185,19 +190,6 @@ pub fn run(mut a: Args) -> Result<()> {
     } else {
         None
     };
-    // Registration has counted the scans: the map's pass knows its total, and the bar
-    // its time left.
-    let total = registration.as_ref().map(|r| r.poses.len() as u64);
-    if let Some(n) = total {
-        bar.set_length(n);
-        bar.set_position(0);
-        bar.set_style(
-            indicatif::ProgressStyle::with_template(
-                "{elapsed} {pos}/{len} scans, {eta} left {msg}",
-            )
-            .expect("a valid template"),
-        );
-    }
     let mut run = Run {
         map,
         params: cfg.params(),
@@ -444,14 +436,45 @@ fn progress(quiet: bool) -> indicatif::ProgressBar {
     }
     let b = indicatif::ProgressBar::new_spinner();
     b.set_style(
-        indicatif::ProgressStyle::with_template("{spinner} {elapsed} {pos} scans {msg}")
+        indicatif::ProgressStyle::with_template("{spinner} {elapsed} {pos} frames {msg}")
             .expect("a valid template"),
     );
     b
 }
 
+/// Counts the frames of `input` on a thread of its own into `total`, so that the
+/// progress shows a total and the time left without holding the run up (reading is a
+/// small part of a frame's cost, and the thread uses a core the map leaves idle between
+/// batches). A file it cannot read leaves the total unknown; the run reports why.
+fn count_frames(
+    input: &Path,
+    bag: &isoline_io::bag::BagOptions,
+    cap: usize,
+    total: &Arc<OnceLock<u64>>,
+) {
+    let (input, bag, total) = (input.to_path_buf(), bag.clone(), Arc::clone(total));
+    let counter = std::thread::Builder::new()
+        .name("count-frames".into())
+        .spawn(move || {
+            let mut n = 0u64;
+            if isoline_io::for_each_item_capped(&input, &bag, cap, |_| {
+                n += 1;
+                true
+            })
+            .is_ok()
+            {
+                let _ = total.set(n);
+            }
+        });
+    // Without the thread the progress shows no total, as before.
+    drop(counter);
+}
+
 fn show(bar: &indicatif::ProgressBar, run: &mut Run<'_>, start: Instant) {
     let s = run.map.stats();
+    let k = &run.skipped;
+    let read = s.scans + k.no_pose + k.no_beams + k.unreadable + k.failed + k.far;
+    let total = run.total.get().copied();
     let message = format!(
         "({:.0}/s), {} tiles in memory ({:.0} MB), {} stored",
         s.scans as f64 / start.elapsed().as_secs_f64().max(1e-9),
@@ -460,21 +483,41 @@ fn show(bar: &indicatif::ProgressBar, run: &mut Run<'_>, start: Instant) {
         s.tiles_stored
     );
     if !bar.is_hidden() {
-        bar.set_position(s.scans);
+        if let (Some(n), None) = (total, bar.length()) {
+            bar.set_length(n);
+            bar.set_style(
+                indicatif::ProgressStyle::with_template(
+                    "{elapsed} {pos}/{len} frames, {eta} left {msg}",
+                )
+                .expect("a valid template"),
+            );
+        }
+        bar.set_position(read);
         bar.set_message(message);
-    } else if !run.quiet && run.last_line.elapsed() >= PLAIN_EVERY {
+    } else if !run.quiet && run.last_line.elapsed() >= plain_every() {
         run.last_line = Instant::now();
-        let of = run.total.map_or(String::new(), |n| format!(" of {n}"));
+        let elapsed = start.elapsed().as_secs_f64();
+        let of = total.map_or(String::new(), |n| {
+            let left = elapsed / read.max(1) as f64 * n.saturating_sub(read) as f64;
+            format!(" of {n}, about {left:.0} s left")
+        });
         eprintln!(
-            "isoline map: {:.0} s, {} scans{of} {message}",
-            start.elapsed().as_secs_f64(),
+            "isoline map: {elapsed:.0} s, {read} frames read{of}, {} scans fused {message}",
             s.scans
         );
     }
 }
 
-/// How often `isoline map` says how far it is when stderr is not a terminal.
-const PLAIN_EVERY: std::time::Duration = std::time::Duration::from_secs(10);
+/// How often `isoline map` says how far it is when stderr is not a terminal:
+/// Ten seconds, or `$ISOLINE_PROGRESS_EVERY` seconds.
+fn plain_every() -> std::time::Duration {
+    let secs = std::env::var("ISOLINE_PROGRESS_EVERY")
+        .ok()
+        .and_then(|v| v.parse::<f64>().ok())
+        .filter(|s| s.is_finite() && *s >= 0.0 && *s <= 1e6)
+        .unwrap_or(10.0);
+    std::time::Duration::from_secs_f64(secs)
+}
 
 /// Writes the map to every output, each atomically (a reader never sees half a map);
 /// the layers a page draws are computed when one is among them.
