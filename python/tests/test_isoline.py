@@ -135,6 +135,25 @@ def test_a_bag_reads_as_the_binary_reads_it(binary, tmp_path):
     for frame, record in list(zip(frames, theirs))[::20]:
         assert (frame.stream, frame.frame) == (record["stream"], record["frame"])
         assert_same_curves(isoline.reconstruct_frame(frame), record)
+    # The scans' header frame id, where a ROS user looks for it.
+    assert {f.frame_id for f in frames} == {"laser"}
+
+
+def test_a_frame_id_is_kept_through_ndjson_and_given_to_constructors(binary, tmp_path):
+    bag = FIXTURES / "room-laser-80.mcap"
+    out = tmp_path / "frames.ndjson"
+    subprocess.run(
+        [binary, "convert", str(bag), "--odometry", "/odom", "-o", str(out)],
+        check=True,
+        capture_output=True,
+    )
+    first = json.loads(out.read_text().splitlines()[0])
+    assert first["frame_id"] == "laser"
+    (frame,) = list(isoline.read_frames(out))[:1]
+    assert frame.frame_id == "laser"
+    made = isoline.Frame.from_scan([1.0, 1.0], 0.0, 0.1, 0.1, 10.0, frame_id="base_laser")
+    assert made.frame_id == "base_laser"
+    assert isoline.Frame.from_points(np.zeros((3, 2))).frame_id is None
 
 
 def test_the_result_record_is_the_binarys(binary, tmp_path):

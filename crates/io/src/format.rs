@@ -21,6 +21,10 @@ pub struct FrameRecord {
     /// Stream id (optional).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub stream: Option<String>,
+    /// The sensor's coordinate frame, as a ROS header's `frame_id` names it (optional;
+    /// a bag's scans carry theirs).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub frame_id: Option<String>,
     /// Frame number.
     pub frame: u64,
     /// Time stamp in seconds (optional).

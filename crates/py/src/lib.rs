@@ -231,7 +231,8 @@ impl Frame {
     /// `origin` is the sensor's position when the points were seen from one (then the
     /// free space between it and the points is known).
     #[staticmethod]
-    #[pyo3(signature = (points, *, origin = None, pose = None, t = None, frame = 0, stream = None))]
+    #[pyo3(signature = (points, *, origin = None, pose = None, t = None, frame = 0, stream = None, frame_id = None))]
+    #[allow(clippy::too_many_arguments)]
     fn from_points(
         points: &Bound<'_, PyAny>,
         origin: Option<(f64, f64)>,
@@ -239,12 +240,14 @@ impl Frame {
         t: Option<f64>,
         frame: u64,
         stream: Option<String>,
+        frame_id: Option<String>,
     ) -> PyResult<Self> {
         let pose = pose_arg(points.py(), pose)?;
         let points = points_of(points, "points")?;
         isoline_core::validate_points(&points).map_err(core_error)?;
         let record = FrameRecord {
             stream,
+            frame_id,
             frame,
             t,
             points,
@@ -263,7 +266,7 @@ impl Frame {
     /// infinite are no returns. `origin` is the sensor's position in the frame's
     /// coordinates; `pose` (x, y, heading) places the frame in the world.
     #[staticmethod]
-    #[pyo3(signature = (ranges, angle_min, angle_increment, range_min, range_max, *, origin = (0.0, 0.0), pose = None, t = None, frame = 0, stream = None))]
+    #[pyo3(signature = (ranges, angle_min, angle_increment, range_min, range_max, *, origin = (0.0, 0.0), pose = None, t = None, frame = 0, stream = None, frame_id = None))]
     #[allow(clippy::too_many_arguments)]
     fn from_scan(
         ranges: &Bound<'_, PyAny>,
@@ -276,6 +279,7 @@ impl Frame {
         t: Option<f64>,
         frame: u64,
         stream: Option<String>,
+        frame_id: Option<String>,
     ) -> PyResult<Self> {
         let pose = pose_arg(ranges.py(), pose)?;
         let ranges = vector_of(ranges, "ranges", isoline_core::MAX_BEAMS)?
@@ -284,6 +288,7 @@ impl Frame {
             .collect();
         let record = FrameRecord {
             stream,
+            frame_id,
             frame,
             t,
             origin: Some([origin.0, origin.1]),
@@ -304,6 +309,14 @@ impl Frame {
     #[getter]
     fn stream(&self) -> Option<String> {
         self.inner.stream.clone()
+    }
+
+    /// The sensor's coordinate frame, as a ROS header's `frame_id` names it (a bag's
+    /// scans carry theirs; NDJSON frames their `frame_id` field), if the input says.
+    /// A bag's `stream` is this frame id too (the topic where it has none).
+    #[getter]
+    fn frame_id(&self) -> Option<String> {
+        self.inner.frame_id.clone()
     }
 
     /// Its number within the stream.
@@ -564,7 +577,7 @@ fn reconstruct(
     points: &Bound<'_, PyAny>,
     params: Option<&Params>,
 ) -> PyResult<Result> {
-    let frame = Frame::from_points(points, None, None, None, 0, None)?;
+    let frame = Frame::from_points(points, None, None, None, 0, None, None)?;
     reconstruct_one(py, &frame.inner, &params_or_default(params))
 }
 
@@ -594,6 +607,7 @@ fn reconstruct_scan(
         pose,
         None,
         0,
+        None,
         None,
     )?;
     reconstruct_one(py, &frame.inner, &params_or_default(params))
@@ -692,7 +706,7 @@ impl Stream {
             Ok(f) => f.get().inner.clone(),
             Err(_) => {
                 let number = frame.unwrap_or(self.next);
-                Frame::from_points(data, None, None, None, number, None)?.inner
+                Frame::from_points(data, None, None, None, number, None, None)?.inner
             }
         };
         if let Some(n) = frame {

@@ -409,6 +409,7 @@ pub fn read_bag_with<T>(
                 *n += 1;
                 let t = time_of(scan.header.stamp, log_time);
                 let mut rec = scan_record(&scan, stream.clone(), frame, t);
+                rec.frame_id = Some(scan.header.frame_id.clone()).filter(|f| !f.is_empty());
                 if let (Some(tf), Some(w)) = (&tf, &world) {
                     rec.pose = tf.pose(w, &scan.header.frame_id, t);
                     summary.posed += u64::from(rec.pose.is_some());
@@ -546,7 +547,13 @@ impl<W: std::io::Write + std::io::Seek> BagWriter<W> {
             rec.angle_increment.ok_or("no angle_increment")?,
         );
         let t = rec.t.unwrap_or(rec.frame as f64 * 0.1);
-        let frame_id = rec.stream.clone().unwrap_or_else(|| "laser".into());
+        // The record's own frame id, else its stream's name (a bag read back gives the
+        // same stream).
+        let frame_id = rec
+            .frame_id
+            .clone()
+            .or_else(|| rec.stream.clone())
+            .unwrap_or_else(|| "laser".into());
         let stamp = ros::Time::from_seconds(t);
         let scan = LaserScan {
             header: ros::Header {

@@ -19,6 +19,8 @@ use isoline_core::{LaserScan, Scan};
 pub struct Frame {
     /// Stream id.
     pub stream: Option<String>,
+    /// The sensor's coordinate frame (a ROS header's `frame_id`), when the input says.
+    pub frame_id: Option<String>,
     /// Frame number.
     pub frame: u64,
     /// Time stamp, seconds.
@@ -106,6 +108,7 @@ impl Frame {
         };
         Ok(Frame {
             stream: r.stream,
+            frame_id: r.frame_id,
             frame: r.frame,
             t: r.t,
             points,
