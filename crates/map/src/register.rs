@@ -718,6 +718,15 @@ impl Registrar {
                 let found = search(pts, &grid, at, win);
                 // The whole window's search must point at one place.
                 if level == 0 && found.ambiguous(pts.len()) {
+                    tracing::debug!(
+                        j,
+                        k,
+                        score = found.score,
+                        runner_up = found.runner_up,
+                        linear = window.linear,
+                        angular = window.angular,
+                        "loop search ambiguous"
+                    );
                     return None;
                 }
                 at = found.pose;
