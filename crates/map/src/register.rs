@@ -648,21 +648,11 @@ impl Registrar {
         closed
     }
 
-    /// Matches keyframe `k`'s submap onto the submaps of keyframe `j`, its neighbours
-    /// and `others` from where the graph puts them: a correlative search over the
-    /// window the chain's uncertainty gives (three standard deviations, at most
-    /// [`MAX_LOOP_SHIFT`] and 30 degrees) on lattices of 50, 20 and 5 cm, then ICP from
-    /// its best. The edge if the search points at one place (no other within three
-    /// standard errors of its score), the match is good (overlap, more informative than
-    /// the chain along every direction) and consistent with the graph (its correction
-    /// within the chain's 99.9% ellipsoid).
-    fn verify(&self, j: usize, k: usize, chain: &Cov3, others: &[usize]) -> Option<(Edge, Cov3)> {
-        let p = self.params;
-        let guess = between(self.graph.nodes[j], self.graph.nodes[k]);
-        let source = &self.keyframes[k].points;
-        // The target: keyframe j with its neighbours along the path and the other
-        // candidates (where the drift is metres, the nearest old node need not be the
-        // one that saw the same walls), in j's frame.
+    /// The target a loop from keyframe `k` to `j` is matched on: keyframe `j` with its
+    /// neighbours along the path and the other candidates `others` (where the drift is
+    /// metres, the nearest old node need not be the one that saw the same walls), points
+    /// and normals in `j`'s frame.
+    fn loop_target(&self, j: usize, k: usize, others: &[usize]) -> (Vec<Point>, Vec<Point>) {
         let (lo, hi) = (j.saturating_sub(2), (j + 2).min(k.saturating_sub(1)));
         let mut chosen: Vec<usize> = (lo..=hi).chain(others.iter().copied()).collect();
         chosen.sort_unstable();
@@ -678,6 +668,81 @@ impl Registrar {
                 normals.push([c * n[0] - s * n[1], s * n[0] + c * n[1]]);
             }
         }
+        (points, normals)
+    }
+
+    /// Correlative search for `source` on the target `points` within `window` of
+    /// `guess`, coarse to fine; `None` where the whole window does not point at one place
+    /// (`(j, k)` name the loop for the log).
+    fn loop_search(
+        &self,
+        source: &[Point],
+        points: &[Point],
+        guess: Pose,
+        window: Window,
+        (j, k): (usize, usize),
+    ) -> Option<Pose> {
+        let p = self.params;
+        // Coarse to fine: each level searches two of the coarser level's cells and
+        // one of its heading steps about the coarser best. The points within 8 m
+        // (farther ones turn the heading step finer for little gain), at most 150 at
+        // the coarse levels.
+        let near: Vec<Point> = source
+            .iter()
+            .copied()
+            .filter(|q| q[0].hypot(q[1]) <= 8.0)
+            .collect();
+        let every = near.len().div_ceil(150).max(1);
+        let sparse: Vec<Point> = near.iter().step_by(every).copied().collect();
+        // The fine level at most 400: it refines within a few cells.
+        let every = near.len().div_ceil(400).max(1);
+        let near: Vec<Point> = near.iter().step_by(every).copied().collect();
+        let mut at = guess;
+        let mut win = window;
+        for (level, (res, pts)) in [(0.5, &sparse), (0.2, &sparse), (0.05, &near)]
+            .into_iter()
+            .enumerate()
+        {
+            let blur = f64::max(res, p.noise);
+            let keep = in_reach(pts, at, win, 2.0 * blur + res);
+            let reachable: Vec<Point> = points.iter().copied().filter(|q| keep(q)).collect();
+            let grid = Likelihood::new(&reachable, res, blur, win.linear)?;
+            let found = search(pts, &grid, at, win);
+            // The whole window's search must point at one place.
+            if level == 0 && found.ambiguous(pts.len()) {
+                tracing::debug!(
+                    j,
+                    k,
+                    score = found.score,
+                    runner_up = found.runner_up,
+                    linear = window.linear,
+                    angular = window.angular,
+                    "loop search ambiguous"
+                );
+                return None;
+            }
+            at = found.pose;
+            win = Window {
+                linear: 2.0 * res,
+                angular: res / 8.0,
+            };
+        }
+        Some(at)
+    }
+
+    /// Matches keyframe `k`'s submap onto the submaps of keyframe `j`, its neighbours
+    /// and `others` from where the graph puts them: a correlative search over the
+    /// window the chain's uncertainty gives (three standard deviations, at most
+    /// [`MAX_LOOP_SHIFT`] and 30 degrees) on lattices of 50, 20 and 5 cm, then ICP from
+    /// its best. The edge if the search points at one place (no other within three
+    /// standard errors of its score), the match is good (overlap, more informative than
+    /// the chain along every direction) and consistent with the graph (its correction
+    /// within the chain's 99.9% ellipsoid).
+    fn verify(&self, j: usize, k: usize, chain: &Cov3, others: &[usize]) -> Option<(Edge, Cov3)> {
+        let p = self.params;
+        let guess = between(self.graph.nodes[j], self.graph.nodes[k]);
+        let source = &self.keyframes[k].points;
+        let (points, normals) = self.loop_target(j, k, others);
         if points.len() < 20 || source.len() < 20 {
             return None;
         }
@@ -690,53 +755,7 @@ impl Registrar {
             linear: (3.0 * spread).clamp(p.reach, MAX_LOOP_SHIFT),
             angular: (3.0 * chain[(2, 2)].sqrt()).clamp(3f64.to_radians(), 30f64.to_radians()),
         };
-        let at = {
-            // Coarse to fine: each level searches two of the coarser level's cells and
-            // one of its heading steps about the coarser best. The points within 8 m
-            // (farther ones turn the heading step finer for little gain), at most 150 at
-            // the coarse levels.
-            let near: Vec<Point> = source
-                .iter()
-                .copied()
-                .filter(|q| q[0].hypot(q[1]) <= 8.0)
-                .collect();
-            let every = near.len().div_ceil(150).max(1);
-            let sparse: Vec<Point> = near.iter().step_by(every).copied().collect();
-            // The fine level at most 400: it refines within a few cells.
-            let every = near.len().div_ceil(400).max(1);
-            let near: Vec<Point> = near.iter().step_by(every).copied().collect();
-            let mut at = guess;
-            let mut win = window;
-            for (level, (res, pts)) in [(0.5, &sparse), (0.2, &sparse), (0.05, &near)]
-                .into_iter()
-                .enumerate()
-            {
-                let blur = f64::max(res, p.noise);
-                let keep = in_reach(pts, at, win, 2.0 * blur + res);
-                let reachable: Vec<Point> = points.iter().copied().filter(|q| keep(q)).collect();
-                let grid = Likelihood::new(&reachable, res, blur, win.linear)?;
-                let found = search(pts, &grid, at, win);
-                // The whole window's search must point at one place.
-                if level == 0 && found.ambiguous(pts.len()) {
-                    tracing::debug!(
-                        j,
-                        k,
-                        score = found.score,
-                        runner_up = found.runner_up,
-                        linear = window.linear,
-                        angular = window.angular,
-                        "loop search ambiguous"
-                    );
-                    return None;
-                }
-                at = found.pose;
-                win = Window {
-                    linear: 2.0 * res,
-                    angular: res / 8.0,
-                };
-            }
-            at
-        };
+        let at = self.loop_search(source, &points, guess, window, (j, k))?;
         // ICP's target: what lies within its reach of the source where the search put
         // it.
         let still = Window {
