@@ -5,7 +5,7 @@ use std::path::{Path, PathBuf};
 use std::sync::{Arc, OnceLock};
 use std::time::Instant;
 
-use anyhow::{bail, Context, Result};
+use anyhow::{anyhow, bail, Context, Result};
 use rayon::prelude::*;
 use serde_json::json;
 
@@ -127,11 +127,142 @@ struct Block {
 /// Builds the map and writes it; fails when no scan could be placed.
 pub fn run(mut a: Args) -> Result<()> {
     let cap = a.bag.line_cap();
-    let bag = a.bag.options(&a.input)?;
     let cfg = super::load_config(a.config.as_deref())?;
     if let Some(problem) = cfg.map_noise_problem() {
         bail!("{problem}");
     }
+    let (every, spill) = outputs(&mut a, &cfg)?;
+    let bag = a.bag.options(&a.input)?;
+    let store = isoline_io::DiskTiles::new(spill.as_deref())
+        .context("creating the directory for tiles that leave memory")?;
+    let map_params = cfg.map_params();
+    let map = Map::new(map_params, Box::new(store))?;
+    let bar = progress(a.quiet);
+    let total = Arc::new(OnceLock::new());
+    if !a.quiet {
+        count_frames(&a.input, &bag, cap, &total);
+    }
+    let start = Instant::now();
+    let cpu = cpu_time::ProcessTime::try_now().ok();
+    let registration = if a.register {
+        let mut params = cfg.register;
+        params.max_range = params.max_range.min(map_params.max_range);
+        Some(
+            register::run(&a.input, &bag, cap, params, &cfg.params(), &bar)
+                .with_context(|| format!("registering {}", a.input.display()))?,
+        )
+    } else {
+        None
+    };
+    let registered = registration.as_ref().map(|r| r.poses.clone());
+    let mut run = Run::new(
+        map,
+        cfg.params(),
+        registered,
+        &a.output,
+        every,
+        a.quiet,
+        total,
+    );
+    let mut batch: Vec<(Scan, Pose, f64)> = Vec::with_capacity(BATCH);
+    let mut failure: Option<anyhow::Error> = None;
+    let read = isoline_io::for_each_item_capped(&a.input, &bag, cap, |item| {
+        if let Some(scan) = run.accept(item) {
+            batch.push(scan);
+        }
+        if batch.len() == BATCH {
+            if let Err(e) = run.fuse(&mut batch) {
+                failure = Some(e);
+                return false;
+            }
+            show(&bar, &mut run, start);
+        }
+        true
+    });
+    if let Some(e) = failure {
+        return Err(e);
+    }
+    // A file damaged part way (a download cut short) still gives the map of the scans
+    // before the damage; the run then fails with the read error.
+    let read = read.with_context(|| format!("reading {}", a.input.display()));
+    run.fuse(&mut batch)?;
+    run.close_block();
+    show(&bar, &mut run, start);
+    let stats = run.map.stats();
+    if stats.scans == 0 {
+        read?;
+        return Err(nothing_placed(&a.input, &bag, &run));
+    }
+    let t = Instant::now();
+    let (curves, scores) = run.map.finish()?;
+    let finish_s = t.elapsed().as_secs_f64();
+    bar.finish_and_clear();
+    let stats = run.map.stats();
+    write_all(&a.output, &mut run.map, &curves, &run.poses)?;
+    let wall = start.elapsed().as_secs_f64();
+    let cpu_s = cpu.map(|c| c.elapsed().as_secs_f64());
+    let mut summary = summary(&a.input, &run, &stats, &scores, wall, cpu_s, finish_s);
+    if let Some(r) = &registration {
+        summary["registration"] = serde_json::to_value(&r.summary)?;
+    }
+    if let Some(path) = &a.trajectory {
+        super::write(path, tum(&run.placed))?;
+    }
+    eprintln!(
+        "{}",
+        done_line(&stats, &scores, wall, map_params.hit_tolerance)
+    );
+    if let Some(p) = &a.stats {
+        super::write(p, serde_json::to_string_pretty(&summary)? + "\n")?;
+    }
+    read.map_err(|e| {
+        e.context(format!(
+            "the map of the {} scans before the damage is written",
+            stats.scans
+        ))
+    })
+}
+
+impl<'a> Run<'a> {
+    /// A run that fuses into `map`, placing scans by `registered` poses when given.
+    fn new(
+        map: Map,
+        params: Params,
+        registered: Option<Vec<Pose>>,
+        outputs: &'a [PathBuf],
+        every: u64,
+        quiet: bool,
+        total: Arc<OnceLock<u64>>,
+    ) -> Run<'a> {
+        Run {
+            map,
+            params,
+            skipped: Skipped::default(),
+            first_errors: Vec::new(),
+            poses: Vec::new(),
+            placed: Vec::new(),
+            registered: registered.map(|poses| (poses, 0)),
+            reconstruct_s: 0.0,
+            fuse_s: 0.0,
+            reconstruct_cpu_s: 0.0,
+            fuse_cpu_s: 0.0,
+            outputs,
+            every,
+            since_write: 0,
+            blocks: Vec::new(),
+            block: Block::default(),
+            quiet,
+            last_line: Instant::now(),
+            total,
+        }
+    }
+}
+
+/// The map's outputs, `--every` and the spill folder, from the command line or else the
+/// configuration's `[map]` table (its paths taken from its folder, as the daemon takes
+/// them); every output checked (a known format, not the input, writable) before the
+/// first scan is read.
+fn outputs(a: &mut Args, cfg: &isoline::config::Config) -> Result<(u64, Option<PathBuf>)> {
     // The configuration's paths are taken from its folder, as the daemon takes them.
     let base = a
         .config
@@ -169,128 +300,49 @@ pub fn run(mut a: Args) -> Result<()> {
         }
     }
     super::check_writable(&outputs)?;
-    let store = isoline_io::DiskTiles::new(spill.as_deref())
-        .context("creating the directory for tiles that leave memory")?;
-    let map_params = cfg.map_params();
-    let map = Map::new(map_params, Box::new(store))?;
-    let bar = progress(a.quiet);
-    let total = Arc::new(OnceLock::new());
-    if !a.quiet {
-        count_frames(&a.input, &bag, cap, &total);
-    }
-    let start = Instant::now();
-    let cpu = cpu_time::ProcessTime::try_now().ok();
-    let registration = if a.register {
-        let mut params = cfg.register;
-        params.max_range = params.max_range.min(map_params.max_range);
-        Some(
-            register::run(&a.input, &bag, cap, params, &cfg.params(), &bar)
-                .with_context(|| format!("registering {}", a.input.display()))?,
-        )
-    } else {
-        None
-    };
-    let mut run = Run {
-        map,
-        params: cfg.params(),
-        skipped: Skipped::default(),
-        first_errors: Vec::new(),
-        poses: Vec::new(),
-        placed: Vec::new(),
-        registered: registration.as_ref().map(|r| (r.poses.clone(), 0)),
-        reconstruct_s: 0.0,
-        fuse_s: 0.0,
-        reconstruct_cpu_s: 0.0,
-        fuse_cpu_s: 0.0,
-        outputs: &a.output,
-        every,
-        since_write: 0,
-        blocks: Vec::new(),
-        block: Block::default(),
-        quiet: a.quiet,
-        last_line: Instant::now(),
-        total,
-    };
-    let mut batch: Vec<(Scan, Pose, f64)> = Vec::with_capacity(BATCH);
-    let mut failure: Option<anyhow::Error> = None;
-    let read = isoline_io::for_each_item_capped(&a.input, &bag, cap, |item| {
-        if let Some(scan) = run.accept(item) {
-            batch.push(scan);
-        }
-        if batch.len() == BATCH {
-            if let Err(e) = run.fuse(&mut batch) {
-                failure = Some(e);
-                return false;
-            }
-            show(&bar, &mut run, start);
-        }
-        true
-    });
-    if let Some(e) = failure {
-        return Err(e);
-    }
-    // A file damaged part way (a download cut short) still gives the map of the scans
-    // before the damage; the run then fails with the read error.
-    let read = read.with_context(|| format!("reading {}", a.input.display()));
-    run.fuse(&mut batch)?;
-    run.close_block();
-    show(&bar, &mut run, start);
-    let stats = run.map.stats();
-    if stats.scans == 0 {
-        read?;
-        bail!(format!(
-            "{}: no scan with a pose to place ({} without a pose, {} without beams, {} unreadable, {} beyond the map's reach{})",
-            a.input.display(),
-            run.skipped.no_pose,
-            run.skipped.no_beams,
-            run.skipped.unreadable,
-            run.skipped.far,
-            run.first_errors
-                .first()
-                .map(|e| format!("; first: {e}"))
-                .unwrap_or_default()
-        ) + &pose_hint(&a.input, &bag, run.skipped.no_pose));
-    }
-    let t = Instant::now();
-    let (curves, scores) = run.map.finish()?;
-    let finish_s = t.elapsed().as_secs_f64();
-    bar.finish_and_clear();
-    let stats = run.map.stats();
-    write_all(&a.output, &mut run.map, &curves, &run.poses)?;
-    let wall = start.elapsed().as_secs_f64();
-    let cpu_s = cpu.map(|c| c.elapsed().as_secs_f64());
-    let mut summary = summary(&a.input, &run, &stats, &scores, wall, cpu_s, finish_s);
-    if let Some(r) = &registration {
-        summary["registration"] = serde_json::to_value(&r.summary)?;
-    }
-    if let Some(path) = &a.trajectory {
-        let mut text = String::from("# t x y z qx qy qz qw\n");
-        for &(t, pose) in &run.placed {
-            text += &isoline_map::trajectory::tum_line(t, pose);
-            text.push('\n');
-        }
-        super::write(path, text)?;
-    }
-    eprintln!(
+    Ok((every, spill))
+}
+
+/// Why no scan was placed: the skipped counts, the first error, and what to do about
+/// missing poses.
+fn nothing_placed(input: &Path, bag: &isoline_io::bag::BagOptions, run: &Run<'_>) -> anyhow::Error {
+    anyhow!(format!(
+        "{}: no scan with a pose to place ({} without a pose, {} without beams, {} unreadable, {} beyond the map's reach{})",
+        input.display(),
+        run.skipped.no_pose,
+        run.skipped.no_beams,
+        run.skipped.unreadable,
+        run.skipped.far,
+        run.first_errors
+            .first()
+            .map(|e| format!("; first: {e}"))
+            .unwrap_or_default()
+    ) + &pose_hint(input, bag, run.skipped.no_pose))
+}
+
+/// The line a finished run ends with.
+fn done_line(stats: &MapStats, scores: &MapScores, wall: f64, hit_tolerance: f64) -> String {
+    format!(
         "isoline map: {} scans in {:.1} s ({:.0} scans/s), {} pieces, {:.1} m; static returns within {} m: {:.1}%, map seen through: {:.2}%",
         stats.scans,
         wall,
         stats.scans as f64 / wall,
         scores.pieces,
         scores.length,
-        map_params.hit_tolerance,
+        hit_tolerance,
         100.0 * scores.static_within,
         100.0 * scores.seen_through
-    );
-    if let Some(p) = &a.stats {
-        super::write(p, serde_json::to_string_pretty(&summary)? + "\n")?;
+    )
+}
+
+/// Every placed scan's time and pose as a TUM trajectory (`t x y z qx qy qz qw`).
+fn tum(placed: &[(f64, Pose)]) -> String {
+    let mut text = String::from("# t x y z qx qy qz qw\n");
+    for &(t, pose) in placed {
+        text += &isoline_map::trajectory::tum_line(t, pose);
+        text.push('\n');
     }
-    read.map_err(|e| {
-        e.context(format!(
-            "the map of the {} scans before the damage is written",
-            stats.scans
-        ))
-    })
+    text
 }
 
 /// What to do about scans without poses: a bag's come from its odometry or its
