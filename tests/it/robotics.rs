@@ -938,8 +938,8 @@ fn the_daemon_writes_the_map_as_it_grows_and_shows_it_live() {
         d,
         n,
         "replay = 40\n",
-        "[output]\npath = \"out.ndjson\"\n[map]\noutput = [\"map.ndjson\", \"map.geojson\"]\n\
-         every = 15\n",
+        "[output]\npath = \"out.ndjson\"\n[map]\noutput = [\"map.ndjson\", \"map.geojson\", \
+         \"map.html\"]\nevery = 15\n",
     );
     let stderr = BufReader::new(child.stderr.take().unwrap());
     let (tx, lines) = std::sync::mpsc::channel();
@@ -982,6 +982,21 @@ fn the_daemon_writes_the_map_as_it_grows_and_shows_it_live() {
     assert!(
         summary.contains(&format!("map of {n} scans (0 unplaced, 0 passed by)")),
         "{summary}"
+    );
+    // The page, written with the others: the whole run's map, its layers computed.
+    let page = std::fs::read_to_string(d.join("map.html")).unwrap();
+    let data: Value = serde_json::from_str(
+        page.split(r#"id="map-data">"#)
+            .nth(1)
+            .and_then(|t| t.split("</script>").next())
+            .expect("the page's data"),
+    )
+    .unwrap();
+    assert_eq!(data["scans"], n as u64);
+    assert!(!data["curves"].as_array().unwrap().is_empty());
+    assert!(
+        data["returns"].as_array().unwrap().len() >= 2,
+        "no returns to draw"
     );
     // Near the walls: 3 sigma + 2 cells.
     let walls = crate::common::scene_walls(&sim.truth);
