@@ -189,6 +189,7 @@ impl Job {
     /// Reads and validates a job file: the `[batch]` table, the shared tables and every
     /// override, the inputs (each glob must match a file) and the output names (two
     /// inputs may not share one). Every problem is listed at once, with its key path.
+    // One function: one table after another, every problem collected before failing.
     pub fn load(path: &Path) -> Result<Job> {
         let text = std::fs::read_to_string(path).map_err(|e| isoline_io::Error::io(path, e))?;
         let mut table =
@@ -552,6 +553,7 @@ impl Job {
     /// Reconstructs every frame of one input and writes its outputs, each record as its
     /// frame is done (one frame held at a time); a file that cannot be read to its end
     /// keeps the outputs of the frames before the damage and fails.
+    // One function: one input's frames through one read, reconstruct and write loop.
     fn process(&self, task: &Task) -> FileSummary {
         let t0 = Instant::now();
         let _span = tracing::info_span!("file", file = %task.input.display()).entered();

@@ -447,6 +447,7 @@ impl DaemonConfig {
 
     /// Parses and validates configuration text; `name` labels errors and relative paths
     /// are resolved against `base`.
+    // One function: one table after another, every problem collected before failing.
     pub fn parse(text: &str, name: &str, base: &Path) -> Result<DaemonConfig> {
         let fail = |problems: Vec<String>| Error::Config {
             path: name.to_string(),

@@ -633,6 +633,7 @@ fn client_config(topic: &KafkaTopic, defaults: &[(&str, String)]) -> ClientConfi
 /// most `queued.max.messages.kbytes` (default here 4 MiB), and the thread waits for room
 /// in `tx` before reading on. A message longer than `limits.max_line_bytes` becomes an
 /// error record.
+// One function: the consumer thread's loop (poll, hand over, commit), its state local.
 pub(crate) fn spawn_kafka(
     input: &KafkaInput,
     limits: Limits,

@@ -120,6 +120,7 @@ fn timestamp(nanos: u64) -> Timestamp {
 
 /// The encoded messages of one frame, by topic: curves, points and record always, the
 /// transform when the frame has a pose.
+// One function: one message a topic, each a literal of its Foxglove schema.
 pub fn frame_messages(view: &FrameView) -> Vec<(Topic, Vec<u8>)> {
     let stamp = Some(timestamp(view.nanos()));
     let frame_id = view.frame_id().to_string();

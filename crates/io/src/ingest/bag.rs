@@ -338,6 +338,9 @@ pub fn read_bag(
 /// [`read_bag`] with each scan's record made into a `T` by `make` (an error from it is
 /// the message's [`BadFrame`]): [`read_bag`] validates frames, conversions keep the
 /// records.
+// One function: one pass over the bag's messages, each decoded by its channel's schema
+// and placed by the transforms read so far; the pass's state (transforms, streams'
+// numbering, the summary) stays in it.
 pub fn read_bag_with<T>(
     path: &Path,
     opts: &BagOptions,

@@ -226,6 +226,8 @@ pub fn parse_line(line: &str) -> Option<std::result::Result<FrameRecord, String>
 }
 
 /// [`parse_line`] for a log whose `PARAM` lines declared `reach`.
+// One function: one line's fields in their order, whose positions depend on the message
+// kind read first.
 pub fn parse_line_with(
     line: &str,
     reach: &LaserReach,

@@ -38,6 +38,7 @@ const MAP_FOOTER: f64 = 64.0;
 
 /// Renders `d` as an SVG document `width` pixels wide (and, for a scan, a strip below
 /// with the legend and a scale bar).
+// One function: the drawing's elements in the order they are painted.
 pub fn render(d: &Drawing<'_>, width: f64) -> String {
     let mut all: Vec<Point> = d.points.to_vec();
     if let Some(m) = d.mesh {
