@@ -1282,6 +1282,16 @@ mod tests {
         let corridor: Vec<Point> = (0..40)
             .map(|i| at((turns - TAU) * (0.1 + 0.85 * i as f64 / 40.0), gap))
             .collect();
+        // The premise, checked on the data rather than assumed from the generator: every
+        // point tested lies midway between two walls (about half the gap from the
+        // nearest sample), so a wrong side cannot pass for a point off the band.
+        for &q in band.iter().chain(&corridor) {
+            let d = f.distance(q);
+            assert!(
+                (0.25 * gap..0.75 * gap).contains(&d),
+                "{q:?} is {d} from the data: not midway between walls {gap} apart"
+            );
+        }
         let u = oriented_offsets(
             &f,
             sigma,
