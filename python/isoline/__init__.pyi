@@ -36,6 +36,7 @@ class Frame:
         t: Optional[float] = None,
         frame: int = 0,
         stream: Optional[str] = None,
+        frame_id: Optional[str] = None,
     ) -> "Frame": ...
     @staticmethod
     def from_scan(
@@ -50,9 +51,12 @@ class Frame:
         t: Optional[float] = None,
         frame: int = 0,
         stream: Optional[str] = None,
+        frame_id: Optional[str] = None,
     ) -> "Frame": ...
     @property
     def stream(self) -> Optional[str]: ...
+    @property
+    def frame_id(self) -> Optional[str]: ...
     @property
     def frame(self) -> int: ...
     @property
