@@ -81,8 +81,8 @@ pub fn register(
     let mut pose = start;
     let mut k = (reach / 5.0).max(noise);
     let mut residuals: Vec<f64> = Vec::with_capacity(points.len());
-    // Converged when a step moves no return by more than a hundredth of the noise:
-    // the rest is far below what the returns can tell.
+    // A step that moves no return by more than a hundredth of the noise: the rest is far
+    // below what the returns can tell.
     let tiny = 0.01 * noise;
     let far = points
         .iter()
@@ -113,11 +113,14 @@ pub fn register(
             pose[1] + step[1],
             wrap(pose[2] + step[2]),
         ];
+        let before = k;
         if !residuals.is_empty() {
             let median = median(&mut residuals);
             k = (1.4826 * median).clamp(noise, k);
         }
-        if step.xy().norm() + far * step[2].abs() < tiny {
+        // Converged once the step is tiny and the kernel has stopped narrowing: a pose
+        // that stands still under a kernel still shrinking would move under the next.
+        if step.xy().norm() + far * step[2].abs() < tiny && before - k < tiny {
             break;
         }
     }
