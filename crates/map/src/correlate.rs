@@ -36,9 +36,14 @@ impl Likelihood {
             return None;
         }
         let pad = margin + 2.0 * s;
-        let origin = [lo[0] - pad, lo[1] - pad];
-        let w = ((hi[0] - lo[0] + 2.0 * pad) / res).ceil() as usize + 1;
-        let h = ((hi[1] - lo[1] + 2.0 * pad) / res).ceil() as usize + 1;
+        // On the lattice of multiples of `res` in the points' frame: where the lattice's
+        // nodes lie does not depend on which points are in reach.
+        let origin = [
+            ((lo[0] - pad) / res).floor() * res,
+            ((lo[1] - pad) / res).floor() * res,
+        ];
+        let w = ((hi[0] + pad - origin[0]) / res).ceil() as usize + 1;
+        let h = ((hi[1] + pad - origin[1]) / res).ceil() as usize + 1;
         // A bound: 40 m square submaps at 5 cm hold 640,000 cells.
         if w.saturating_mul(h) > 4_000_000 {
             return None;
