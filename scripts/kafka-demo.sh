@@ -12,24 +12,13 @@ port=${PORT:-9092}
 frames=${FRAMES:-40}; [ "$quick" = 1 ] && frames=5
 robots=8
 mkdir -p "$dir"
-scripts/kafka-broker.sh start "$port"
-pids=()
-cleanup() {
-  for p in "${pids[@]}"; do kill "$p" 2>/dev/null || true; done
-  scripts/kafka-broker.sh stop "$port"
-}
-trap cleanup EXIT
+kafka_broker "$port"
 scripts/kafka-broker.sh topic frames 4 "$port" > /dev/null
 scripts/kafka-broker.sh topic records 4 "$port" > /dev/null
 
 # Eight robots, one stream each: the message key (the stream) spreads them over the
 # partitions, and the group gives each daemon some of the partitions.
-: > "$dir/robots.ndjson"
-for i in $(seq 0 $((robots - 1))); do
-  $bin synth room --frames "$frames" --motion 0.1 --seed $((i + 1)) --stream "robot$i" \
-    -o "$dir/robot$i.ndjson"
-  cat "$dir/robot$i.ndjson" >> "$dir/robots.ndjson"
-done
+robot_frames "$dir/robots.ndjson" "$robots" "$frames"
 total=$((robots * frames))
 
 # config/kafka.toml as shipped, on this broker's port, each daemon's metrics on a port of
@@ -47,15 +36,7 @@ metric() { # PORT NAME: the sum of a counter's series
   curl -s "http://127.0.0.1:$1/metrics" | awk -v m="$2" '$1 ~ "^"m {s += $2} END {print s + 0}'
 }
 # Both daemons in the group, each holding some of the 4 partitions.
-for _ in $(seq 300); do
-  held=0; each=1
-  for m in "${ports[@]}"; do
-    n=$(curl -s "http://127.0.0.1:$m/metrics" | grep -c '^isoline_kafka_consumer_lag{' || true)
-    held=$((held + n)); [ "$n" -gt 0 ] || each=0
-  done
-  [ "$held" = 4 ] && [ "$each" = 1 ] && break
-  sleep 0.1
-done
+wait_for_partitions 4 "${ports[@]}"
 
 $bin publish "$dir/robots.ndjson" --brokers "127.0.0.1:$port" --to frames --replay fast
 for _ in $(seq 600); do

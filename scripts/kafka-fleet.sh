@@ -15,19 +15,8 @@ port=${PORT:-19092}
 frames=${FRAMES:-100}; [ "$quick" = 1 ] && frames=3
 robots=8
 mkdir -p "$dir"
-scripts/kafka-broker.sh start "$port"
-pids=()
-cleanup() {
-  for p in "${pids[@]}"; do kill "$p" 2>/dev/null || true; done
-  scripts/kafka-broker.sh stop "$port"
-}
-trap cleanup EXIT
-: > "$dir/fleet.ndjson"
-for i in $(seq 0 $((robots - 1))); do
-  $bin synth room --frames "$frames" --motion 0.1 --seed $((i + 1)) --stream "robot$i" \
-    -o "$dir/robot$i.ndjson"
-  cat "$dir/robot$i.ndjson" >> "$dir/fleet.ndjson"
-done
+kafka_broker "$port"
+robot_frames "$dir/fleet.ndjson" "$robots" "$frames"
 total=$((robots * frames))
 
 # GET http://127.0.0.1:$1/metrics
@@ -73,16 +62,7 @@ TOML
       $bin run -c "$dir/$run-$d.toml" 2> "$dir/$run-$d.log" &
       pids+=($!)
     done
-    # Joined: between them the daemons report the lag of all 4 partitions, each some.
-    for _ in $(seq 300); do
-      held=0; each=1
-      for m in "${ports[@]}"; do
-        n=$(metrics "$m" | grep -c '^isoline_kafka_consumer_lag{' || true)
-        held=$((held + n)); [ "$n" -gt 0 ] || each=0
-      done
-      [ "$held" = 4 ] && [ "$each" = 1 ] && break
-      sleep 0.1
-    done
+    wait_for_partitions 4 "${ports[@]}"
     cpu0=$(cpu_ticks)
     t0=$(date +%s.%N)
     $bin publish "$dir/fleet.ndjson" --brokers "127.0.0.1:$port" --to "frames-$run" \

@@ -49,3 +49,39 @@ need_numpy() {
     .tools/glyphs/bin/pip install --quiet --disable-pip-version-check fonttools numpy scipy
   fi
 }
+
+# A Kafka-compatible broker on 127.0.0.1:$1 (scripts/kafka-broker.sh); at exit it stops,
+# and so does every daemon whose pid the script put in $pids.
+kafka_broker() {
+  broker_port=$1
+  scripts/kafka-broker.sh start "$broker_port"
+  pids=()
+  trap 'for p in "${pids[@]}"; do kill "$p" 2>/dev/null || true; done; scripts/kafka-broker.sh stop "$broker_port"' EXIT
+}
+
+# $2 simulated robots driving the room, $3 scans each, one stream a robot (robot0,
+# robot1, ...), all in the NDJSON file $1 (each robot's also in $1's folder).
+robot_frames() {
+  local out=$1 robots=$2 frames=$3 i
+  : > "$out"
+  for i in $(seq 0 $((robots - 1))); do
+    $bin synth room --frames "$frames" --motion 0.1 --seed $((i + 1)) --stream "robot$i" \
+      -o "$(dirname "$out")/robot$i.ndjson"
+    cat "$(dirname "$out")/robot$i.ndjson" >> "$out"
+  done
+}
+
+# Waits (30 s at most) until the daemons whose metrics are on the ports after $1 hold
+# all $1 partitions of their topic between them, each some.
+wait_for_partitions() {
+  local parts=$1 held each n m; shift
+  for _ in $(seq 300); do
+    held=0; each=1
+    for m in "$@"; do
+      n=$(curl -s "http://127.0.0.1:$m/metrics" | grep -c '^isoline_kafka_consumer_lag{' || true)
+      held=$((held + n)); [ "$n" -gt 0 ] || each=0
+    done
+    [ "$held" = "$parts" ] && [ "$each" = 1 ] && return
+    sleep 0.1
+  done
+}

@@ -199,27 +199,8 @@ impl Mapper {
 
     /// Writes every file and shows the map in the live view.
     fn write(&mut self, curves: &[Polyline]) -> Result<()> {
-        use isoline_io::map_files::{write_map, MapDrawing, MapFormat, PAGE_RETURNS};
         let scans = self.report.scans;
-        let layers = if self
-            .out
-            .paths
-            .iter()
-            .any(|p| MapFormat::of(p).is_some_and(MapFormat::draws_layers))
-        {
-            Some(self.map.layers(curves, PAGE_RETURNS)?)
-        } else {
-            None
-        };
-        let drawing = MapDrawing {
-            curves,
-            path: &self.path,
-            scans,
-            layers: layers.as_ref(),
-        };
-        for p in &self.out.paths {
-            write_map(p, &drawing)?;
-        }
+        isoline_io::map_files::write_maps(&self.out.paths, &mut self.map, curves, &self.path)?;
         if let Some(l) = &self.live {
             // A viewer that is behind sees the next write.
             l.show(isoline_io::map_files::map_view(curves, scans));

@@ -99,6 +99,32 @@ pub fn map_view(curves: &[Polyline], scans: u64) -> FrameView {
     }
 }
 
+/// Writes `curves`, `map`'s, to every path in `paths` in the format of its extension,
+/// each whole; the layers a page draws are computed from `map` only when a page is
+/// among them (they visit its tiles). `path_taken` is the sensor's positions.
+pub fn write_maps(
+    paths: &[std::path::PathBuf],
+    map: &mut isoline_core::Map,
+    curves: &[Polyline],
+    path_taken: &[Point],
+) -> Result<()> {
+    let layers = if paths
+        .iter()
+        .any(|p| MapFormat::of(p).is_some_and(MapFormat::draws_layers))
+    {
+        Some(map.layers(curves, PAGE_RETURNS)?)
+    } else {
+        None
+    };
+    let drawing = MapDrawing {
+        curves,
+        path: path_taken,
+        scans: map.stats().scans,
+        layers: layers.as_ref(),
+    };
+    paths.iter().try_for_each(|p| write_map(p, &drawing))
+}
+
 /// Writes the map to `path` in the format of its extension.
 pub fn write_map(path: &Path, map: &MapDrawing<'_>) -> Result<()> {
     let (curves, scans) = (map.curves, map.scans);

@@ -11,7 +11,7 @@ use serde_json::json;
 
 use isoline_core::geom::{Point, Polyline, Pose};
 use isoline_core::{Map, MapScores, MapStats, Params, Scan};
-use isoline_io::map_files::{write_map, MapDrawing, MapFormat, MAP_EXTENSIONS, PAGE_RETURNS};
+use isoline_io::map_files::{MapFormat, MAP_EXTENSIONS};
 use isoline_io::{BadFrame, Frame};
 
 mod register;
@@ -505,7 +505,8 @@ fn count_frames(
     total: &Arc<OnceLock<u64>>,
 ) {
     let (input, bag, total) = (input.to_path_buf(), bag.clone(), Arc::clone(total));
-    let counter = std::thread::Builder::new()
+    // Without the thread the progress shows no total, as before.
+    let _ = std::thread::Builder::new()
         .name("count-frames".into())
         .spawn(move || {
             let mut n = 0u64;
@@ -518,8 +519,6 @@ fn count_frames(
                 let _ = total.set(n);
             }
         });
-    // Without the thread the progress shows no total, as before.
-    drop(counter);
 }
 
 fn show(bar: &indicatif::ProgressBar, run: &mut Run<'_>, start: Instant) {
@@ -571,32 +570,14 @@ fn plain_every() -> std::time::Duration {
     std::time::Duration::from_secs_f64(secs)
 }
 
-/// Writes the map to every output, each atomically (a reader never sees half a map);
-/// the layers a page draws are computed when one is among them.
+/// Writes the map to every output, each atomically (a reader never sees half a map).
 fn write_all(
     outputs: &[PathBuf],
     map: &mut Map,
     curves: &[Polyline],
     poses: &[Point],
 ) -> Result<()> {
-    let layers = if outputs
-        .iter()
-        .any(|o| MapFormat::of(o).is_some_and(MapFormat::draws_layers))
-    {
-        Some(map.layers(curves, PAGE_RETURNS)?)
-    } else {
-        None
-    };
-    let drawing = MapDrawing {
-        curves,
-        path: poses,
-        scans: map.stats().scans,
-        layers: layers.as_ref(),
-    };
-    for o in outputs {
-        write_map(o, &drawing).with_context(|| format!("writing {}", o.display()))?;
-    }
-    Ok(())
+    isoline_io::map_files::write_maps(outputs, map, curves, poses).context("writing the map")
 }
 
 /// The process's peak resident memory, bytes, where the system says (Linux).
