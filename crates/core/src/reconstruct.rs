@@ -500,7 +500,6 @@ pub fn export_refined(
 ) -> Reconstruction {
     on_pool(move || {
         use crate::geom::{to_sensor, to_world};
-        use rayon::prelude::*;
         let Some(scan) = &prepared.scan else {
             return export_with(prepared, None, adapted, solved, None);
         };
@@ -539,96 +538,36 @@ pub fn export_refined(
             limits,
         );
         // A window of the frame alone has nothing to fuse: the frame is as it was.
-        if window.len() == 1 {
-            r.stats.window = Some(WindowStats {
-                frames: 1,
-                points: window.points(),
-                bytes: window.bytes(),
-            });
-            let fusion = t0.elapsed().as_secs_f64() * 1e3 - single_ms;
-            r.stats.ms.export += fusion.max(0.0);
-            r.stats.ms.total += fusion.max(0.0);
-            return r;
-        }
-        let (moved, evidence) = window.refined();
-        let local = |c: Polyline| Polyline {
-            closed: c.closed,
-            points: c.points.into_iter().map(|p| to_sensor(pose, p)).collect(),
-        };
-        let moved: Vec<Polyline> = moved.into_iter().map(local).collect();
-        let evidence: Vec<Point> = evidence.into_iter().map(|p| to_sensor(pose, p)).collect();
-        // The invariant, curve by curve: a refined curve explains every return its own
-        // curve explains (within the accuracy bound `3 sigma + 2 hmin`), and fits the
-        // window's returns nearest its own curve (the frame's and the older frames', as
-        // the alignment placed them) at least as well: the sum of their distances, capped
-        // at the bound so that returns no curve explains weigh alike. Where the window
-        // fails either (a pose error the alignment did not catch, a scene that changed)
-        // that curve stays as the frame drew it.
-        let own_index = crate::index::SegmentIndex::new(&r.polylines);
-        let moved_index: Vec<crate::index::SegmentIndex> = moved
-            .iter()
-            .map(|c| crate::index::SegmentIndex::new(std::slice::from_ref(c)))
-            .collect();
-        let starts: Vec<usize> = (0..r.polylines.len()).map(|k| own_index.start(k)).collect();
-        // Per curve: whether it lost an own return, and the capped sums, own and moved.
-        let per_return = |p: Point, own: bool| {
-            let (d, seg, _) = own_index.nearest(p)?;
-            let k = starts.partition_point(|&s| s <= seg) - 1;
-            let m = moved_index[k].distance(p);
-            Some((
-                k,
-                own && d <= bound && m > bound,
-                d.min(bound),
-                m.min(bound),
-            ))
-        };
-        let mut lost = vec![false; moved.len()];
-        let mut sums = vec![(0.0, 0.0); moved.len()];
-        let found: Vec<_> = own_returns
-            .par_iter()
-            .map(|&p| per_return(p, true))
-            .chain(evidence.par_iter().map(|&p| per_return(p, false)))
-            .collect();
-        for (k, l, d, m) in found.into_iter().flatten() {
-            lost[k] |= l;
-            sums[k].0 += d;
-            sums[k].1 += m;
-        }
-        let keep: Vec<bool> = (0..moved.len())
-            .map(|k| !lost[k] && sums[k].1 <= sums[k].0 * (1.0 + 1e-12))
-            .collect();
-        let fused = keep.iter().any(|&k| k);
-        let eps = 1e-9 * at.len_to_data(prepared.diag);
-        let moved = crate::repair::invariants::well_formed(
-            moved
-                .into_iter()
-                .zip(&keep)
-                .zip(&r.polylines)
-                .map(|((m, &k), own)| if k { m } else { own.clone() })
-                .collect(),
-            eps,
-        );
-        r.stats.start = if fused {
-            crate::levelset::Start::Fused
-        } else {
-            crate::levelset::Start::Fallback
-        };
-        r.stats.warm_start = fused;
-        r.stats.cold_fallback = !fused;
-        if fused {
-            let data: Vec<Point> = prepared.local.iter().map(|&q| at.to_data(q)).collect();
-            let fit = crate::export::fit::fit(&data, &moved, bound);
-            let supported = runs
-                .iter()
-                .map(Vec::len)
-                .filter(|&n| n >= prepared.params.scan.min_run)
-                .sum();
-            r.features = crate::export::support::unexplained(&runs, &moved, bound);
-            r.warnings = crate::export::fit::warnings(supported, &moved, &fit, bound);
-            r.stats.explained = fit.explained;
-            r.stats.fit_p90 = fit.p90.is_finite().then_some(fit.p90);
-            r.stats.unexplained = Some(r.features.iter().map(|f| f.returns).sum());
-            r.polylines = moved;
+        if window.len() > 1 {
+            let (moved, evidence) = window.refined();
+            let local = |c: Polyline| Polyline {
+                closed: c.closed,
+                points: c.points.into_iter().map(|p| to_sensor(pose, p)).collect(),
+            };
+            let moved: Vec<Polyline> = moved.into_iter().map(local).collect();
+            let evidence: Vec<Point> = evidence.into_iter().map(|p| to_sensor(pose, p)).collect();
+            let keep = refined_curves_kept(&r.polylines, &moved, &own_returns, &evidence, bound);
+            let fused = keep.iter().any(|&k| k);
+            let eps = 1e-9 * at.len_to_data(prepared.diag);
+            let moved = crate::repair::invariants::well_formed(
+                moved
+                    .into_iter()
+                    .zip(&keep)
+                    .zip(&r.polylines)
+                    .map(|((m, &k), own)| if k { m } else { own.clone() })
+                    .collect(),
+                eps,
+            );
+            r.stats.start = if fused {
+                crate::levelset::Start::Fused
+            } else {
+                crate::levelset::Start::Fallback
+            };
+            r.stats.warm_start = fused;
+            r.stats.cold_fallback = !fused;
+            if fused {
+                adopt_refined(&mut r, prepared, &runs, moved, bound);
+            }
         }
         r.stats.window = Some(WindowStats {
             frames: window.len(),
@@ -643,6 +582,82 @@ pub fn export_refined(
     })
 }
 
+/// Which refined curves a frame keeps, curve by curve (`own[k]` refined to
+/// `moved[k]`): a refined curve explains every return its own curve explains (within
+/// the accuracy bound `3 sigma + 2 hmin`), and fits the window's returns nearest its own
+/// curve (the frame's `own_returns` and the older frames' `evidence`, as the alignment
+/// placed them) at least as well: the sum of their distances, capped at the bound so
+/// that returns no curve explains weigh alike. Where the window fails either (a pose
+/// error the alignment did not catch, a scene that changed) that curve stays as the
+/// frame drew it.
+fn refined_curves_kept(
+    own: &[Polyline],
+    moved: &[Polyline],
+    own_returns: &[Point],
+    evidence: &[Point],
+    bound: f64,
+) -> Vec<bool> {
+    use rayon::prelude::*;
+    let own_index = crate::index::SegmentIndex::new(own);
+    let moved_index: Vec<crate::index::SegmentIndex> = moved
+        .iter()
+        .map(|c| crate::index::SegmentIndex::new(std::slice::from_ref(c)))
+        .collect();
+    let starts: Vec<usize> = (0..own.len()).map(|k| own_index.start(k)).collect();
+    // Per curve: whether it lost an own return, and the capped sums, own and moved.
+    let per_return = |p: Point, is_own: bool| {
+        let (d, seg, _) = own_index.nearest(p)?;
+        let k = starts.partition_point(|&s| s <= seg) - 1;
+        let m = moved_index[k].distance(p);
+        Some((
+            k,
+            is_own && d <= bound && m > bound,
+            d.min(bound),
+            m.min(bound),
+        ))
+    };
+    let mut lost = vec![false; moved.len()];
+    let mut sums = vec![(0.0, 0.0); moved.len()];
+    let found: Vec<_> = own_returns
+        .par_iter()
+        .map(|&p| per_return(p, true))
+        .chain(evidence.par_iter().map(|&p| per_return(p, false)))
+        .collect();
+    for (k, l, d, m) in found.into_iter().flatten() {
+        lost[k] |= l;
+        sums[k].0 += d;
+        sums[k].1 += m;
+    }
+    (0..moved.len())
+        .map(|k| !lost[k] && sums[k].1 <= sums[k].0 * (1.0 + 1e-12))
+        .collect()
+}
+
+/// The frame's result takes the refined `curves`, with the fit, features and warnings
+/// they give on the frame's own `runs` (in data coordinates).
+fn adopt_refined(
+    r: &mut Reconstruction,
+    prepared: &Prepared,
+    runs: &[Vec<Point>],
+    curves: Vec<Polyline>,
+    bound: f64,
+) {
+    let at = prepared.placement;
+    let data: Vec<Point> = prepared.local.iter().map(|&q| at.to_data(q)).collect();
+    let fit = crate::export::fit::fit(&data, &curves, bound);
+    let supported = runs
+        .iter()
+        .map(Vec::len)
+        .filter(|&n| n >= prepared.params.scan.min_run)
+        .sum();
+    r.features = crate::export::support::unexplained(runs, &curves, bound);
+    r.warnings = crate::export::fit::warnings(supported, &curves, &fit, bound);
+    r.stats.explained = fit.explained;
+    r.stats.fit_p90 = fit.p90.is_finite().then_some(fit.p90);
+    r.stats.unexplained = Some(r.features.iter().map(|f| f.returns).sum());
+    r.polylines = curves;
+}
+
 /// [`export`] with the scan analysis `scan_analysis` (the prepared one, or one with the
 /// window's run ends) and the window the frame was refined over.
 fn export_with(
@@ -654,91 +669,41 @@ fn export_with(
 ) -> Reconstruction {
     let t0 = Instant::now();
     let at = prepared.placement;
-    let params = &prepared.params.export;
     let hmin = adapted.params.hmin;
-    let mut mesh = adapted.mesh;
     let u: Vec<f64> = solved.u.iter().map(|&x| at.len_to_data(x)).collect();
-    let scan = scan_analysis.map(|a| {
-        // The returns' noise band does not narrow with the mesh: a mesh finer than the
-        // noise (a configured `hmin` below it) keeps the tolerance of one at the noise,
-        // or returns in the band's tails would count as unexplained.
-        let sigma = a.scales.noise;
-        (a, 2.0 * sigma + hmin.max(sigma), 3.0 * sigma + 2.0 * hmin)
-    });
-    let (polylines, features) =
-        crate::export::curves(&mesh, &solved.u, &at, prepared.diag, hmin, scan, params);
+    let (polylines, features) = isoline_curves(prepared, &adapted, &solved, scan_analysis);
     let min_run = prepared.params.scan.min_run;
     let residual = match &scan_analysis {
-        Some(a) => residual_at_runs(a, min_run, &mesh, &solved, &prepared.metric.field),
+        Some(a) => residual_at_runs(a, min_run, &adapted.mesh, &solved, &prepared.metric.field),
         None => solved.report.residual,
     };
-    for p in &mut mesh.coords {
-        *p = at.to_data(*p);
-    }
-    let sigma = scan.map_or(adapted.noise_estimate, |(a, _, _)| a.scales.noise);
+    let sigma = scan_analysis.map_or(adapted.noise_estimate, |a| a.scales.noise);
     let tolerance = at.len_to_data(3.0 * sigma + 2.0 * hmin);
     let data: Vec<Point> = prepared.local.iter().map(|&q| at.to_data(q)).collect();
-    let eps = 1e-9 * at.len_to_data(prepared.diag);
     // Points that fill an area sample no curve: whatever the level set wraps round
     // them (a web of strokes, or spokes from one junction once their noise is taken
     // for the drawing's size) is not in the data.
-    let area = scan.is_none() && prepared.metric.curve_share < AREA_SHARE;
-    let (polylines, junctions, mut enforced) = match scan {
+    let area = scan_analysis.is_none() && prepared.metric.curve_share < AREA_SHARE;
+    let (polylines, junctions, mut enforced) = match scan_analysis {
         _ if area => (Vec::new(), Vec::new(), Vec::new()),
         // A scan's pieces are cut to its runs' support already, and where two walls meet
         // at a corner their pieces may cross by a few millimetres: a junction, which
         // scans do not report yet, rather than an error.
         Some(_) => (
-            crate::repair::invariants::well_formed(polylines, eps),
+            crate::repair::invariants::well_formed(polylines, 1e-9 * at.len_to_data(prepared.diag)),
             Vec::new(),
             Vec::new(),
         ),
         None => {
-            let field = &prepared.metric.field;
-            let extent = BBox::of(&prepared.local).map_or(0.0, |b| {
-                at.len_to_data((b.max[0] - b.min[0]).max(b.max[1] - b.min[1]))
-            });
-            let min_area = params.min_area(hmin);
-            let repaired = crate::repair::repair(
-                polylines,
-                &crate::repair::Frame {
-                    field,
-                    data: &data,
-                    at,
-                    sigma,
-                    one_wall_noise: adapted.one_wall_noise,
-                    hmin,
-                    min_area,
-                    enclosed: solved.enclosed,
-                    tolerance,
-                    tolerances: &params.repair,
-                },
-                &crate::repair::invariants::Cloud {
-                    distance: &|p| at.len_to_data(field.distance(at.to_local(p))),
-                    // A curve across the widest gap the strokes join (the neighbours'
-                    // reach) lies within half of it of the samples at its two ends.
-                    reach: at.len_to_data(3.0 * sigma + 2.0 * hmin + 0.5 * prepared.reach),
-                    extent,
-                    min_area: {
-                        let s = at.len_to_data(1.0);
-                        min_area * s * s
-                    },
-                    eps,
-                },
+            let repaired = repair_cloud(
+                prepared, &adapted, &solved, polylines, &data, sigma, tolerance,
             );
             (repaired.polylines, repaired.junctions, repaired.warnings)
         }
     };
     let fit = crate::export::fit::fit(&data, &polylines, tolerance);
-    let supported = match &scan_analysis {
-        Some(a) => a
-            .run_points()
-            .iter()
-            .map(Vec::len)
-            .filter(|&n| n >= min_run)
-            .sum(),
-        None => data.len(),
-    };
+    // A scan's returns outside its runs are features by design, not misses.
+    let supported = scan_analysis.map_or(data.len(), |a| a.supported(min_run));
     let mut warnings = if area {
         vec![Warning::Area {
             curve_share: prepared.metric.curve_share,
@@ -747,7 +712,7 @@ fn export_with(
         crate::export::fit::warnings(supported, &polylines, &fit, tolerance)
     };
     warnings.append(&mut enforced);
-    let features = match scan {
+    let features = match scan_analysis {
         Some(_) => features,
         None => prepared
             .isolated
@@ -756,43 +721,20 @@ fn export_with(
             .map(|&center| Feature { center, returns: 1 })
             .collect(),
     };
-    let ms = stage_ms(
+    let mut stats = frame_stats(
+        prepared, &solved, &adapted, residual, &features, &fit, window,
+    );
+    let mut mesh = adapted.mesh;
+    for p in &mut mesh.coords {
+        *p = at.to_data(*p);
+    }
+    stats.ms = stage_ms(
         prepared,
         &adapted.ms,
         &solved,
         t0.elapsed().as_secs_f64() * 1e3,
     );
     let report = solved.report;
-    let stats = Stats {
-        points: prepared.points,
-        vertices: mesh.num_vertices(),
-        triangles: mesh.num_triangles(),
-        iterations: report.iterations,
-        residual: at.len_to_data(residual),
-        converged: report.converged,
-        start: solved.start,
-        warm_start: matches!(
-            solved.start,
-            crate::levelset::Start::Warm | crate::levelset::Start::Fused
-        ),
-        ms,
-        stop: report.stop,
-        scheme: solved.settings.scheme,
-        linear_iterations: report.linear_iterations,
-        renormalizations: report.renormalizations,
-        hmin: at.len_to_data(hmin),
-        eps: at.len_to_data(solved.settings.eps),
-        unexplained: (prepared.scan.is_some() || !features.is_empty())
-            .then(|| features.iter().map(|f| f.returns).sum()),
-        range_noise: prepared
-            .scan
-            .as_ref()
-            .map(|a| at.len_to_data(a.scales.noise)),
-        explained: fit.explained,
-        fit_p90: fit.p90.is_finite().then_some(fit.p90),
-        cold_fallback: solved.start == crate::levelset::Start::Fallback,
-        window,
-    };
     Reconstruction {
         polylines,
         mesh,
@@ -804,12 +746,129 @@ fn export_with(
         features,
         junctions,
         enclosed: solved.enclosed,
-        free_space: scan_analysis.map(|a| {
-            let mut poly = a.free.polygon();
-            poly.points.iter_mut().for_each(|p| *p = at.to_data(*p));
-            (at.to_data(a.free.origin), poly)
-        }),
+        free_space: scan_analysis.map(|a| a.free_space_in(&at)),
         warnings,
+    }
+}
+
+/// The level set's zero isoline as curves in data coordinates (`crate::export::curves`):
+/// a scan's cut to its runs' support, with the returns no curve explains as features.
+fn isoline_curves(
+    prepared: &Prepared,
+    adapted: &AdaptedMesh,
+    solved: &Solved,
+    scan_analysis: Option<&Analysis>,
+) -> (Vec<Polyline>, Vec<Feature>) {
+    let hmin = adapted.params.hmin;
+    let scan = scan_analysis.map(|a| {
+        // The returns' noise band does not narrow with the mesh: a mesh finer than the
+        // noise (a configured `hmin` below it) keeps the tolerance of one at the noise,
+        // or returns in the band's tails would count as unexplained.
+        let sigma = a.scales.noise;
+        (a, 2.0 * sigma + hmin.max(sigma), 3.0 * sigma + 2.0 * hmin)
+    });
+    crate::export::curves(
+        &adapted.mesh,
+        &solved.u,
+        &prepared.placement,
+        prepared.diag,
+        hmin,
+        scan,
+        &prepared.params.export,
+    )
+}
+
+/// A point cloud's curves `polylines` (in data coordinates) through the repair chain
+/// (`crate::repair`), with the noise `sigma` (local units) and the accuracy bound
+/// `tolerance` (data units) it keeps them within of the `data`.
+fn repair_cloud(
+    prepared: &Prepared,
+    adapted: &AdaptedMesh,
+    solved: &Solved,
+    polylines: Vec<Polyline>,
+    data: &[Point],
+    sigma: f64,
+    tolerance: f64,
+) -> crate::repair::Repaired {
+    let at = prepared.placement;
+    let params = &prepared.params.export;
+    let hmin = adapted.params.hmin;
+    let field = &prepared.metric.field;
+    let extent = BBox::of(&prepared.local).map_or(0.0, |b| {
+        at.len_to_data((b.max[0] - b.min[0]).max(b.max[1] - b.min[1]))
+    });
+    let min_area = params.min_area(hmin);
+    crate::repair::repair(
+        polylines,
+        &crate::repair::Frame {
+            field,
+            data,
+            at,
+            sigma,
+            one_wall_noise: adapted.one_wall_noise,
+            hmin,
+            min_area,
+            enclosed: solved.enclosed,
+            tolerance,
+            tolerances: &params.repair,
+        },
+        &crate::repair::invariants::Cloud {
+            distance: &|p| at.len_to_data(field.distance(at.to_local(p))),
+            // A curve across the widest gap the strokes join (the neighbours'
+            // reach) lies within half of it of the samples at its two ends.
+            reach: at.len_to_data(3.0 * sigma + 2.0 * hmin + 0.5 * prepared.reach),
+            extent,
+            min_area: {
+                let s = at.len_to_data(1.0);
+                min_area * s * s
+            },
+            eps: 1e-9 * at.len_to_data(prepared.diag),
+        },
+    )
+}
+
+/// A frame's statistics in data units (its mesh still in local coordinates), but for the stages' times (`ms`, left at zero
+/// for the caller, who knows when the export ends).
+fn frame_stats(
+    prepared: &Prepared,
+    solved: &Solved,
+    adapted: &AdaptedMesh,
+    residual: f64,
+    features: &[Feature],
+    fit: &crate::export::fit::Fit,
+    window: Option<WindowStats>,
+) -> Stats {
+    let at = prepared.placement;
+    let report = &solved.report;
+    Stats {
+        points: prepared.points,
+        vertices: adapted.mesh.num_vertices(),
+        triangles: adapted.mesh.num_triangles(),
+        iterations: report.iterations,
+        residual: at.len_to_data(residual),
+        converged: report.converged,
+        start: solved.start,
+        warm_start: matches!(
+            solved.start,
+            crate::levelset::Start::Warm | crate::levelset::Start::Fused
+        ),
+        ms: StageMs::default(),
+        stop: report.stop,
+        scheme: solved.settings.scheme,
+        linear_iterations: report.linear_iterations,
+        renormalizations: report.renormalizations,
+        hmin: at.len_to_data(adapted.params.hmin),
+        eps: at.len_to_data(solved.settings.eps),
+        unexplained: (prepared.scan.is_some() || !features.is_empty())
+            .then(|| features.iter().map(|f| f.returns).sum()),
+        range_noise: prepared
+            .scan
+            .as_ref()
+            .map(|a| at.len_to_data(a.scales.noise)),
+        explained: fit.explained,
+        fit_p90: fit.p90.is_finite().then_some(fit.p90),
+        cold_fallback: solved.start == crate::levelset::Start::Fallback,
+        window,
     }
 }
 

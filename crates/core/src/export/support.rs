@@ -33,85 +33,8 @@ pub fn cut_to_support(
     step: f64,
     min_len: f64,
 ) -> Vec<Polyline> {
-    let index = SegmentIndex::new(support);
-    // Per segment: whether its start, its end is the end of a run.
-    let mut run_end: Vec<(bool, bool)> = Vec::new();
-    for pl in support {
-        let m = pl.segments().count();
-        if m == 0 {
-            run_end.extend(pl.points.iter().map(|_| (true, true)));
-        }
-        for k in 0..m {
-            run_end.push((!pl.closed && k == 0, !pl.closed && k + 1 == m));
-        }
-    }
-    // Each run end with the run's last two gaps, from the end inwards.
-    let ends: Vec<Vec<Point>> = support
-        .iter()
-        .filter(|pl| !pl.closed && !pl.points.is_empty())
-        .flat_map(|pl| {
-            let n = pl.points.len();
-            let head: Vec<Point> = pl.points[..n.min(3)].to_vec();
-            let tail: Vec<Point> = pl.points[n.saturating_sub(3)..]
-                .iter()
-                .rev()
-                .copied()
-                .collect();
-            [head, tail]
-        })
-        .collect();
-    let ends = &ends[..];
-    let segs = index.segments();
-    let run_ends: Vec<Point> = ends.iter().filter_map(|e| e.first().copied()).collect();
-    let exact = |p: Point, nearest: Option<(f64, usize, f64)>| match nearest {
-        Some((d, i, t)) if d <= tol => {
-            let (a, b) = segs[i];
-            let (at_a, at_b) = run_end[i];
-            // How far past a run's end along its last segment.
-            let past = |end: Point, other: Point| {
-                let dir = sub(end, other);
-                let len = crate::geom::norm(dir);
-                if len > 0.0 {
-                    crate::geom::dot(sub(p, end), dir) / len
-                } else {
-                    dist(p, end)
-                }
-            };
-            if t <= 0.0 && at_a {
-                past(a, b) <= cap
-            } else if t >= 1.0 && at_b {
-                past(b, a) <= cap
-            } else {
-                true
-            }
-        }
-        _ => false,
-    };
-    // The tests walk along the curves a fraction of `tol` at a time, and the distance to
-    // the support is 1-Lipschitz: from the last point measured, `p0` at distance `d0`
-    // and `e0` from the nearest run end, a point `delta` away is within `d0 + delta`
-    // and beyond `d0 - delta`. Only within `tol` of a run end can a point within `tol`
-    // of the support be unsupported (past the end), so away from them the bounds
-    // decide, and most points need no search.
-    let last = std::cell::Cell::new(None::<(Point, f64, f64)>);
-    let supported = |p: Point| {
-        if let Some((p0, d0, e0)) = last.get() {
-            let delta = dist(p, p0);
-            if d0 - delta > tol {
-                return false;
-            }
-            if d0 + delta <= tol && e0 - delta > tol {
-                return true;
-            }
-        }
-        let nearest = index.nearest(p);
-        let e0 = run_ends
-            .iter()
-            .map(|&e| dist(e, p))
-            .fold(f64::INFINITY, f64::min);
-        last.set(Some((p, nearest.map_or(f64::INFINITY, |n| n.0), e0)));
-        exact(p, nearest)
-    };
+    let runs = Runs::new(support, tol, cap);
+    let supported = |p: Point| runs.supported(p);
     let mut out = Vec::new();
     for c in curves {
         let n = c.points.len();
@@ -135,47 +58,173 @@ pub fn cut_to_support(
         } else {
             c.points.clone()
         };
-        let mut piece: Vec<Point> = Vec::new();
-        let mut on = supported(pts[0]);
-        if on {
-            piece.push(pts[0]);
-        }
-        for w in pts.windows(2) {
-            let (a, b) = (w[0], w[1]);
-            let m = ((dist(a, b) / step).ceil() as usize).max(1);
-            let at = |t: f64| add(a, scale(sub(b, a), t));
-            let mut t_prev = 0.0;
-            for k in 1..=m {
-                let t = k as f64 / m as f64;
-                let now = supported(at(t));
-                if now != on {
-                    // Bisect between t_prev (state `on`) and t (state `now`).
-                    let (mut lo, mut hi) = (t_prev, t);
-                    for _ in 0..BISECTIONS {
-                        let mid = 0.5 * (lo + hi);
-                        if supported(at(mid)) == on {
-                            lo = mid;
-                        } else {
-                            hi = mid;
-                        }
-                    }
-                    if on {
-                        piece.push(at(lo));
-                        flush(&mut piece, ends, tol, min_len, &mut out);
-                    } else {
-                        piece.push(at(hi));
-                    }
-                    on = now;
-                }
-                t_prev = t;
-            }
-            if on {
-                piece.push(b);
-            }
-        }
-        flush(&mut piece, ends, tol, min_len, &mut out);
+        cut_open(&pts, &supported, step, &runs.ends, tol, min_len, &mut out);
     }
     out
+}
+
+/// The support's runs, indexed for the test of whether a curve's point is supported.
+struct Runs {
+    index: SegmentIndex,
+    /// Per segment of the index: whether its start, its end is the end of a run.
+    run_end: Vec<(bool, bool)>,
+    /// Each run end with the run's last two gaps, from the end inwards.
+    ends: Vec<Vec<Point>>,
+    /// The run ends.
+    run_ends: Vec<Point>,
+    tol: f64,
+    cap: f64,
+    /// The last point tested: the point, its distance to the support and to the
+    /// nearest run end.
+    last: std::cell::Cell<Option<(Point, f64, f64)>>,
+}
+
+impl Runs {
+    fn new(support: &[Polyline], tol: f64, cap: f64) -> Runs {
+        let mut run_end: Vec<(bool, bool)> = Vec::new();
+        for pl in support {
+            let m = pl.segments().count();
+            if m == 0 {
+                run_end.extend(pl.points.iter().map(|_| (true, true)));
+            }
+            for k in 0..m {
+                run_end.push((!pl.closed && k == 0, !pl.closed && k + 1 == m));
+            }
+        }
+        let ends: Vec<Vec<Point>> = support
+            .iter()
+            .filter(|pl| !pl.closed && !pl.points.is_empty())
+            .flat_map(|pl| {
+                let n = pl.points.len();
+                let head: Vec<Point> = pl.points[..n.min(3)].to_vec();
+                let tail: Vec<Point> = pl.points[n.saturating_sub(3)..]
+                    .iter()
+                    .rev()
+                    .copied()
+                    .collect();
+                [head, tail]
+            })
+            .collect();
+        let run_ends = ends.iter().filter_map(|e| e.first().copied()).collect();
+        Runs {
+            index: SegmentIndex::new(support),
+            run_end,
+            ends,
+            run_ends,
+            tol,
+            cap,
+            last: std::cell::Cell::new(None),
+        }
+    }
+
+    /// Whether `p`, at `nearest` from the support, is within `tol` of it and not more
+    /// than `cap` past a run's end.
+    fn exact(&self, p: Point, nearest: Option<(f64, usize, f64)>) -> bool {
+        match nearest {
+            Some((d, i, t)) if d <= self.tol => {
+                let (a, b) = self.index.segments()[i];
+                let (at_a, at_b) = self.run_end[i];
+                // How far past a run's end along its last segment.
+                let past = |end: Point, other: Point| {
+                    let dir = sub(end, other);
+                    let len = crate::geom::norm(dir);
+                    if len > 0.0 {
+                        crate::geom::dot(sub(p, end), dir) / len
+                    } else {
+                        dist(p, end)
+                    }
+                };
+                if t <= 0.0 && at_a {
+                    past(a, b) <= self.cap
+                } else if t >= 1.0 && at_b {
+                    past(b, a) <= self.cap
+                } else {
+                    true
+                }
+            }
+            _ => false,
+        }
+    }
+
+    /// Whether `p` is supported. The tests walk along the curves a fraction of `tol` at
+    /// a time, and the distance to the support is 1-Lipschitz: from the last point
+    /// measured, `p0` at distance `d0` and `e0` from the nearest run end, a point
+    /// `delta` away is within `d0 + delta` and beyond `d0 - delta`. Only within `tol` of
+    /// a run end can a point within `tol` of the support be unsupported (past the end),
+    /// so away from them the bounds decide, and most points need no search.
+    fn supported(&self, p: Point) -> bool {
+        let tol = self.tol;
+        if let Some((p0, d0, e0)) = self.last.get() {
+            let delta = dist(p, p0);
+            if d0 - delta > tol {
+                return false;
+            }
+            if d0 + delta <= tol && e0 - delta > tol {
+                return true;
+            }
+        }
+        let nearest = self.index.nearest(p);
+        let e0 = self
+            .run_ends
+            .iter()
+            .map(|&e| dist(e, p))
+            .fold(f64::INFINITY, f64::min);
+        self.last
+            .set(Some((p, nearest.map_or(f64::INFINITY, |n| n.0), e0)));
+        self.exact(p, nearest)
+    }
+}
+
+/// The supported pieces of the open polyline `pts`, tested every `step` along it and
+/// cut by bisection where the support starts or ends, flushed into `out`.
+fn cut_open(
+    pts: &[Point],
+    supported: &impl Fn(Point) -> bool,
+    step: f64,
+    ends: &[Vec<Point>],
+    tol: f64,
+    min_len: f64,
+    out: &mut Vec<Polyline>,
+) {
+    let mut piece: Vec<Point> = Vec::new();
+    let mut on = supported(pts[0]);
+    if on {
+        piece.push(pts[0]);
+    }
+    for w in pts.windows(2) {
+        let (a, b) = (w[0], w[1]);
+        let m = ((dist(a, b) / step).ceil() as usize).max(1);
+        let at = |t: f64| add(a, scale(sub(b, a), t));
+        let mut t_prev = 0.0;
+        for k in 1..=m {
+            let t = k as f64 / m as f64;
+            let now = supported(at(t));
+            if now != on {
+                // Bisect between t_prev (state `on`) and t (state `now`).
+                let (mut lo, mut hi) = (t_prev, t);
+                for _ in 0..BISECTIONS {
+                    let mid = 0.5 * (lo + hi);
+                    if supported(at(mid)) == on {
+                        lo = mid;
+                    } else {
+                        hi = mid;
+                    }
+                }
+                if on {
+                    piece.push(at(lo));
+                    flush(&mut piece, ends, tol, min_len, out);
+                } else {
+                    piece.push(at(hi));
+                }
+                on = now;
+            }
+            t_prev = t;
+        }
+        if on {
+            piece.push(b);
+        }
+    }
+    flush(&mut piece, ends, tol, min_len, out);
 }
 
 /// The first point of a closed curve, tested every `step`, that is not supported: the

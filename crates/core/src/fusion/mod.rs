@@ -290,132 +290,143 @@ impl Window {
             return (Vec::new(), Vec::new());
         };
         let older: Vec<&View> = self.views.iter().take(self.views.len() - 1).collect();
-        let gate = 2.0 * newest.sigma;
-        // The farthest one frame's curve lies from its wall: the accuracy bound.
-        let reach = 3.0 * newest.sigma + 2.0 * (newest.tol - 2.0 * newest.sigma);
-        // Only where the newest frame has returns of its own: elsewhere (a piece bridging
-        // a gap between its runs) it has no wall of its own to sharpen.
-        let returns = kiddo::ImmutableKdTree::<f64, 2>::new_from_slice(&newest.returns).ok();
-        // The nearest of its returns within its support's tolerance, and the spacing of
-        // its run's returns there (to the nearer neighbour in the run's order, as the
-        // returns are laid out run after run).
-        let own_near = |p: Point| -> Option<f64> {
-            let t = returns.as_ref()?;
-            let nn = t
-                .query(&p)
-                .nearest_one::<kiddo::SquaredEuclidean<f64>>()
-                .execute();
-            if nn.distance > newest.tol * newest.tol {
-                return None;
-            }
-            let j = nn.item as usize;
-            let r = &newest.returns;
-            let spacing = [j.checked_sub(1), Some(j + 1)]
-                .into_iter()
-                .flatten()
-                .filter_map(|k| r.get(k))
-                .map(|q| crate::geom::dist(*q, r[j]))
-                .fold(f64::INFINITY, f64::min);
-            Some(spacing)
-        };
-        let found: Vec<Vec<Option<Found>>> = newest
-            .curves
-            .par_iter()
-            .map(|c| {
-                (0..c.points.len())
-                    .map(|i| {
-                        let p = c.points[i];
-                        // The chord of the newest frame's own curve over the returns
-                        // its run's smoothing line spanned (`SMOOTHING` a side, at most
-                        // the two tolerances a side the alignment fits its normals
-                        // over), and where it puts the wall here: a point standing off
-                        // it follows a return that line left raw (a shape, or a return
-                        // a few deviations off: one frame cannot tell). The window can,
-                        // so a curve of an older frame counts anywhere from the point
-                        // to the chord, widened by the gate, and the point moves across
-                        // the chord's direction, not along the flank of its own spike.
-                        let spacing = own_near(p)?;
-                        let len = (SMOOTHING as f64 * spacing).min(2.0 * newest.tol);
-                        let chord = spacing
-                            .is_finite()
-                            .then(|| chord_offset(c, i, len))
-                            .flatten();
-                        let t = chord.map_or_else(|| tangent(c, i), |(_, d)| d);
-                        if t == [0.0, 0.0] {
-                            return None;
-                        }
-                        let n = [-t[1], t[0]];
-                        let dev = chord
-                            .map_or(0.0, |(f, _)| crate::geom::dot(crate::geom::sub(f, p), n))
-                            .clamp(-reach, reach);
-                        let dev = if dev.abs() > SPIKE * newest.sigma {
-                            dev
-                        } else {
-                            0.0
-                        };
-                        let (lo, hi) = (dev.min(0.0) - gate, dev.max(0.0) + gate);
-                        let offsets = older
-                            .iter()
-                            .map(|v| {
-                                // Into the older view's coordinates: its motion is rigid,
-                                // so offsets along the turned normal are the same lengths.
-                                let m = &v.to_newest;
-                                let tq = rotate_back(m, t);
-                                v.offset(m.inverse(p), [-tq[1], tq[0]], tq, gate + dev.abs())
-                                    .filter(|s| (lo..=hi).contains(s))
-                            })
-                            .collect();
-                        Some(Found {
-                            tangent: t,
-                            spike: dev != 0.0,
-                            offsets,
-                        })
-                    })
-                    .collect()
-            })
-            .collect();
+        let found = found(newest, &older);
         let weights = view_weights(&found, older.len(), newest.sigma);
-        let curves = newest
-            .curves
-            .iter()
-            .zip(&found)
-            .map(|(c, found)| {
-                let points = c
-                    .points
-                    .iter()
-                    .zip(found)
-                    .map(|(&p, f)| {
-                        let Some(Found {
-                            tangent: t,
-                            offsets,
-                            ..
-                        }) = f
-                        else {
-                            return p;
-                        };
-                        // The newest weighs 1, with offset zero.
-                        let (mut sum, mut total) = (0.0, 1.0);
-                        for (s, w) in offsets.iter().zip(&weights) {
-                            if let Some(s) = s {
-                                sum += w * s;
-                                total += w;
-                            }
-                        }
-                        crate::geom::add(p, crate::geom::scale([-t[1], t[0]], sum / total))
-                    })
-                    .collect();
-                Polyline {
-                    closed: c.closed,
-                    points,
-                }
-            })
-            .collect();
+        let curves = moved(&newest.curves, &found, &weights);
         let evidence = older
             .iter()
             .flat_map(|v| v.returns.iter().map(|&q| v.to_newest.apply(q)))
             .collect();
         (curves, evidence)
     }
+}
+
+/// What the `older` views say at each point of the `newest` view's curves (see
+/// [`Window::refined`]): none where the point has no returns of its own near it.
+fn found(newest: &View, older: &[&View]) -> Vec<Vec<Option<Found>>> {
+    let gate = 2.0 * newest.sigma;
+    // The farthest one frame's curve lies from its wall: the accuracy bound.
+    let reach = 3.0 * newest.sigma + 2.0 * (newest.tol - 2.0 * newest.sigma);
+    // Only where the newest frame has returns of its own: elsewhere (a piece bridging
+    // a gap between its runs) it has no wall of its own to sharpen.
+    let returns = kiddo::ImmutableKdTree::<f64, 2>::new_from_slice(&newest.returns).ok();
+    // The nearest of its returns within its support's tolerance, and the spacing of
+    // its run's returns there (to the nearer neighbour in the run's order, as the
+    // returns are laid out run after run).
+    let own_near = |p: Point| -> Option<f64> {
+        let t = returns.as_ref()?;
+        let nn = t
+            .query(&p)
+            .nearest_one::<kiddo::SquaredEuclidean<f64>>()
+            .execute();
+        if nn.distance > newest.tol * newest.tol {
+            return None;
+        }
+        let j = nn.item as usize;
+        let r = &newest.returns;
+        let spacing = [j.checked_sub(1), Some(j + 1)]
+            .into_iter()
+            .flatten()
+            .filter_map(|k| r.get(k))
+            .map(|q| crate::geom::dist(*q, r[j]))
+            .fold(f64::INFINITY, f64::min);
+        Some(spacing)
+    };
+    newest
+        .curves
+        .par_iter()
+        .map(|c| {
+            (0..c.points.len())
+                .map(|i| {
+                    let p = c.points[i];
+                    // The chord of the newest frame's own curve over the returns
+                    // its run's smoothing line spanned (`SMOOTHING` a side, at most
+                    // the two tolerances a side the alignment fits its normals
+                    // over), and where it puts the wall here: a point standing off
+                    // it follows a return that line left raw (a shape, or a return
+                    // a few deviations off: one frame cannot tell). The window can,
+                    // so a curve of an older frame counts anywhere from the point
+                    // to the chord, widened by the gate, and the point moves across
+                    // the chord's direction, not along the flank of its own spike.
+                    let spacing = own_near(p)?;
+                    let len = (SMOOTHING as f64 * spacing).min(2.0 * newest.tol);
+                    let chord = spacing
+                        .is_finite()
+                        .then(|| chord_offset(c, i, len))
+                        .flatten();
+                    let t = chord.map_or_else(|| tangent(c, i), |(_, d)| d);
+                    if t == [0.0, 0.0] {
+                        return None;
+                    }
+                    let n = [-t[1], t[0]];
+                    let dev = chord
+                        .map_or(0.0, |(f, _)| crate::geom::dot(crate::geom::sub(f, p), n))
+                        .clamp(-reach, reach);
+                    let dev = if dev.abs() > SPIKE * newest.sigma {
+                        dev
+                    } else {
+                        0.0
+                    };
+                    let (lo, hi) = (dev.min(0.0) - gate, dev.max(0.0) + gate);
+                    let offsets = older
+                        .iter()
+                        .map(|v| {
+                            // Into the older view's coordinates: its motion is rigid,
+                            // so offsets along the turned normal are the same lengths.
+                            let m = &v.to_newest;
+                            let tq = rotate_back(m, t);
+                            v.offset(m.inverse(p), [-tq[1], tq[0]], tq, gate + dev.abs())
+                                .filter(|s| (lo..=hi).contains(s))
+                        })
+                        .collect();
+                    Some(Found {
+                        tangent: t,
+                        spike: dev != 0.0,
+                        offsets,
+                    })
+                })
+                .collect()
+        })
+        .collect()
+}
+
+/// The `curves` with each point moved along its normal by the weighted mean of the
+/// offsets `found` there, the newest view weighing 1 with offset zero.
+fn moved(curves: &[Polyline], found: &[Vec<Option<Found>>], weights: &[f64]) -> Vec<Polyline> {
+    curves
+        .iter()
+        .zip(found)
+        .map(|(c, found)| {
+            let points = c
+                .points
+                .iter()
+                .zip(found)
+                .map(|(&p, f)| {
+                    let Some(Found {
+                        tangent: t,
+                        offsets,
+                        ..
+                    }) = f
+                    else {
+                        return p;
+                    };
+                    // The newest weighs 1, with offset zero.
+                    let (mut sum, mut total) = (0.0, 1.0);
+                    for (s, w) in offsets.iter().zip(weights) {
+                        if let Some(s) = s {
+                            sum += w * s;
+                            total += w;
+                        }
+                    }
+                    crate::geom::add(p, crate::geom::scale([-t[1], t[0]], sum / total))
+                })
+                .collect();
+            Polyline {
+                closed: c.closed,
+                points,
+            }
+        })
+        .collect()
 }
 
 /// What the older views say at one point of the newest curves.

@@ -448,6 +448,52 @@ pub fn tube_sides<'a>(
     // Depth of each region from the free regions touching the boundary: one step into or
     // out of the tube, two across a wall between corridors (through the tube it is).
     let nr = kinds.len();
+    let depth = region_depths(mesh, &neighbours, &region, &kinds);
+    // Free regions at depth 0, 4, 8, ... are outside; 2, 6, ... inside. Unreached
+    // regions (a domain with no free boundary) count as inside.
+    // An inside region counts as enclosed only if some vertex of it lies at least
+    // delta / 2 from the data and it has a few vertices: a speck left where a leaking
+    // tube pinched is no interior, and a wider tube must be tried.
+    let mut size = vec![0u32; nr];
+    let mut region_reach = vec![0.0f64; nr];
+    for (v, &r) in region.iter().enumerate() {
+        size[r as usize] += 1;
+        region_reach[r as usize] = region_reach[r as usize].max(dist[v]);
+    }
+    let any_inside = (0..nr).any(|r| {
+        kinds[r]
+            && size[r] >= 3
+            && region_reach[r] >= 0.5 * delta
+            && (depth[r] == u32::MAX || (depth[r] / 2) % 2 == 1)
+    });
+    if !any_inside {
+        return None;
+    }
+    let sides = region
+        .iter()
+        .map(|&r| {
+            let r = r as usize;
+            match (kinds[r], depth[r]) {
+                (false, _) => Side::Tube,
+                (true, d) if d != u32::MAX && (d / 2) % 2 == 0 => Side::Outside,
+                (true, _) => Side::Inside,
+            }
+        })
+        .collect();
+    Some(sides)
+}
+
+/// The depth of each region (`region` per vertex, `kinds[r]` whether region `r` is
+/// free) from the free regions touching the domain's boundary, `u32::MAX` where none
+/// reaches.
+fn region_depths<'a>(
+    mesh: &Mesh,
+    neighbours: impl Fn(usize) -> &'a [u32],
+    region: &[u32],
+    kinds: &[bool],
+) -> Vec<u32> {
+    let n = region.len();
+    let nr = kinds.len();
     let mut adj: Vec<Vec<(u32, u32)>> = vec![Vec::new(); nr];
     for v in 0..n {
         for &w in neighbours(v) {
@@ -487,38 +533,7 @@ pub fn tube_sides<'a>(
             }
         }
     }
-    // Free regions at depth 0, 4, 8, ... are outside; 2, 6, ... inside. Unreached
-    // regions (a domain with no free boundary) count as inside.
-    // An inside region counts as enclosed only if some vertex of it lies at least
-    // delta / 2 from the data and it has a few vertices: a speck left where a leaking
-    // tube pinched is no interior, and a wider tube must be tried.
-    let mut size = vec![0u32; nr];
-    let mut region_reach = vec![0.0f64; nr];
-    for (v, &r) in region.iter().enumerate() {
-        size[r as usize] += 1;
-        region_reach[r as usize] = region_reach[r as usize].max(dist[v]);
-    }
-    let any_inside = (0..nr).any(|r| {
-        kinds[r]
-            && size[r] >= 3
-            && region_reach[r] >= 0.5 * delta
-            && (depth[r] == u32::MAX || (depth[r] / 2) % 2 == 1)
-    });
-    if !any_inside {
-        return None;
-    }
-    let sides = region
-        .iter()
-        .map(|&r| {
-            let r = r as usize;
-            match (kinds[r], depth[r]) {
-                (false, _) => Side::Tube,
-                (true, d) if d != u32::MAX && (d / 2) % 2 == 0 => Side::Outside,
-                (true, _) => Side::Inside,
-            }
-        })
-        .collect();
-    Some(sides)
+    depth
 }
 
 /// Joins the regions of free vertices that one corridor runs through but that the

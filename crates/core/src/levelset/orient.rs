@@ -291,45 +291,13 @@ fn turn_along(
 ) -> Option<(Vec<Vec<usize>>, Turned)> {
     let n = pts.len();
     let runs = |normals: &[Point], i: usize, j: usize| runs(pts, normals, i, j);
-    let doubt = |i: usize, j: usize| {
-        let q = sub(pts[j], pts[i]);
-        let len = dot(q, q).sqrt().max(f64::MIN_POSITIVE);
-        let along = |v: usize| dot(q, tangent(normals[v])).abs() / len;
-        len / reach + (1.0 - along(i).min(along(j))) + (1.0 - dot(normals[i], normals[j]).abs())
-    };
-    // An edge from a sample whose fit straddles two walls comes after every other: its
-    // normal may run across both, and the first edge between two pieces decides how
-    // they turn to each other.
-    let straddles = |i: usize, j: usize| if one_wall[i] && one_wall[j] { 0.0 } else { 1e3 };
-    let mut by_doubt: Vec<(f64, usize, usize)> = edges
-        .iter()
-        .map(|&(i, j)| {
-            let (i, j) = (i as usize, j as usize);
-            (doubt(i, j) + straddles(i, j), i, j)
-        })
-        .collect();
-    by_doubt.sort_unstable_by(|a, b| a.0.total_cmp(&b.0));
+    let by_doubt = edges_by_doubt(pts, normals, one_wall, edges, reach);
     // Union-find whose links carry the turn between a sample and its parent.
     let mut parent: Vec<(u32, bool)> = (0..n as u32).map(|i| (i, false)).collect();
-    fn find(parent: &mut [(u32, bool)], v: usize) -> (usize, bool) {
-        let (mut root, mut turn) = (v, false);
-        while parent[root].0 as usize != root {
-            turn ^= parent[root].1;
-            root = parent[root].0 as usize;
-        }
-        let (mut v, mut t) = (v, turn);
-        while parent[v].0 as usize != root {
-            let (up, tv) = parent[v];
-            parent[v] = (root as u32, t);
-            t ^= tv;
-            v = up as usize;
-        }
-        (root, turn)
-    }
     let mut tree: Vec<(usize, usize)> = Vec::new();
     for &(_, i, j) in &by_doubt {
-        let (ri, ti) = find(&mut parent, i);
-        let (rj, tj) = find(&mut parent, j);
+        let (ri, ti) = find_turn(&mut parent, i);
+        let (rj, tj) = find_turn(&mut parent, j);
         if ri != rj {
             parent[rj] = (ri as u32, ti ^ tj ^ !runs(normals, i, j));
             tree.push((i, j));
@@ -338,7 +306,7 @@ fn turn_along(
     let mut sheet_of = vec![usize::MAX; n];
     let mut sheets: Vec<Vec<usize>> = Vec::new();
     for (v, normal) in normals.iter_mut().enumerate() {
-        let (root, turn) = find(&mut parent, v);
+        let (root, turn) = find_turn(&mut parent, v);
         if turn {
             *normal = [-normal[0], -normal[1]];
         }
@@ -377,21 +345,7 @@ fn turn_along(
             normals[v] = [-normals[v][0], -normals[v][1]];
         }
     }
-    // A sample whose fit straddles two walls was joined last, by its weakest edge: it
-    // takes the side its edges give it, each by the inverse square of its length. A
-    // sample amid a band in the noise has a few short edges along its own wall and more
-    // long ones across to the other wall's straddling samples.
-    let mut say = vec![0.0f64; n];
-    for &(i, j) in edges {
-        let (i, j) = (i as usize, j as usize);
-        let w = 1.0 / dist2(pts[i], pts[j]).max(f64::MIN_POSITIVE);
-        let w = if runs(normals, i, j) { w } else { -w };
-        say[i] += w;
-        say[j] += w;
-    }
-    for v in (0..n).filter(|&v| !one_wall[v] && say[v] < 0.0) {
-        normals[v] = [-normals[v][0], -normals[v][1]];
-    }
+    side_by_edges(pts, normals, one_wall, edges);
     let opposed = edges
         .iter()
         .filter(|&&(i, j)| !runs(normals, i as usize, j as usize))
@@ -405,6 +359,72 @@ fn turn_along(
         return None;
     }
     Some((sheets, Turned { forest, votes }))
+}
+
+/// The `edges` surest first (short, along both tangents, normals alike), those from a
+/// sample whose fit straddles two walls after every other: its normal may run across
+/// both, and the first edge between two pieces decides how they turn to each other.
+fn edges_by_doubt(
+    pts: &[Point],
+    normals: &[Point],
+    one_wall: &[bool],
+    edges: &[(u32, u32)],
+    reach: f64,
+) -> Vec<(f64, usize, usize)> {
+    let doubt = |i: usize, j: usize| {
+        let q = sub(pts[j], pts[i]);
+        let len = dot(q, q).sqrt().max(f64::MIN_POSITIVE);
+        let along = |v: usize| dot(q, tangent(normals[v])).abs() / len;
+        len / reach + (1.0 - along(i).min(along(j))) + (1.0 - dot(normals[i], normals[j]).abs())
+    };
+    let straddles = |i: usize, j: usize| if one_wall[i] && one_wall[j] { 0.0 } else { 1e3 };
+    let mut by_doubt: Vec<(f64, usize, usize)> = edges
+        .iter()
+        .map(|&(i, j)| {
+            let (i, j) = (i as usize, j as usize);
+            (doubt(i, j) + straddles(i, j), i, j)
+        })
+        .collect();
+    by_doubt.sort_unstable_by(|a, b| a.0.total_cmp(&b.0));
+    by_doubt
+}
+
+/// The root of `v` in the union-find `parent` (whose links carry the turn between a
+/// sample and its parent) and whether `v` turns against it; paths are compressed.
+fn find_turn(parent: &mut [(u32, bool)], v: usize) -> (usize, bool) {
+    let (mut root, mut turn) = (v, false);
+    while parent[root].0 as usize != root {
+        turn ^= parent[root].1;
+        root = parent[root].0 as usize;
+    }
+    let (mut v, mut t) = (v, turn);
+    while parent[v].0 as usize != root {
+        let (up, tv) = parent[v];
+        parent[v] = (root as u32, t);
+        t ^= tv;
+        v = up as usize;
+    }
+    (root, turn)
+}
+
+/// Turns each sample whose fit straddles two walls (joined last, by its weakest edge)
+/// to the side its edges give it, each by the inverse square of its length. A
+/// sample amid a band in the noise has a few short edges along its own wall and more
+/// long ones across to the other wall's straddling samples.
+fn side_by_edges(pts: &[Point], normals: &mut [Point], one_wall: &[bool], edges: &[(u32, u32)]) {
+    let n = pts.len();
+    let runs = |normals: &[Point], i: usize, j: usize| runs(pts, normals, i, j);
+    let mut say = vec![0.0f64; n];
+    for &(i, j) in edges {
+        let (i, j) = (i as usize, j as usize);
+        let w = 1.0 / dist2(pts[i], pts[j]).max(f64::MIN_POSITIVE);
+        let w = if runs(normals, i, j) { w } else { -w };
+        say[i] += w;
+        say[j] += w;
+    }
+    for v in (0..n).filter(|&v| !one_wall[v] && say[v] < 0.0) {
+        normals[v] = [-normals[v][0], -normals[v][1]];
+    }
 }
 
 /// The forest that [`turn_along`] turned the sheets by, and the edges between samples
@@ -748,32 +768,7 @@ fn join_open_sheets(
         }
     };
     tracing::debug!(open, "orientation: open sheets joined across gaps");
-    let mut merged: Vec<Vec<usize>> = Vec::new();
-    let mut slot = vec![usize::MAX; sheets.len()];
-    for (s, sheet) in sheets.into_iter().enumerate() {
-        let (root, turn) = parent[s];
-        if turn {
-            for &i in &sheet {
-                normals[i] = [-normals[i][0], -normals[i][1]];
-            }
-        }
-        if slot[root] == usize::MAX {
-            slot[root] = merged.len();
-            merged.push(Vec::new());
-        }
-        merged[slot[root]].extend(sheet);
-    }
-    // A ring joined to another sheet was open after all: the joined sheet must close.
-    let mut members = vec![0usize; merged.len()];
-    for &(root, _) in &parent {
-        members[slot[root]] += 1;
-    }
-    let mut ring = vec![false; merged.len()];
-    for s in 0..rings.len() {
-        let k = slot[parent[s].0];
-        ring[k] = rings[s] && members[k] == 1;
-    }
-    (merged, ring)
+    merge_sheets(sheets, normals, &parent, &rings)
 }
 
 /// Turns back the stretch of `sheet` between its ends `a` and `b` (whose curve runs out
@@ -812,6 +807,83 @@ fn turn_back_between(
         normals[v] = [-normals[v][0], -normals[v][1]];
     }
     true
+}
+
+/// The `sheets` merged by their pairing `parent` (each sheet's root and whether it
+/// turns to it), its normals turned; and which merged sheets are rings: a ring joined
+/// to another sheet was open after all, and the joined sheet must close.
+fn merge_sheets(
+    sheets: Vec<Vec<usize>>,
+    normals: &mut [Point],
+    parent: &[(usize, bool)],
+    rings: &[bool],
+) -> (Vec<Vec<usize>>, Vec<bool>) {
+    let mut merged: Vec<Vec<usize>> = Vec::new();
+    let mut slot = vec![usize::MAX; sheets.len()];
+    for (s, sheet) in sheets.into_iter().enumerate() {
+        let (root, turn) = parent[s];
+        if turn {
+            for &i in &sheet {
+                normals[i] = [-normals[i][0], -normals[i][1]];
+            }
+        }
+        if slot[root] == usize::MAX {
+            slot[root] = merged.len();
+            merged.push(Vec::new());
+        }
+        merged[slot[root]].extend(sheet);
+    }
+    let mut members = vec![0usize; merged.len()];
+    for &(root, _) in parent {
+        members[slot[root]] += 1;
+    }
+    let mut ring = vec![false; merged.len()];
+    for s in 0..rings.len() {
+        let k = slot[parent[s].0];
+        ring[k] = rings[s] && members[k] == 1;
+    }
+    (merged, ring)
+}
+
+/// The pairs of `ends` (indices, the smaller first) that face each other within
+/// [`JOIN_REACH`] `reach`. Facing each other: neither looks away from the other, and
+/// together they look along the chord by half its length (two walls' ends side by side
+/// look past it). Each end's nearest such end; a pair only where each is the other's:
+/// at a corner where a sheet across an inlet's mouth ends too, the third end is
+/// nobody's pair.
+fn facing_pairs(ends: &[End], reach: f64, span: f64, sigma: f64) -> Vec<(usize, usize)> {
+    let mut nearest: Vec<Option<(f64, usize)>> = vec![None; ends.len()];
+    for a in 0..ends.len() {
+        for b in a + 1..ends.len() {
+            let q = sub(ends[b].at, ends[a].at);
+            let len = dot(q, q).sqrt();
+            if len == 0.0 || len > JOIN_REACH * reach {
+                continue;
+            }
+            let (fa, fb) = (dot(q, ends[a].out) / len, -dot(q, ends[b].out) / len);
+            let facing = fa.min(fb) >= -0.2 && fa + fb >= 0.5;
+            // Or run past each other on one line, within a span: at a corner each
+            // sheet may take a few samples of the other wall, whose fits straddle it.
+            let past = len <= 2.0 * span
+                && dot(ends[a].out, ends[b].out) <= -0.7
+                && [a, b]
+                    .iter()
+                    .all(|&e| cross(q, ends[e].out).abs() <= 3.0 * sigma + 0.25 * span);
+            if facing || past {
+                for (x, y) in [(a, b), (b, a)] {
+                    if nearest[x].is_none_or(|(d, _)| len < d) {
+                        nearest[x] = Some((len, y));
+                    }
+                }
+            }
+        }
+    }
+    (0..ends.len())
+        .filter_map(|a| {
+            let (_, b) = nearest[a]?;
+            (a < b && nearest[b].is_some_and(|(_, c)| c == a)).then_some((a, b))
+        })
+        .collect()
 }
 
 /// Why [`pair_ends`] pairs no ends.
@@ -863,42 +935,7 @@ fn pair_ends(
         ends.extend([a, b]);
         taking += 1;
     }
-    // Facing each other: neither looks away from the other, and together they look
-    // along the chord by half its length (two walls' ends side by side look past it).
-    // Each end's nearest such end; a pair only where each is the other's: at a corner
-    // where a sheet across an inlet's mouth ends too, the third end is nobody's pair.
-    let mut nearest: Vec<Option<(f64, usize)>> = vec![None; ends.len()];
-    for a in 0..ends.len() {
-        for b in a + 1..ends.len() {
-            let q = sub(ends[b].at, ends[a].at);
-            let len = dot(q, q).sqrt();
-            if len == 0.0 || len > JOIN_REACH * reach {
-                continue;
-            }
-            let (fa, fb) = (dot(q, ends[a].out) / len, -dot(q, ends[b].out) / len);
-            let facing = fa.min(fb) >= -0.2 && fa + fb >= 0.5;
-            // Or run past each other on one line, within a span: at a corner each
-            // sheet may take a few samples of the other wall, whose fits straddle it.
-            let past = len <= 2.0 * span
-                && dot(ends[a].out, ends[b].out) <= -0.7
-                && [a, b]
-                    .iter()
-                    .all(|&e| cross(q, ends[e].out).abs() <= 3.0 * sigma + 0.25 * span);
-            if facing || past {
-                for (x, y) in [(a, b), (b, a)] {
-                    if nearest[x].is_none_or(|(d, _)| len < d) {
-                        nearest[x] = Some((len, y));
-                    }
-                }
-            }
-        }
-    }
-    let pairs: Vec<(usize, usize)> = (0..ends.len())
-        .filter_map(|a| {
-            let (_, b) = nearest[a]?;
-            (a < b && nearest[b].is_some_and(|(_, c)| c == a)).then_some((a, b))
-        })
-        .collect();
+    let pairs = facing_pairs(&ends, reach, span, sigma);
     // Every end paired, or the sheets stay as they are: an end left over is where the
     // sampling leaves the pairing in doubt (three ends at a corner, one of them a stub
     // joined across an inlet's mouth), and a chain it ends is no closed curve.

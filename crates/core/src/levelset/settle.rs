@@ -26,6 +26,105 @@ pub struct SettleReport {
     pub moved: bool,
 }
 
+/// The samples whose median a round of [`center_on_data`] takes, with each one's
+/// neighbourhood.
+struct Neighbourhoods<'a> {
+    metric: &'a MetricField,
+    /// The samples that are the nearest of a vertex near the curve.
+    needed: Vec<u32>,
+    /// Per sample of the field: its index in `needed`, or `NONE`.
+    slot: Vec<u32>,
+    /// The neighbourhoods searched for, per needed sample; empty when the metric's own
+    /// (chain windows, or its first `k` neighbours) serve.
+    found: Vec<Vec<u32>>,
+    k: usize,
+}
+
+const NONE: u32 = u32::MAX;
+
+impl<'a> Neighbourhoods<'a> {
+    fn new(metric: &'a MetricField, nearest: &[u32], u: &[f64], width: f64) -> Self {
+        let field = &metric.field;
+        // Enough neighbours to span the noise band: the median count of samples within
+        // `width` of a sample (checked on up to 64 of them), at least 32. Beyond
+        // `MAX_MEDIAN` the nearest ones would span less than the band on dense data and
+        // pull each median towards its own sample's side: then an even subsample of all
+        // those within `width` is taken instead.
+        const MAX_MEDIAN: usize = 512;
+        let pts = field.points();
+        let step = (pts.len() / 64).max(1);
+        let mut counts: Vec<usize> = pts
+            .iter()
+            .step_by(step)
+            .map(|&p| field.count_within(p, width))
+            .collect();
+        counts.sort_unstable();
+        let within = counts.get(counts.len() / 2).copied().unwrap_or(32);
+        let dense = within > MAX_MEDIAN;
+        let k = within.clamp(32, MAX_MEDIAN).min(pts.len());
+        // Only the samples that are the nearest of a vertex near the curve need a median:
+        // on dense data (200k samples, 512 neighbours each) the others would dominate.
+        let mut slot = vec![NONE; pts.len()];
+        let mut needed = Vec::new();
+        for (&j, &uv) in nearest.iter().zip(u.iter()) {
+            if uv.abs() <= 2.0 * width && slot[j as usize] == NONE {
+                slot[j as usize] = needed.len() as u32;
+                needed.push(j);
+            }
+        }
+        // The metric's fits found each sample's nearest neighbours already; the first `k` of
+        // them will do when there are that many. A sample on a chain takes its chain window
+        // instead and needs none. Allocation is fine here: once per frame.
+        let on_chain = |j: u32| !metric.chain_window(j as usize).is_empty();
+        let found: Vec<Vec<u32>> =
+            if needed.iter().all(|&j| on_chain(j)) || (!dense && k <= metric.k) {
+                Vec::new()
+            } else if dense {
+                needed
+                    .par_iter()
+                    .map_init(Vec::new, |buf, &j| {
+                        field.within(pts[j as usize], width, buf);
+                        buf.sort_unstable();
+                        let stride = buf.len().div_ceil(MAX_MEDIAN).max(1);
+                        buf.iter().step_by(stride).copied().collect()
+                    })
+                    .collect()
+            } else {
+                needed
+                    .par_iter()
+                    .map_init(Vec::new, |buf, &j| {
+                        field.nearest_k(pts[j as usize], k, buf);
+                        buf[..k.min(buf.len())].to_vec()
+                    })
+                    .collect()
+            };
+        Neighbourhoods {
+            metric,
+            needed,
+            slot,
+            found,
+            k,
+        }
+    }
+
+    /// The neighbourhood of `needed[s]`.
+    fn list(&self, s: usize) -> &[u32] {
+        let metric = self.metric;
+        // A sample on a chain (a scan's run) takes its chain window: the same surface,
+        // where a spatial neighbourhood of sparse, distant returns can span a corner or
+        // reach across a depth jump.
+        let chain = metric.chain_window(self.needed[s] as usize);
+        if !chain.is_empty() {
+            chain
+        } else if self.found.is_empty() {
+            let at = self.needed[s] as usize * metric.k;
+            &metric.neighbours[at..at + self.k]
+        } else {
+            &self.found[s]
+        }
+    }
+}
+
 /// Moves the zero level set to the local median of the data: each vertex within `width`
 /// of it is lowered by the median of `u` over the `k` nearest samples of its nearest
 /// sample (`nearest[v]`; `data` holds the locations of `field`'s points, in its order),
@@ -45,74 +144,9 @@ pub fn center_on_data(
     u: &mut [f64],
     width: f64,
 ) -> SettleReport {
-    let field = &metric.field;
-    // Enough neighbours to span the noise band: the median count of samples within
-    // `width` of a sample (checked on up to 64 of them), at least 32. Beyond
-    // `MAX_MEDIAN` the nearest ones would span less than the band on dense data and
-    // pull each median towards its own sample's side: then an even subsample of all
-    // those within `width` is taken instead.
-    const MAX_MEDIAN: usize = 512;
-    let pts = field.points();
-    let step = (pts.len() / 64).max(1);
-    let mut counts: Vec<usize> = pts
-        .iter()
-        .step_by(step)
-        .map(|&p| field.count_within(p, width))
-        .collect();
-    counts.sort_unstable();
-    let within = counts.get(counts.len() / 2).copied().unwrap_or(32);
-    let dense = within > MAX_MEDIAN;
-    let k = within.clamp(32, MAX_MEDIAN).min(pts.len());
-    // Only the samples that are the nearest of a vertex near the curve need a median:
-    // on dense data (200k samples, 512 neighbours each) the others would dominate.
-    const NONE: u32 = u32::MAX;
-    let mut slot = vec![NONE; pts.len()];
-    let mut needed = Vec::new();
-    for (&j, &uv) in nearest.iter().zip(u.iter()) {
-        if uv.abs() <= 2.0 * width && slot[j as usize] == NONE {
-            slot[j as usize] = needed.len() as u32;
-            needed.push(j);
-        }
-    }
-    // The metric's fits found each sample's nearest neighbours already; the first `k` of
-    // them will do when there are that many. A sample on a chain takes its chain window
-    // instead and needs none. Allocation is fine here: once per frame.
-    let on_chain = |j: u32| !metric.chain_window(j as usize).is_empty();
-    let found: Vec<Vec<u32>> = if needed.iter().all(|&j| on_chain(j)) || (!dense && k <= metric.k) {
-        Vec::new()
-    } else if dense {
-        needed
-            .par_iter()
-            .map_init(Vec::new, |buf, &j| {
-                field.within(pts[j as usize], width, buf);
-                buf.sort_unstable();
-                let stride = buf.len().div_ceil(MAX_MEDIAN).max(1);
-                buf.iter().step_by(stride).copied().collect()
-            })
-            .collect()
-    } else {
-        needed
-            .par_iter()
-            .map_init(Vec::new, |buf, &j| {
-                field.nearest_k(pts[j as usize], k, buf);
-                buf[..k.min(buf.len())].to_vec()
-            })
-            .collect()
-    };
-    let list = |s: usize| -> &[u32] {
-        // A sample on a chain (a scan's run) takes its chain window: the same surface,
-        // where a spatial neighbourhood of sparse, distant returns can span a corner or
-        // reach across a depth jump.
-        let chain = metric.chain_window(needed[s] as usize);
-        if !chain.is_empty() {
-            chain
-        } else if found.is_empty() {
-            let at = needed[s] as usize * metric.k;
-            &metric.neighbours[at..at + k]
-        } else {
-            &found[s]
-        }
-    };
+    let hoods = Neighbourhoods::new(metric, nearest, u, width);
+    let (slot, needed) = (&hoods.slot, &hoods.needed);
+    let pts = metric.field.points();
     let mut at = vec![0.0; pts.len()];
     let mut medians = vec![0.0; needed.len()];
     let mut trial = u.to_vec();
@@ -128,7 +162,7 @@ pub fn center_on_data(
             .enumerate()
             .for_each_init(Vec::new, |vals, (s, m)| {
                 vals.clear();
-                vals.extend(list(s).iter().map(|&j| at[j as usize]));
+                vals.extend(hoods.list(s).iter().map(|&j| at[j as usize]));
                 let mid = vals.len() / 2;
                 *m = *vals.select_nth_unstable_by(mid, f64::total_cmp).1;
             });

@@ -169,32 +169,7 @@ pub fn between_samples(
     if !(positive(tol) && positive(fit_tol) && positive(step)) {
         return changed;
     }
-    let index = SegmentIndex::new(curves);
-    let starts: Vec<usize> = (0..curves.len()).map(|k| index.start(k)).collect();
-    let loops: Vec<Loop<'_>> = curves.iter().map(|pl| Loop::new(&pl.points)).collect();
-    // Each sample near a loop: the loop, its arc length along it, the sample, its foot.
-    let near: Vec<(usize, f64, Point, Point)> = field
-        .points()
-        .par_iter()
-        .filter_map(|&p| {
-            let (d, seg, t) = index.nearest(p)?;
-            let k = starts.partition_point(|&s| s <= seg) - 1;
-            let pl = &curves[k];
-            if d > tol || !pl.closed || pl.points.len() < 3 {
-                return None;
-            }
-            let (a, b) = index.segments()[seg];
-            let along = loops[k].at[seg - starts[k]] + t * dist(a, b);
-            Some((k, along, p, add(a, scale(sub(b, a), t))))
-        })
-        .collect();
-    // Owned, since the loops' points are about to be replaced.
-    let (ats, totals): (Vec<Vec<f64>>, Vec<f64>) =
-        loops.into_iter().map(|l| (l.at, l.total)).unzip();
-    let mut chains: Vec<Vec<(f64, Point, Point)>> = vec![Vec::new(); curves.len()];
-    for (k, along, p, foot) in near {
-        chains[k].push((along, p, foot));
-    }
+    let (mut chains, ats, totals) = samples_along(curves, field, tol);
     for (k, chain) in chains.iter_mut().enumerate() {
         chain.sort_by(|u, v| u.0.total_cmp(&v.0));
         // Two samples at one place along the loop have no order.
@@ -277,6 +252,47 @@ pub fn between_samples(
         changed.push(k);
     }
     changed
+}
+
+/// A sample near a closed loop: its arc length along the loop, the sample, its foot.
+type Along = (f64, Point, Point);
+
+/// The samples of `field` within `tol` of the closed polylines of `curves` (with at
+/// least three points), by their nearest loop (unsorted), with each loop's vertices'
+/// arc lengths and its length.
+#[allow(clippy::type_complexity)]
+fn samples_along(
+    curves: &[Polyline],
+    field: &DistanceField,
+    tol: f64,
+) -> (Vec<Vec<Along>>, Vec<Vec<f64>>, Vec<f64>) {
+    let index = SegmentIndex::new(curves);
+    let starts: Vec<usize> = (0..curves.len()).map(|k| index.start(k)).collect();
+    let loops: Vec<Loop<'_>> = curves.iter().map(|pl| Loop::new(&pl.points)).collect();
+    // Each sample near a loop: the loop, its arc length along it, the sample, its foot.
+    let near: Vec<(usize, f64, Point, Point)> = field
+        .points()
+        .par_iter()
+        .filter_map(|&p| {
+            let (d, seg, t) = index.nearest(p)?;
+            let k = starts.partition_point(|&s| s <= seg) - 1;
+            let pl = &curves[k];
+            if d > tol || !pl.closed || pl.points.len() < 3 {
+                return None;
+            }
+            let (a, b) = index.segments()[seg];
+            let along = loops[k].at[seg - starts[k]] + t * dist(a, b);
+            Some((k, along, p, add(a, scale(sub(b, a), t))))
+        })
+        .collect();
+    // Owned: the caller replaces the loops' points.
+    let (ats, totals): (Vec<Vec<f64>>, Vec<f64>) =
+        loops.into_iter().map(|l| (l.at, l.total)).unzip();
+    let mut chains: Vec<Vec<Along>> = vec![Vec::new(); curves.len()];
+    for (k, along, p, foot) in near {
+        chains[k].push((along, p, foot));
+    }
+    (chains, ats, totals)
 }
 
 /// The inner points of the curve between the samples `s(0)` and `s(1)` (`s(j)` the

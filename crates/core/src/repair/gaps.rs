@@ -205,61 +205,71 @@ impl Fit<'_> {
             // written).
             (0.0, Some(0.0))
         } else {
-            let mut ata = Matrix3::<f64>::zeros();
-            let mut atb = Vector3::<f64>::zeros();
             let local: Vec<(f64, f64)> = pts
                 .iter()
                 .map(|&q| (dot(sub(q, c), x), dot(sub(q, c), y)))
                 .collect();
-            // In units of their extent along the line, so that the conditioning test
-            // below does not depend on the scale.
-            let su = local.iter().fold(0.0f64, |m, &(u, _)| m.max(u.abs()));
-            for &(u, v) in &local {
-                let w = u / su;
-                let row = Vector3::new(1.0, w, w * w);
-                ata += row * row.transpose();
-                atb += row * v;
-            }
-            // Samples all but on a line across, or coincident along it, fix no quadratic.
-            let conditioned = su > 0.0 && ata.determinant().abs() > 1e-12 * ata.amax().powi(3);
-            match conditioned
-                .then(|| ata.lu().solve(&atb))
-                .flatten()
-                .filter(|z| z.iter().all(|v| v.is_finite()))
-            {
-                Some(z) => {
-                    let (a, b, c2) = (z[0], z[1] / su, z[2] / (su * su));
-                    let quad = (local
-                        .iter()
-                        .map(|&(u, v)| (v - a - b * u - c2 * u * u).powi(2))
-                        .sum::<f64>()
-                        * inv)
-                        .sqrt();
-                    if quad < 0.5 * line {
-                        let slope = b + 2.0 * c2 * u_p;
-                        // A curvature to continue the curve by only where the quadratic
-                        // holds its samples (to within the noise, or a thousandth of
-                        // their extent): one fitted across a bend and its straight
-                        // (a spiral's cap and wall) misses them by a hundredth and more,
-                        // and its circle would run on into a corner that is not there.
-                        let holds = quad <= self.sigma.max(1e-3 * su);
-                        let k = 2.0 * c2 / (1.0 + slope * slope).powf(1.5);
-                        (slope, holds.then_some(k))
-                    } else {
-                        // Straight where the line holds them to within half the noise
-                        // and no quadratic does better: a clean curve's samples within
-                        // a noise estimate that its curvature inflates are its circle's.
-                        (0.0, (line <= 0.5 * self.sigma).then_some(0.0))
-                    }
-                }
-                None => (0.0, (line <= 0.5 * self.sigma).then_some(0.0)),
-            }
+            quadratic(&local, u_p, line, self.sigma)
         };
         let t = add(x, scale(y, slope));
         Some(End {
             tangent: scale(t, 1.0 / norm(t)),
             curvature,
         })
+    }
+}
+
+/// The slope at `u_p` and the curvature of samples `local` (along and across their
+/// line, whose residual is `line`) by a quadratic `y = a + b u + c u^2` where it halves
+/// the line's residual (else the noise hides the curvature), with the curvature only
+/// where the quadratic holds them; straight where the line holds them to within half
+/// the noise `sigma`.
+fn quadratic(local: &[(f64, f64)], u_p: f64, line: f64, sigma: f64) -> (f64, Option<f64>) {
+    let inv = 1.0 / local.len() as f64;
+    let mut ata = Matrix3::<f64>::zeros();
+    let mut atb = Vector3::<f64>::zeros();
+    // In units of their extent along the line, so that the conditioning test
+    // below does not depend on the scale.
+    let su = local.iter().fold(0.0f64, |m, &(u, _)| m.max(u.abs()));
+    for &(u, v) in local {
+        let w = u / su;
+        let row = Vector3::new(1.0, w, w * w);
+        ata += row * row.transpose();
+        atb += row * v;
+    }
+    // Samples all but on a line across, or coincident along it, fix no quadratic.
+    let conditioned = su > 0.0 && ata.determinant().abs() > 1e-12 * ata.amax().powi(3);
+    match conditioned
+        .then(|| ata.lu().solve(&atb))
+        .flatten()
+        .filter(|z| z.iter().all(|v| v.is_finite()))
+    {
+        Some(z) => {
+            let (a, b, c2) = (z[0], z[1] / su, z[2] / (su * su));
+            let quad = (local
+                .iter()
+                .map(|&(u, v)| (v - a - b * u - c2 * u * u).powi(2))
+                .sum::<f64>()
+                * inv)
+                .sqrt();
+            if quad < 0.5 * line {
+                let slope = b + 2.0 * c2 * u_p;
+                // A curvature to continue the curve by only where the quadratic
+                // holds its samples (to within the noise, or a thousandth of
+                // their extent): one fitted across a bend and its straight
+                // (a spiral's cap and wall) misses them by a hundredth and more,
+                // and its circle would run on into a corner that is not there.
+                let holds = quad <= sigma.max(1e-3 * su);
+                let k = 2.0 * c2 / (1.0 + slope * slope).powf(1.5);
+                (slope, holds.then_some(k))
+            } else {
+                // Straight where the line holds them to within half the noise
+                // and no quadratic does better: a clean curve's samples within
+                // a noise estimate that its curvature inflates are its circle's.
+                (0.0, (line <= 0.5 * sigma).then_some(0.0))
+            }
+        }
+        None => (0.0, (line <= 0.5 * sigma).then_some(0.0)),
     }
 }
 
@@ -366,6 +376,24 @@ impl<'a> Loop<'a> {
         last
     }
 
+    /// Whether the stretch `gap` strays from the `arc` across it (its inner points)
+    /// anywhere by more than a `step`. A stretch that already runs along the arc (to
+    /// within a step: the mesh's resolution) is the level set's, which the samples
+    /// beyond the ends shaped.
+    fn strays_from(&self, gap: Gap, arc: &[Point], step: f64) -> bool {
+        let path = Polyline {
+            closed: false,
+            points: [self.points[gap.a]]
+                .into_iter()
+                .chain(arc.iter().copied())
+                .chain([self.points[gap.b]])
+                .collect(),
+        };
+        let along = SegmentIndex::new(std::slice::from_ref(&path));
+        // The stretch walked a step at a time: a long segment is a chord.
+        self.walk(gap, step).any(|p| along.distance(p) > step)
+    }
+
     /// The Hermite arcs across `gap` (its inner vertices, from `a`'s side) through the
     /// samples `skipped` (in order along it), when they are ones to take: `clear(window,
     /// p)` says whether `p` keeps clear of every part of the curves but this loop's
@@ -391,7 +419,6 @@ impl<'a> Loop<'a> {
         // less, its zigzag between sparse clean samples can run backwards; where it
         // tangles, on until it covers half that), or where it ran across (the chord of a
         // bend before), the chord.
-        let reach = |c: f64| fit.reach(c);
         let run = c.max(16.0 * step);
         let (from, to) = (self.reach(gap.a, run, false), self.reach(gap.b, run, true));
         let mut knots: Vec<Point> = Vec::with_capacity(skipped.len() + 2);
@@ -399,80 +426,10 @@ impl<'a> Loop<'a> {
         knots.extend_from_slice(skipped);
         knots.push(pb);
         let k = knots.len();
-        let chord = |i: usize| dist(knots[i], knots[i + 1]);
-        let mut tangents = Vec::with_capacity(k);
         let (run_a, run_b) = (sub(pa, self.points[from]), sub(self.points[to], pb));
-        // Where the samples on an end's side are too sparse for a fit, the loop's run.
-        let run = |v: Point| {
-            (norm(v) > 0.0).then(|| End {
-                tangent: scale(v, 1.0 / norm(v)),
-                curvature: None,
-            })
-        };
-        tangents.push(
-            fit.tangent(
-                pa,
-                reach(chord(0).max(c)),
-                &[run_a, sub(knots[1], pa)],
-                Some(run_a),
-            )
-            .or_else(|| run(run_a))?,
-        );
-        for i in 1..k - 1 {
-            // Where the samples round a skipped one give no line (a corner's two walls),
-            // the direction between its neighbours along the path, as Catmull-Rom takes.
-            let across = sub(knots[i + 1], knots[i - 1]);
-            let spread = chord(i - 1).max(chord(i));
-            let t = fit
-                .tangent(knots[i], reach(spread), &[across], None)
-                .unwrap_or(End {
-                    tangent: scale(across, 1.0 / norm(across).max(1e-300)),
-                    curvature: None,
-                });
-            tangents.push(t);
-        }
-        tangents.push(
-            fit.tangent(
-                pb,
-                reach(chord(k - 2).max(c)),
-                &[run_b, sub(pb, knots[k - 2])],
-                Some(scale(run_b, -1.0)),
-            )
-            .or_else(|| run(run_b))?,
-        );
-        // A corner between the knots `i` and `j` (each side judged by its own samples, as
-        // below), as the path's inner points.
+        let tangents = knot_tangents(fit, &knots, c, run_a, run_b)?;
         let sides = |i: usize, j: usize, by_run: bool| {
-            let (p, q) = (knots[i], knots[j]);
-            let c = dist(p, q);
-            // A corner is judged by each side's own samples (the knots' tangents, fitted
-            // round them, would bend round it), within half a chord: the few samples
-            // nearest a sparse wall's end are too few to tell a line from a circle.
-            // Which way along each side: the path's run into `p` and out of `q` from the
-            // first knot a quarter chord away, or the loop's (the chord may run nearly
-            // across a side, as at a corner's steep piece, and two samples a rounding
-            // apart give no direction).
-            let far = |m: &usize| dist(knots[*m], p).min(dist(knots[*m], q)) >= 0.25 * c;
-            let before = (0..i).rev().find(far).map_or(run_a, |m| sub(p, knots[m]));
-            let after = (j + 1..k).find(far).map_or(run_b, |m| sub(knots[m], q));
-            // Each side's samples are those behind its end: across the chord's
-            // half-plane, or (across a knot at a corner, whose chord may run at an acute
-            // angle to the walls, past which the other wall's samples lie) against the
-            // path's run.
-            let (d, r) = (sub(q, p), 2.0 * reach(c));
-            let (behind_p, behind_q) = if by_run {
-                (before, scale(after, -1.0))
-            } else {
-                (d, scale(d, -1.0))
-            };
-            let a = fit.tangent(p, r, &[before, d], Some(behind_p))?;
-            let b = fit.tangent(q, r, &[after, d], Some(behind_q))?;
-            let limits = (
-                fit.t.corner_min_turn,
-                fit.t.corner_max_side_turn,
-                fit.t.arc_max_turn,
-            );
-            corner(p, q, a, b, limits, step).map(|c| c.inner)
+            corner_between(fit, &knots, (i, j), by_run, (run_a, run_b), step)
         };
         let mut arc = Vec::new();
         let mut i = 0;
@@ -529,21 +486,112 @@ impl<'a> Loop<'a> {
         if arc.len() > MAX_ARC_VERTICES || arc.iter().any(|&p| !clear((from, to), p)) {
             return None;
         }
-        // A stretch that already runs along the arc (to within a step: the mesh's
-        // resolution) is the level set's, which the samples beyond the ends shaped.
-        let path = Polyline {
-            closed: false,
-            points: [pa]
-                .into_iter()
-                .chain(arc.iter().copied())
-                .chain([pb])
-                .collect(),
-        };
-        let along = SegmentIndex::new(std::slice::from_ref(&path));
-        // The stretch walked a step at a time: a long segment is a chord.
-        let strays = self.walk(gap, step).any(|p| along.distance(p) > step);
-        strays.then_some(arc)
+        self.strays_from(gap, &arc, step).then_some(arc)
     }
+}
+
+/// A corner between the knots `i` and `j` of a span (each side judged by its own
+/// samples) as the path's inner points, with each side's direction along the path's
+/// run (`by_run`) or across the chord; `runs` are the loop's runs into and out of the
+/// span.
+fn corner_between(
+    fit: &Fit<'_>,
+    knots: &[Point],
+    (i, j): (usize, usize),
+    by_run: bool,
+    (run_a, run_b): (Point, Point),
+    step: f64,
+) -> Option<Vec<Point>> {
+    let k = knots.len();
+    let reach = |c: f64| fit.reach(c);
+    let (p, q) = (knots[i], knots[j]);
+    let c = dist(p, q);
+    // A corner is judged by each side's own samples (the knots' tangents, fitted
+    // round them, would bend round it), within half a chord: the few samples
+    // nearest a sparse wall's end are too few to tell a line from a circle.
+    // Which way along each side: the path's run into `p` and out of `q` from the
+    // first knot a quarter chord away, or the loop's (the chord may run nearly
+    // across a side, as at a corner's steep piece, and two samples a rounding
+    // apart give no direction).
+    let far = |m: &usize| dist(knots[*m], p).min(dist(knots[*m], q)) >= 0.25 * c;
+    let before = (0..i).rev().find(far).map_or(run_a, |m| sub(p, knots[m]));
+    let after = (j + 1..k).find(far).map_or(run_b, |m| sub(knots[m], q));
+    // Each side's samples are those behind its end: across the chord's
+    // half-plane, or (across a knot at a corner, whose chord may run at an acute
+    // angle to the walls, past which the other wall's samples lie) against the
+    // path's run.
+    let (d, r) = (sub(q, p), 2.0 * reach(c));
+    let (behind_p, behind_q) = if by_run {
+        (before, scale(after, -1.0))
+    } else {
+        (d, scale(d, -1.0))
+    };
+    let a = fit.tangent(p, r, &[before, d], Some(behind_p))?;
+    let b = fit.tangent(q, r, &[after, d], Some(behind_q))?;
+    let limits = (
+        fit.t.corner_min_turn,
+        fit.t.corner_max_side_turn,
+        fit.t.arc_max_turn,
+    );
+    corner(p, q, a, b, limits, step).map(|c| c.inner)
+}
+
+/// The tangents at the `knots` of a span (a gap's ends `pa` and `pb`, first and last,
+/// and the samples it skipped, `c` the gap's chord), each fitted to its samples: at the
+/// ends pointing along the loop's runs `run_a` into the gap and `run_b` out of it (the
+/// runs themselves where the samples there are too sparse for a fit). `None` when an
+/// end has no direction.
+fn knot_tangents(
+    fit: &Fit<'_>,
+    knots: &[Point],
+    c: f64,
+    run_a: Point,
+    run_b: Point,
+) -> Option<Vec<End>> {
+    let k = knots.len();
+    let (pa, pb) = (knots[0], knots[k - 1]);
+    let reach = |c: f64| fit.reach(c);
+    let chord = |i: usize| dist(knots[i], knots[i + 1]);
+    let mut tangents = Vec::with_capacity(k);
+    // Where the samples on an end's side are too sparse for a fit, the loop's run.
+    let run = |v: Point| {
+        (norm(v) > 0.0).then(|| End {
+            tangent: scale(v, 1.0 / norm(v)),
+            curvature: None,
+        })
+    };
+    tangents.push(
+        fit.tangent(
+            pa,
+            reach(chord(0).max(c)),
+            &[run_a, sub(knots[1], pa)],
+            Some(run_a),
+        )
+        .or_else(|| run(run_a))?,
+    );
+    for i in 1..k - 1 {
+        // Where the samples round a skipped one give no line (a corner's two walls),
+        // the direction between its neighbours along the path, as Catmull-Rom takes.
+        let across = sub(knots[i + 1], knots[i - 1]);
+        let spread = chord(i - 1).max(chord(i));
+        let t = fit
+            .tangent(knots[i], reach(spread), &[across], None)
+            .unwrap_or(End {
+                tangent: scale(across, 1.0 / norm(across).max(1e-300)),
+                curvature: None,
+            });
+        tangents.push(t);
+    }
+    tangents.push(
+        fit.tangent(
+            pb,
+            reach(chord(k - 2).max(c)),
+            &[run_b, sub(pb, knots[k - 2])],
+            Some(scale(run_b, -1.0)),
+        )
+        .or_else(|| run(run_b))?,
+    );
+    Some(tangents)
 }
 
 /// The samples a loop's stretch `gap` passes by without holding: each within twice the

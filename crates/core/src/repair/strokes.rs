@@ -121,12 +121,69 @@ fn attached(
     data: &[Point],
     r: f64,
 ) -> (Vec<Polyline>, Vec<Junction>) {
-    // (stroke, at its start, loop, segment of the loop, parameter on it, joining point)
-    let mut joins: Vec<(usize, bool, usize, usize, f64, Point)> = Vec::new();
+    let joins = stroke_joins(&closed, &lines, &junctions, data, r);
+    // Strokes first, run on to their joining points.
+    for &(j, start, _, _, _, q) in &joins {
+        let pts = &mut lines[j].points;
+        let e = if start { pts[0] } else { pts[pts.len() - 1] };
+        if dist(e, q) > 0.0 {
+            if start {
+                pts.insert(0, q);
+            } else {
+                pts.push(q);
+            }
+        }
+    }
+    // Then each joined loop cut at its joining points into open pieces, which start and
+    // end there.
+    let mut curves: Vec<Polyline> = Vec::with_capacity(closed.len() + lines.len());
+    let mut meets: Vec<(Point, Vec<usize>)> = Vec::new();
+    for (k, pl) in closed.into_iter().enumerate() {
+        let cuts: Vec<(usize, f64, Point)> = joins
+            .iter()
+            .filter(|jn| jn.2 == k)
+            .map(|jn| (jn.3, jn.4, jn.5))
+            .collect();
+        if cuts.is_empty() {
+            curves.push(pl);
+            continue;
+        }
+        cut_loop(pl, cuts, &mut curves, &mut meets);
+    }
+    let offset = curves.len();
+    for jn in &mut junctions {
+        jn.polylines.iter_mut().for_each(|i| *i += offset);
+    }
+    for &(j, _, _, _, _, q) in &joins {
+        meeting(&mut meets, q, offset + j);
+    }
+    curves.extend(lines);
+    junctions.extend(meets.into_iter().map(|(at, mut polylines)| {
+        polylines.sort_unstable();
+        polylines.dedup();
+        Junction { at, polylines }
+    }));
+    (curves, junctions)
+}
+
+/// A stroke's end joined to a loop: (stroke, at its start, loop, segment of the loop,
+/// parameter on it, joining point).
+type Join = (usize, bool, usize, usize, f64, Point);
+
+/// The joins of [`attached`]: each free stroke end within `2 r` of the loops to its
+/// nearest point on them, where the join is held by samples and crosses no stroke.
+fn stroke_joins(
+    closed: &[Polyline],
+    lines: &[Polyline],
+    junctions: &[Junction],
+    data: &[Point],
+    r: f64,
+) -> Vec<Join> {
+    let mut joins: Vec<Join> = Vec::new();
     if !lines.is_empty() && r > 0.0 {
         if let Ok(samples) = DistanceField::new(data) {
-            let loops = crate::index::SegmentIndex::new(&closed);
-            let strokes = crate::index::SegmentIndex::new(&lines);
+            let loops = crate::index::SegmentIndex::new(closed);
+            let strokes = crate::index::SegmentIndex::new(lines);
             let owner = |seg: usize| {
                 // The loop whose segments hold `seg`: the last that starts at or before it.
                 (0..closed.len())
@@ -173,99 +230,71 @@ fn attached(
             }
         }
     }
-    // Strokes first, run on to their joining points.
-    for &(j, start, _, _, _, q) in &joins {
-        let pts = &mut lines[j].points;
-        let e = if start { pts[0] } else { pts[pts.len() - 1] };
-        if dist(e, q) > 0.0 {
-            if start {
-                pts.insert(0, q);
-            } else {
-                pts.push(q);
-            }
-        }
-    }
-    // Then each joined loop cut at its joining points into open pieces, which start and
-    // end there.
-    let mut curves: Vec<Polyline> = Vec::with_capacity(closed.len() + lines.len());
-    let mut meets: Vec<(Point, Vec<usize>)> = Vec::new();
-    let meeting = |at: Point, piece: usize, meets: &mut Vec<(Point, Vec<usize>)>| match meets
-        .iter_mut()
-        .find(|m| m.0 == at)
-    {
+    joins
+}
+
+/// Records that curve `piece` ends at `at` among the `meets` (junction points with the
+/// curves meeting there).
+fn meeting(meets: &mut Vec<(Point, Vec<usize>)>, at: Point, piece: usize) {
+    match meets.iter_mut().find(|m| m.0 == at) {
         Some(m) => m.1.push(piece),
         None => meets.push((at, vec![piece])),
-    };
-    for (k, pl) in closed.into_iter().enumerate() {
-        let mut cuts: Vec<(usize, f64, Point)> = joins
-            .iter()
-            .filter(|jn| jn.2 == k)
-            .map(|jn| (jn.3, jn.4, jn.5))
-            .collect();
-        if cuts.is_empty() {
-            curves.push(pl);
-            continue;
-        }
-        cuts.sort_by(|x, y| x.0.cmp(&y.0).then(x.1.total_cmp(&y.1)));
-        cuts.dedup_by(|x, y| x.2 == y.2);
-        // The loop's points walked once round from just after the first cut, with every
-        // cut point in place: runs between consecutive cuts are the pieces.
-        let n = pl.points.len();
-        let mut walk: Vec<(Point, bool)> = Vec::with_capacity(n + cuts.len() + 1);
-        let (first_seg, _, first_at) = cuts[0];
-        walk.push((first_at, true));
-        let mut c = 1;
-        for step in 1..=n {
-            let seg = (first_seg + step) % n;
-            let v = pl.points[seg];
-            // Cuts on the segment before `v` (segment `seg - 1`), in order along it.
-            let prev = (seg + n - 1) % n;
-            while c < cuts.len() && cuts[c].0 == prev {
-                walk.push((cuts[c].2, true));
-                c += 1;
-            }
-            walk.push((v, false));
-        }
-        // Cuts on the first cut's own segment past it close the walk.
-        while c < cuts.len() {
+    }
+}
+
+/// The loop `pl` cut at `cuts` (segment, parameter on it, point) into open pieces,
+/// which start and end there, pushed onto `curves` with their ends among the `meets`.
+fn cut_loop(
+    pl: Polyline,
+    mut cuts: Vec<(usize, f64, Point)>,
+    curves: &mut Vec<Polyline>,
+    meets: &mut Vec<(Point, Vec<usize>)>,
+) {
+    cuts.sort_by(|x, y| x.0.cmp(&y.0).then(x.1.total_cmp(&y.1)));
+    cuts.dedup_by(|x, y| x.2 == y.2);
+    // The loop's points walked once round from just after the first cut, with every
+    // cut point in place: runs between consecutive cuts are the pieces.
+    let n = pl.points.len();
+    let mut walk: Vec<(Point, bool)> = Vec::with_capacity(n + cuts.len() + 1);
+    let (first_seg, _, first_at) = cuts[0];
+    walk.push((first_at, true));
+    let mut c = 1;
+    for step in 1..=n {
+        let seg = (first_seg + step) % n;
+        let v = pl.points[seg];
+        // Cuts on the segment before `v` (segment `seg - 1`), in order along it.
+        let prev = (seg + n - 1) % n;
+        while c < cuts.len() && cuts[c].0 == prev {
             walk.push((cuts[c].2, true));
             c += 1;
         }
-        walk.push((first_at, true));
-        let mut piece: Vec<Point> = Vec::new();
-        for (p, cut) in walk {
-            if piece.last() != Some(&p) {
-                piece.push(p);
+        walk.push((v, false));
+    }
+    // Cuts on the first cut's own segment past it close the walk.
+    while c < cuts.len() {
+        walk.push((cuts[c].2, true));
+        c += 1;
+    }
+    walk.push((first_at, true));
+    let mut piece: Vec<Point> = Vec::new();
+    for (p, cut) in walk {
+        if piece.last() != Some(&p) {
+            piece.push(p);
+        }
+        if cut && piece.len() > 1 {
+            let (a, b) = (piece[0], p);
+            let idx = curves.len();
+            curves.push(Polyline {
+                closed: false,
+                points: std::mem::take(&mut piece),
+            });
+            meeting(meets, a, idx);
+            if b != a {
+                meeting(meets, b, idx);
             }
-            if cut && piece.len() > 1 {
-                let (a, b) = (piece[0], p);
-                let idx = curves.len();
-                curves.push(Polyline {
-                    closed: false,
-                    points: std::mem::take(&mut piece),
-                });
-                meeting(a, idx, &mut meets);
-                if b != a {
-                    meeting(b, idx, &mut meets);
-                }
-                piece.push(p);
-            }
+            piece.push(p);
         }
     }
-    let offset = curves.len();
-    for jn in &mut junctions {
-        jn.polylines.iter_mut().for_each(|i| *i += offset);
-    }
-    for &(j, _, _, _, _, q) in &joins {
-        meeting(q, offset + j, &mut meets);
-    }
-    curves.extend(lines);
-    junctions.extend(meets.into_iter().map(|(at, mut polylines)| {
-        polylines.sort_unstable();
-        polylines.dedup();
-        Junction { at, polylines }
-    }));
-    (curves, junctions)
 }
 
 /// Whether the segment `e q` (of length `d`) crosses a segment of the strokes indexed by
@@ -306,37 +335,9 @@ fn without_bridges(
     if closed.is_empty() {
         return (closed, None);
     }
-    let index = crate::index::SegmentIndex::new(&closed);
-    // Each segment's loop and arc length at its start, in the index's order.
-    let mut seg_at: Vec<(usize, f64, f64)> = Vec::new();
-    let mut lengths = Vec::with_capacity(closed.len());
-    for (k, pl) in closed.iter().enumerate() {
-        let mut s = 0.0;
-        for (a, b) in pl.segments() {
-            let len = crate::geom::dist(a, b);
-            seg_at.push((k, s, len));
-            s += len;
-        }
-        if pl.segments().next().is_none() {
-            seg_at.extend(pl.points.iter().map(|_| (k, 0.0, 0.0)));
-        }
-        lengths.push(s);
-    }
+    let (at, lengths, away) = along_loops(&closed, data, tol);
     // Built only for a loop with a candidate gap.
     let samples = std::cell::OnceCell::new();
-    let mut at: Vec<Vec<f64>> = vec![Vec::new(); closed.len()];
-    let mut away = Vec::with_capacity(data.len());
-    for &p in data {
-        let Some((d, seg, t)) = index.nearest(p) else {
-            away.push(f64::INFINITY);
-            continue;
-        };
-        away.push(d);
-        if d <= tol {
-            let (k, s, len) = seg_at[seg];
-            at[k].push(s + t * len);
-        }
-    }
     // The samples off the loops, built only for a loop with a candidate gap.
     let loose = std::cell::OnceCell::new();
     let mut near = Vec::new();
@@ -406,6 +407,47 @@ fn without_bridges(
         .collect();
     let away = (kept.len() == before).then_some(away);
     (kept, away)
+}
+
+/// Where the samples `data` within `tol` of the loops `closed` lie along them: each
+/// loop's arc lengths of its samples' nearest points (unsorted), each loop's length,
+/// and every sample's distance to the loops.
+#[allow(clippy::type_complexity)]
+fn along_loops(
+    closed: &[Polyline],
+    data: &[Point],
+    tol: f64,
+) -> (Vec<Vec<f64>>, Vec<f64>, Vec<f64>) {
+    let index = crate::index::SegmentIndex::new(closed);
+    // Each segment's loop and arc length at its start, in the index's order.
+    let mut seg_at: Vec<(usize, f64, f64)> = Vec::new();
+    let mut lengths = Vec::with_capacity(closed.len());
+    for (k, pl) in closed.iter().enumerate() {
+        let mut s = 0.0;
+        for (a, b) in pl.segments() {
+            let len = crate::geom::dist(a, b);
+            seg_at.push((k, s, len));
+            s += len;
+        }
+        if pl.segments().next().is_none() {
+            seg_at.extend(pl.points.iter().map(|_| (k, 0.0, 0.0)));
+        }
+        lengths.push(s);
+    }
+    let mut at: Vec<Vec<f64>> = vec![Vec::new(); closed.len()];
+    let mut away = Vec::with_capacity(data.len());
+    for &p in data {
+        let Some((d, seg, t)) = index.nearest(p) else {
+            away.push(f64::INFINITY);
+            continue;
+        };
+        away.push(d);
+        if d <= tol {
+            let (k, s, len) = seg_at[seg];
+            at[k].push(s + t * len);
+        }
+    }
+    (at, lengths, away)
 }
 
 /// The loops of `closed` that are no strokes joined through empty space too narrow for
@@ -485,7 +527,6 @@ fn without_joined_strokes(
             }
         }
     }
-    let mut near = Vec::new();
     let before = closed.len();
     let kept: Vec<Polyline> = closed
         .into_iter()
@@ -502,69 +543,86 @@ fn without_joined_strokes(
             let delta = crate::distance::tube_radius(&field, 2.0 * hmin);
             let r = (2.0 * delta).max(6.0 * sigma);
             let (lines, junctions) = strokes(&on, r, t);
-            // Each free end with its line: the principal line of the stroke's points
-            // `r` to `3 r` back (nearer ones may curl into the loop's turn, by 24
-            // degrees at sigma 0.005), or within `3 r` where fewer lie there,
-            // oriented outwards.
-            let ends: Vec<(Point, Point, Point)> = lines
-                .iter()
-                .flat_map(|l| [l.points.clone(), l.points.iter().rev().copied().collect()])
-                .filter_map(|pts: Vec<Point>| {
-                    let e = *pts.first()?;
-                    if junctions.iter().any(|j| dist(j.at, e) == 0.0) {
-                        return None;
-                    }
-                    let within: Vec<Point> = pts
-                        .iter()
-                        .copied()
-                        .take_while(|&q| dist(q, e) <= 3.0 * r)
-                        .collect();
-                    let beyond = within.iter().filter(|&&q| dist(q, e) >= r);
-                    let (c, cov) = if beyond.clone().count() >= 2 {
-                        crate::geom::principal(beyond.copied())
-                    } else if within.len() >= 2 {
-                        // A short chain, straight from a junction.
-                        crate::geom::principal(within.iter().copied())
-                    } else {
-                        return None;
-                    };
-                    let t = cov.eigen().2;
-                    let out = if dot(sub(e, c), t) < 0.0 {
-                        scale(t, -1.0)
-                    } else {
-                        t
-                    };
-                    Some((e, c, out))
-                })
-                .collect();
-            let runs_on = ends
-                .iter()
-                .enumerate()
-                .filter(|&(i, &(e, c, dir))| {
-                    let alone = ends
-                        .iter()
-                        .enumerate()
-                        .all(|(j, &(f, _, _))| j == i || dist(e, f) > r);
-                    // Ahead of the end on its line, within the noise's band: the sheet
-                    // runs on, not a wall beside it. Off the loop means `tol` from it,
-                    // so the band reaches that much further than `r`.
-                    alone && {
-                        off.within(e, r + tol, &mut near);
-                        let pts = off.points();
-                        let ahead = near.iter().filter(|&&q| {
-                            let q = pts[q as usize];
-                            dot(sub(q, e), dir) > 0.0 && cross(dir, sub(q, c)).abs() <= tol
-                        });
-                        ahead.count() >= t.bridge_left_behind
-                    }
-                })
-                .count();
+            let ends = free_ends(&lines, &junctions, r);
+            let runs_on = ends_running_on(&ends, &off, r, tol, t.bridge_left_behind);
             runs_on < 2
         })
         .map(|(pl, _)| pl)
         .collect();
     let away = (kept.len() == before).then_some(away);
     (kept, away)
+}
+
+/// Each free end of the strokes `lines` (none at a junction) with its line, as (end,
+/// the line's centre, its direction outwards): the principal line of the stroke's
+/// points `r` to `3 r` back (nearer ones may curl into the loop's turn, by 24 degrees
+/// at sigma 0.005), or within `3 r` where fewer lie there.
+fn free_ends(lines: &[Polyline], junctions: &[Junction], r: f64) -> Vec<(Point, Point, Point)> {
+    lines
+        .iter()
+        .flat_map(|l| [l.points.clone(), l.points.iter().rev().copied().collect()])
+        .filter_map(|pts: Vec<Point>| {
+            let e = *pts.first()?;
+            if junctions.iter().any(|j| dist(j.at, e) == 0.0) {
+                return None;
+            }
+            let within: Vec<Point> = pts
+                .iter()
+                .copied()
+                .take_while(|&q| dist(q, e) <= 3.0 * r)
+                .collect();
+            let beyond = within.iter().filter(|&&q| dist(q, e) >= r);
+            let (c, cov) = if beyond.clone().count() >= 2 {
+                crate::geom::principal(beyond.copied())
+            } else if within.len() >= 2 {
+                // A short chain, straight from a junction.
+                crate::geom::principal(within.iter().copied())
+            } else {
+                return None;
+            };
+            let t = cov.eigen().2;
+            let out = if dot(sub(e, c), t) < 0.0 {
+                scale(t, -1.0)
+            } else {
+                t
+            };
+            Some((e, c, out))
+        })
+        .collect()
+}
+
+/// How many of the free `ends` (see [`free_ends`]) have no other within `r` and at
+/// least `min` of the samples `off` the loops ahead on their line (within `tol` of it,
+/// `r + tol` of the end).
+fn ends_running_on(
+    ends: &[(Point, Point, Point)],
+    off: &DistanceField,
+    r: f64,
+    tol: f64,
+    min: usize,
+) -> usize {
+    let mut near = Vec::new();
+    ends.iter()
+        .enumerate()
+        .filter(|&(i, &(e, c, dir))| {
+            let alone = ends
+                .iter()
+                .enumerate()
+                .all(|(j, &(f, _, _))| j == i || dist(e, f) > r);
+            // Ahead of the end on its line, within the noise's band: the sheet
+            // runs on, not a wall beside it. Off the loop means `tol` from it,
+            // so the band reaches that much further than `r`.
+            alone && {
+                off.within(e, r + tol, &mut near);
+                let pts = off.points();
+                let ahead = near.iter().filter(|&&q| {
+                    let q = pts[q as usize];
+                    dot(sub(q, e), dir) > 0.0 && cross(dir, sub(q, c)).abs() <= tol
+                });
+                ahead.count() >= min
+            }
+        })
+        .count()
 }
 
 /// The point of the closed polyline `pl` at arc length `s` from its first vertex.
@@ -632,6 +690,44 @@ fn thin(field: &DistanceField, r: f64, t: &Tolerances) -> Vec<Option<Point>> {
         .collect()
 }
 
+/// Kruskal's step: the `pairs` (length, node, node) shortest first, each joining two
+/// trees of the forest `parent` an edge.
+fn kruskal_join(
+    mut pairs: Vec<(f64, usize, usize)>,
+    parent: &mut [usize],
+    edges: &mut Vec<(usize, usize)>,
+) {
+    pairs.sort_unstable_by(|a, b| a.0.total_cmp(&b.0));
+    for (_, i, j) in pairs {
+        let (a, b) = (root(parent, i), root(parent, j));
+        if a != b {
+            parent[a] = b;
+            edges.push((i, j));
+        }
+    }
+}
+
+/// Each node's pairs with its `links` nearest (by `tree`) within `r`, once each.
+fn neighbour_pairs(
+    nodes: &[Point],
+    tree: &DistanceField,
+    links: usize,
+    r: f64,
+) -> Vec<(f64, usize, usize)> {
+    let mut near = Vec::new();
+    let mut pairs = Vec::new();
+    for (i, &p) in nodes.iter().enumerate() {
+        tree.nearest_k(p, links, &mut near);
+        pairs.extend(
+            near.iter()
+                .map(|&j| j as usize)
+                .filter(|&j| j > i && dist(p, nodes[j]) <= r)
+                .map(|j| (dist(p, nodes[j]), i, j)),
+        );
+    }
+    pairs
+}
+
 /// The minimum spanning forest of the moved samples (Kruskal) over each one's
 /// `stroke_links` nearest within `r`, then over the pairs of the ends that left across a gap
 /// along a stroke (the nearest of a sample at its edge all lie on its own side): within
@@ -654,30 +750,8 @@ fn spanning_tree(
     let nodes = tree.points().to_vec();
     let mut parent: Vec<usize> = (0..nodes.len()).collect();
     let mut edges = Vec::new();
-    let join = |mut pairs: Vec<(f64, usize, usize)>,
-                parent: &mut [usize],
-                edges: &mut Vec<(usize, usize)>| {
-        pairs.sort_unstable_by(|a, b| a.0.total_cmp(&b.0));
-        for (_, i, j) in pairs {
-            let (a, b) = (root(parent, i), root(parent, j));
-            if a != b {
-                parent[a] = b;
-                edges.push((i, j));
-            }
-        }
-    };
-    let mut near = Vec::new();
-    let mut pairs = Vec::new();
-    for (i, &p) in nodes.iter().enumerate() {
-        tree.nearest_k(p, t.stroke_links, &mut near);
-        pairs.extend(
-            near.iter()
-                .map(|&j| j as usize)
-                .filter(|&j| j > i && dist(p, nodes[j]) <= r)
-                .map(|j| (dist(p, nodes[j]), i, j)),
-        );
-    }
-    join(pairs, &mut parent, &mut edges);
+    let pairs = neighbour_pairs(&nodes, &tree, t.stroke_links, r);
+    kruskal_join(pairs, &mut parent, &mut edges);
     // A gap along a stroke is one of its sampling, which the noise does not widen: the
     // reach is twice the thinned samples' tube radius (four times their 95th
     // percentile neighbour distance, over ten times a random sampling's mean gap), and
@@ -736,7 +810,7 @@ fn spanning_tree(
             degree[j] <= 1 && (runs_on(i, j) || (along(a, b) && along(b, a)))
         },
     );
-    join(pairs, &mut parent, &mut edges);
+    kruskal_join(pairs, &mut parent, &mut edges);
     // Then an end to another stroke's side where the samples run on between them: an
     // arm of a crossing or the foot of a T whose moved samples the thinning pulled
     // apart from the others' (the fits there see two arms). Or where the end's own line
@@ -747,7 +821,7 @@ fn spanning_tree(
         let (a, b) = (nodes[i], nodes[j]);
         runs_on(i, j) || (dist(a, b) <= 2.0 * reach && along(a, b))
     });
-    join(pairs, &mut parent, &mut edges);
+    kruskal_join(pairs, &mut parent, &mut edges);
     (nodes, edges)
 }
 
@@ -862,64 +936,15 @@ fn chains(
     t: &Tolerances,
     snap: impl Fn(Point) -> Point,
 ) -> (Vec<Polyline>, Vec<Junction>) {
-    let n = nodes.len();
     let fork = |v: usize| adj[v].len() >= 3;
-    // Forks within 2 r of each other along the tree are one junction.
-    let mut junction_of = vec![usize::MAX; n];
-    let mut junctions: Vec<(Vec<usize>, Vec<usize>)> = Vec::new(); // (forks, polylines)
-    for v in (0..n).filter(|&v| fork(v)) {
-        if junction_of[v] != usize::MAX {
-            continue;
-        }
-        let id = junctions.len();
-        let mut members = vec![v];
-        junction_of[v] = id;
-        let mut k = 0;
-        while k < members.len() {
-            let f = members[k];
-            k += 1;
-            for &w0 in &adj[f] {
-                // A fork at most 2 r along the chain from f through w0 joins.
-                let (path, length) = follow(nodes, adj, f, w0, 2.0 * r);
-                let w = *path.last().expect("a chain has its two ends");
-                if fork(w) && length < 2.0 * r && junction_of[w] == usize::MAX {
-                    junction_of[w] = id;
-                    members.push(w);
-                }
-            }
-        }
-        junctions.push((members, Vec::new()));
-    }
+    let (junction_of, mut junctions) = fork_junctions(nodes, adj, r);
     let centre = |forks: &[usize]| {
         let m = forks.len() as f64;
         forks.iter().fold([0.0, 0.0], |s, &f| {
             [s[0] + nodes[f][0] / m, s[1] + nodes[f][1] / m]
         })
     };
-    let mut used = vec![false; n];
-    let mut lines: Vec<(Polyline, [usize; 2])> = Vec::new();
-    let is_key = |v: usize| adj[v].len() != 2;
-    for s in (0..n).filter(|&v| is_key(v) && !adj[v].is_empty()) {
-        for &first in &adj[s] {
-            if used[first] && !is_key(first) {
-                continue;
-            }
-            let (path, _) = follow(nodes, adj, s, first, f64::INFINITY);
-            for &v in &path[1..path.len() - 1] {
-                used[v] = true;
-            }
-            let end = *path.last().expect("a chain has its two ends");
-            // Each chain once: from its smaller end (a chain between two forks of one
-            // junction is inside the junction).
-            if (is_key(end) && end < s) || (end == s && path.len() <= 2) {
-                continue;
-            }
-            if fork(s) && fork(end) && junction_of[s] == junction_of[end] {
-                continue;
-            }
-            lines.push((smooth(nodes, &path, r), [s, end]));
-        }
-    }
+    let lines = chain_lines(nodes, adj, &junction_of, r);
     // Pin chain ends at forks to their junction: where the arms' lines cross, or else
     // the sample nearest the forks' centre (the fits around a junction see two arms, so
     // the thinned points there are off both; a sample is on one of them, at the
@@ -985,6 +1010,82 @@ fn chains(
         .map(|((_, polylines), at)| Junction { at, polylines })
         .collect();
     (out, junctions)
+}
+
+/// The tree's forks (nodes of three or more edges) grouped into junctions, forks
+/// within `2 r` of each other along the tree one junction: each fork's junction
+/// (`usize::MAX` for other nodes), and each junction's forks with (empty) polylines.
+#[allow(clippy::type_complexity)]
+fn fork_junctions(
+    nodes: &[Point],
+    adj: &[Vec<usize>],
+    r: f64,
+) -> (Vec<usize>, Vec<(Vec<usize>, Vec<usize>)>) {
+    let n = nodes.len();
+    let fork = |v: usize| adj[v].len() >= 3;
+    let mut junction_of = vec![usize::MAX; n];
+    let mut junctions: Vec<(Vec<usize>, Vec<usize>)> = Vec::new(); // (forks, polylines)
+    for v in (0..n).filter(|&v| fork(v)) {
+        if junction_of[v] != usize::MAX {
+            continue;
+        }
+        let id = junctions.len();
+        let mut members = vec![v];
+        junction_of[v] = id;
+        let mut k = 0;
+        while k < members.len() {
+            let f = members[k];
+            k += 1;
+            for &w0 in &adj[f] {
+                // A fork at most 2 r along the chain from f through w0 joins.
+                let (path, length) = follow(nodes, adj, f, w0, 2.0 * r);
+                let w = *path.last().expect("a chain has its two ends");
+                if fork(w) && length < 2.0 * r && junction_of[w] == usize::MAX {
+                    junction_of[w] = id;
+                    members.push(w);
+                }
+            }
+        }
+        junctions.push((members, Vec::new()));
+    }
+    (junction_of, junctions)
+}
+
+/// Each chain of the tree between its ends and forks once, smoothed, with its two end
+/// nodes; chains between two forks of one junction are inside it and left out.
+fn chain_lines(
+    nodes: &[Point],
+    adj: &[Vec<usize>],
+    junction_of: &[usize],
+    r: f64,
+) -> Vec<(Polyline, [usize; 2])> {
+    let n = nodes.len();
+    let fork = |v: usize| adj[v].len() >= 3;
+    let mut used = vec![false; n];
+    let mut lines: Vec<(Polyline, [usize; 2])> = Vec::new();
+    let is_key = |v: usize| adj[v].len() != 2;
+    for s in (0..n).filter(|&v| is_key(v) && !adj[v].is_empty()) {
+        for &first in &adj[s] {
+            if used[first] && !is_key(first) {
+                continue;
+            }
+            let (path, _) = follow(nodes, adj, s, first, f64::INFINITY);
+            for &v in &path[1..path.len() - 1] {
+                used[v] = true;
+            }
+            let end = *path.last().expect("a chain has its two ends");
+            // Each chain once: from its smaller end (a chain between two forks of one
+            // junction is inside the junction).
+            if (is_key(end) && end < s) || (end == s && path.len() <= 2) {
+                continue;
+            }
+            if fork(s) && fork(end) && junction_of[s] == junction_of[end] {
+                continue;
+            }
+            lines.push((smooth(nodes, &path, r), [s, end]));
+        }
+    }
+    lines
 }
 
 /// Where the arms of a junction at `at` cross (each arm a polyline ending there; its

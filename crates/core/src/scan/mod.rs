@@ -709,6 +709,23 @@ impl Analysis {
         Ok(m)
     }
 
+    /// How many returns lie in runs of at least `min_run` returns: those a curve should
+    /// explain (the others are features by design).
+    pub(crate) fn supported(&self, min_run: usize) -> usize {
+        self.runs
+            .iter()
+            .map(|r| r.beams.len())
+            .filter(|&n| n >= min_run)
+            .sum()
+    }
+
+    /// The free space's origin and polygon, placed into data coordinates by `at`.
+    pub(crate) fn free_space_in(&self, at: &crate::geom::Placement) -> (Point, Polyline) {
+        let mut poly = self.free.polygon();
+        poly.points.iter_mut().for_each(|p| *p = at.to_data(*p));
+        (at.to_data(self.free.origin), poly)
+    }
+
     /// Each run's returns, in bearing order.
     pub fn run_points(&self) -> Vec<Vec<Point>> {
         self.runs
