@@ -20,12 +20,7 @@ part=${1:-test}
 cases=${2:-600}
 [ "$quick" = 1 ] && cases=4
 out=${3:-target/glyphs-$part}
-if [ ! -d /usr/share/hershey-fonts ] || [ ! -d /usr/share/fonts/truetype/dejavu ]; then
-  sudo=""
-  [[ $(id -u) -ne 0 ]] && sudo="sudo"
-  $sudo apt-get update -qq
-  DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq fonts-dejavu-core hershey-fonts-data > /dev/null
-fi
+need_fonts
 need_numpy
 rm -rf "$out"
 grid=()

@@ -24,31 +24,8 @@ need_recordings() {
   fi
 }
 
-# CGAL's optimal-transport reconstruction as $otr, the driver scripts/cgal/otr2.cpp built
-# into .tools/ (Debian's libcgal-dev installed first when missing, with apt-get, as root
-# or through sudo): `$otr POINTS.xy TOLERANCE > EDGES` prints its edges.
-need_otr2() {
-  mkdir -p .tools
-  if ! dpkg -s libcgal-dev >/dev/null 2>&1; then
-    local sudo=""; [ "$(id -u)" = 0 ] || sudo=sudo
-    $sudo apt-get install -y --no-install-recommends libcgal-dev libgmp-dev libmpfr-dev g++ >&2
-  fi
-  otr=.tools/otr2
-  if [ ! -x "$otr" ] || [ scripts/cgal/otr2.cpp -nt "$otr" ]; then
-    g++ -O2 -std=c++17 -o "$otr" scripts/cgal/otr2.cpp -lgmp -lmpfr
-  fi
-}
-
-# A Python with numpy and scipy (and fontTools, for the glyphs) as $py: the virtual
-# environment .tools/glyphs, made when missing.
-need_numpy() {
-  py=.tools/glyphs/bin/python
-  if ! "$py" -c "import fontTools, numpy, scipy" 2> /dev/null; then
-    rm -rf .tools/glyphs
-    python3 -m venv .tools/glyphs
-    .tools/glyphs/bin/pip install --quiet --disable-pip-version-check fonttools numpy scipy
-  fi
-}
+# The benchmarks' tools (CGAL's driver, the glyphs' Python, their fonts).
+. scripts/tools.sh
 
 # A Kafka-compatible broker on 127.0.0.1:$1 (scripts/kafka-broker.sh); at exit it stops,
 # and so does every daemon whose pid the script put in $pids.

@@ -236,6 +236,12 @@ fn check_page(page: &Path) -> usize {
     for name in ["fixtures", "scripts"] {
         link(dir.path(), name);
     }
+    // The tools the scripts make (scripts/tools.sh, the Kafka broker), shared with the
+    // checkout: scripts/test.sh makes them while cargo builds, and a page's scripts
+    // find them rather than building them again in its folder.
+    if root().join(".tools").is_dir() {
+        link(dir.path(), ".tools");
+    }
     // Copied, not linked: a configuration's relative paths (`../scan-out`) must
     // resolve into the temporary folder, not beside the real one.
     std::fs::create_dir(dir.path().join("config")).unwrap();
