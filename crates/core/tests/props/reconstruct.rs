@@ -78,10 +78,14 @@ proptest! {
     }
 
     /// The same shape in other units and elsewhere: the same components, and curves
-    /// that, scaled and moved back, lie within 3 sigma + 2 hmin of the original's (the
-    /// one-shot accuracy bound: rounding makes the meshes differ, and with them where in
-    /// the noise band each curve settles; sigma is the noise's deviation, 0.004 / sqrt
-    /// 12 for noise uniform over 0.004), with the same hmin in the new units.
+    /// that, scaled and moved back, lie within twice 3 sigma + 2 hmin of the
+    /// original's, with the same hmin in the new units. 3 sigma + 2 hmin is the one-shot
+    /// accuracy bound of each curve (sigma the noise's deviation, 0.004 / sqrt 12 for
+    /// noise uniform over 0.004); rounding makes the meshes differ, and with them where
+    /// in the noise band each curve settles, so two curves each within the bound of the
+    /// shape are within twice it of each other (the triangle inequality). A shift of
+    /// 1,600 shape sizes at 1e-14 once put the two 1.5 bounds apart (the regression
+    /// case kept in proptest-regressions/).
     #[test]
     fn results_follow_the_data_units(
         seed in 0u64..1000,
@@ -105,7 +109,7 @@ proptest! {
             })
             .collect();
         let h = hausdorff(&back, &base.polylines);
-        let bound = 3.0 * 0.004 / 12f64.sqrt() + 2.0 * base.stats.hmin;
+        let bound = 2.0 * (3.0 * 0.004 / 12f64.sqrt() + 2.0 * base.stats.hmin);
         prop_assert!(h <= bound, "{h} against {bound}");
         let ratio = r.stats.hmin / (s * base.stats.hmin);
         prop_assert!((ratio - 1.0).abs() < 1e-6, "hmin ratio {ratio}");
