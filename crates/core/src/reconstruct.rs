@@ -645,11 +645,8 @@ fn adopt_refined(
     let at = prepared.placement;
     let data: Vec<Point> = prepared.local.iter().map(|&q| at.to_data(q)).collect();
     let fit = crate::export::fit::fit(&data, &curves, bound);
-    let supported = runs
-        .iter()
-        .map(Vec::len)
-        .filter(|&n| n >= prepared.params.scan.min_run)
-        .sum();
+    let min_run = prepared.params.scan.min_run;
+    let supported = prepared.scan.as_ref().map_or(0, |a| a.supported(min_run));
     r.features = crate::export::support::unexplained(runs, &curves, bound);
     r.warnings = crate::export::fit::warnings(supported, &curves, &fit, bound);
     r.stats.explained = fit.explained;
