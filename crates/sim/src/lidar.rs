@@ -167,20 +167,53 @@ pub enum Path {
 
 impl Path {
     /// The pose at arc length `s` (wrapping round): position and the heading of travel.
+    /// For many poses along one path, [`poses`](Path::poses) builds the ellipse's
+    /// arc-length table once.
     pub fn pose_at(&self, s: f64) -> Pose {
-        match *self {
+        self.poses().at(s)
+    }
+
+    /// The path ready for pose queries.
+    pub fn poses(&self) -> Poses {
+        let arc = match *self {
             Path::Ellipse(c, a, b) => {
                 // Arc length by a fine table; the step keeps the chord error far below
                 // the sensor's noise.
-                const N: usize = 4096;
                 let at = |t: f64| add(c, [a * t.cos(), b * t.sin()]);
-                let mut cum = Vec::with_capacity(N + 1);
+                let mut cum = Vec::with_capacity(ELLIPSE_STEPS + 1);
                 cum.push(0.0);
-                for k in 0..N {
-                    let t0 = TAU * k as f64 / N as f64;
-                    let t1 = TAU * (k + 1) as f64 / N as f64;
+                for k in 0..ELLIPSE_STEPS {
+                    let t0 = TAU * k as f64 / ELLIPSE_STEPS as f64;
+                    let t1 = TAU * (k + 1) as f64 / ELLIPSE_STEPS as f64;
                     cum.push(cum[k] + dist(at(t0), at(t1)));
                 }
+                cum
+            }
+            Path::Stadium { .. } => Vec::new(),
+        };
+        Poses { path: *self, arc }
+    }
+}
+
+/// Steps of an ellipse path's arc-length table.
+const ELLIPSE_STEPS: usize = 4096;
+
+/// A [`Path`] with what its pose queries need computed once.
+#[derive(Clone, Debug)]
+pub struct Poses {
+    path: Path,
+    /// An ellipse's arc length at each of its table's steps.
+    arc: Vec<f64>,
+}
+
+impl Poses {
+    /// The pose at arc length `s` (wrapping round): position and the heading of travel.
+    pub fn at(&self, s: f64) -> Pose {
+        match self.path {
+            Path::Ellipse(c, a, b) => {
+                const N: usize = ELLIPSE_STEPS;
+                let at = |t: f64| add(c, [a * t.cos(), b * t.sin()]);
+                let cum = &self.arc;
                 let total = cum[N];
                 let s = s.rem_euclid(total);
                 let k = cum.partition_point(|&x| x <= s).clamp(1, N) - 1;
@@ -675,12 +708,13 @@ pub fn simulate(params: &LidarParams) -> Result<Vec<ScanFrame>, String> {
     let n = sensor.beams;
     let start = params.pose.unwrap_or(scene.home);
     // The path point nearest the start, so a trajectory begins where the sensor sits.
+    let path = scene.path.poses();
     let s0 = if params.motion > 0.0 {
         (0..2000)
             .map(|k| k as f64 * 0.02)
             .min_by(|&a, &b| {
-                let pa = scene.path.pose_at(a);
-                let pb = scene.path.pose_at(b);
+                let pa = path.at(a);
+                let pb = path.at(b);
                 dist([pa[0], pa[1]], [start[0], start[1]])
                     .total_cmp(&dist([pb[0], pb[1]], [start[0], start[1]]))
             })
@@ -693,7 +727,7 @@ pub fn simulate(params: &LidarParams) -> Result<Vec<ScanFrame>, String> {
         let mut rng =
             ChaCha8Rng::seed_from_u64(params.seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ k as u64);
         let pose = if params.motion > 0.0 {
-            scene.path.pose_at(s0 + k as f64 * params.motion)
+            path.at(s0 + k as f64 * params.motion)
         } else {
             start
         };
@@ -861,8 +895,9 @@ mod tests {
     fn the_loop_drive_keeps_to_its_corridor() {
         let scene = Scene::new(SceneKind::Loop);
         let walls = isoline_core::SegmentIndex::new(&scene.polylines());
+        let path = scene.path.poses();
         for k in 0..2000 {
-            let p = scene.path.pose_at(k as f64 * 0.5);
+            let p = path.at(k as f64 * 0.5);
             let d = walls.distance([p[0], p[1]]);
             assert!((1.45..=1.5 + 1e-9).contains(&d), "{p:?}: {d} m from a wall");
         }
@@ -919,9 +954,10 @@ mod tests {
             Scene::new(SceneKind::Room).path,
             Scene::new(SceneKind::Corridor).path,
         ] {
-            let mut last = path.pose_at(0.0);
+            let path = path.poses();
+            let mut last = path.at(0.0);
             for k in 1..2000 {
-                let p = path.pose_at(k as f64 * 0.02);
+                let p = path.at(k as f64 * 0.02);
                 assert!(dist([p[0], p[1]], [last[0], last[1]]) <= 0.0201, "{k}");
                 let turn = (p[2] - last[2] + PI).rem_euclid(TAU) - PI;
                 assert!(turn.abs() <= 0.021, "{k}: {turn}");
