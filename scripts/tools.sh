@@ -1,8 +1,8 @@
 #!/usr/bin/env bash
 # The tools some benchmark scripts need, each made when missing, in .tools/ of the
 # folder it is run from (sourced by scripts/lib.sh). Run on its own, it makes them
-# all: scripts/test.sh does so while cargo builds, so that the docs test's QUICK runs
-# of the benchmark scripts find them made.
+# all, for the measurements run by hand (scripts/cgal-peer.sh, glyphs.sh, map-logs.sh);
+# the test suite needs none of them.
 #
 #   scripts/tools.sh        # CGAL's driver, the glyphs' Python and fonts
 

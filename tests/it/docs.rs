@@ -236,9 +236,9 @@ fn check_page(page: &Path) -> usize {
     for name in ["fixtures", "scripts"] {
         link(dir.path(), name);
     }
-    // The tools the scripts make (scripts/tools.sh, the Kafka broker), shared with the
-    // checkout: scripts/test.sh makes them while cargo builds, and a page's scripts
-    // find them rather than building them again in its folder.
+    // The tools the scripts make (the Kafka broker), shared with the checkout:
+    // scripts/test.sh installs them before cargo builds, and a page's scripts find
+    // them rather than installing them again in its folder.
     if root().join(".tools").is_dir() {
         link(dir.path(), ".tools");
     }
