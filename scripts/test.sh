@@ -11,16 +11,15 @@ cd "$(dirname "$0")/.."
 # bookkeeping only slows it (about 30 s of CI's 2-core build).
 export CARGO_INCREMENTAL=0
 scripts/deps.sh
-scripts/kafka-broker.sh install
-# The Python environment and the browser are installed (downloads, mostly) while
-# cargo builds.
+# The Python environment, the Kafka tests' broker and the browser are installed
+# (downloads, mostly) while cargo builds.
 mkdir -p target
 scripts/python.sh setup > target/python-setup.log 2>&1 &
 setup=$!
 # The benchmark scripts' own tools (scripts/tools.sh: CGAL's driver, the glyphs'
 # Python) are not made: the scripts that need them measure by hand (the docs test
 # skips them, and the real recordings' scripts end without the recordings).
-scripts/deps.sh browser > target/browser-setup.log 2>&1 &
+(scripts/kafka-broker.sh install && scripts/deps.sh browser) > target/browser-setup.log 2>&1 &
 browser=$!
 # Style, lints and docs first: they fail in seconds to minutes, the tests take longer.
 # The docs reuse the lints' check build of the dependencies (same features).
@@ -33,6 +32,7 @@ RUSTDOCFLAGS="-D warnings" cargo doc --workspace --no-deps --features isoline/ka
 # Four test threads on CI's two cores: the integration tests spend much of their time
 # waiting (on the Kafka broker, child daemons, sockets and timeouts), and four overlap
 # those waits: the integration suite 195 -> 159 s on two cores.
+# The tests need the broker and the browser.
 if ! wait "$browser"; then
   cat target/browser-setup.log >&2
   exit 1
