@@ -237,7 +237,7 @@ fn check_page(page: &Path) -> usize {
         link(dir.path(), name);
     }
     // The tools the scripts make (the Kafka broker), shared with the checkout:
-    // scripts/test.sh installs them before cargo builds, and a page's scripts find
+    // scripts/test.sh installs them before the tests run, and a page's scripts find
     // them rather than installing them again in its folder.
     if root().join(".tools").is_dir() {
         link(dir.path(), ".tools");

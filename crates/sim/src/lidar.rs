@@ -711,14 +711,13 @@ pub fn simulate(params: &LidarParams) -> Result<Vec<ScanFrame>, String> {
     let path = scene.path.poses();
     let s0 = if params.motion > 0.0 {
         (0..2000)
-            .map(|k| k as f64 * 0.02)
-            .min_by(|&a, &b| {
-                let pa = path.at(a);
-                let pb = path.at(b);
-                dist([pa[0], pa[1]], [start[0], start[1]])
-                    .total_cmp(&dist([pb[0], pb[1]], [start[0], start[1]]))
+            .map(|k| {
+                let s = k as f64 * 0.02;
+                let p = path.at(s);
+                (s, dist([p[0], p[1]], [start[0], start[1]]))
             })
-            .unwrap_or(0.0)
+            .min_by(|a, b| a.1.total_cmp(&b.1))
+            .map_or(0.0, |(s, _)| s)
     } else {
         0.0
     };
