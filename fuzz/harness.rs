@@ -95,7 +95,8 @@ pub fn reconstruct_points(data: &[u8]) {
 /// fused with a curve through its returns. Settings the map refuses are refused; every
 /// scan is fused or refused; memory and the store stay within their bounds.
 pub fn map(data: &[u8]) {
-    use isoline_core::{LaserScan, Map, MapParams, MemoryStore, Polyline, Scan};
+    use isoline_core::{LaserScan, Polyline, Scan};
+    use isoline_map::{Map, MapParams, MemoryStore};
     let Some((head, rest)) = data.split_at_checked(4) else {
         return;
     };

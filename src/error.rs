@@ -54,3 +54,9 @@ impl From<isoline_core::Error> for Error {
         Error::File(e.into())
     }
 }
+
+impl From<isoline_map::Error> for Error {
+    fn from(e: isoline_map::Error) -> Self {
+        Error::File(e.into())
+    }
+}

@@ -145,7 +145,7 @@ pub fn run(mut a: Args) -> Result<()> {
     super::print(&format!("{out}\n"))
 }
 
-/// A world-frame map scored as [`isoline_core::MapScores`] says, by the votes of the
+/// A world-frame map scored as [`isoline_map::MapScores`] says, by the votes of the
 /// recording's scans (placed by their poses, not aligned: the map is judged where the
 /// poses put the returns); with truth, also its distance to the scene's walls and its
 /// cover of the walls the scans saw.
@@ -158,14 +158,14 @@ fn run_map(a: &Args) -> Result<()> {
         bail!("--tolerance {tol}: must be a positive number");
     }
     let curves = read_map(&a.recon)?;
-    let params = isoline_core::MapParams {
+    let params = isoline_map::MapParams {
         align: false,
         hit_tolerance: tol,
         ..Default::default()
     };
     let store = isoline_io::DiskTiles::new(None)
         .context("creating the directory for tiles that leave memory")?;
-    let mut map = isoline_core::Map::new(params, Box::new(store))?;
+    let mut map = isoline_map::Map::new(params, Box::new(store))?;
     // The walls the scans saw, from their returns on a lattice of half the tolerance
     // (memory grows with the area seen, not with the scans).
     let q = 0.5 * tol;
@@ -227,7 +227,7 @@ fn run_map(a: &Args) -> Result<()> {
         };
         let walls: Vec<Polyline> = scene.into_iter().map(Into::into).collect();
         let sigma = truth.sensor.as_ref().map_or(0.01, |s| s.range_noise);
-        let cell = isoline_core::MapParams::default().cell;
+        let cell = isoline_map::MapParams::default().cell;
         let bound = 3.0 * sigma + 2.0 * cell;
         let returns: Vec<Point> = seen
             .iter()

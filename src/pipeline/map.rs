@@ -1,5 +1,5 @@
 //! The map stage: every reconstructed scan with a pose, from every stream, fused into
-//! one world-frame curve map ([`isoline_core::Map`]) and written as it grows
+//! one world-frame curve map ([`isoline_map::Map`]) and written as it grows
 //! (`[map] output`, every `every` scans or `every_seconds`, and at the end), each file
 //! whole (docs/daemon.md, "The map of the run").
 //!
@@ -17,7 +17,8 @@ use serde::Serialize;
 
 use crate::error::{Error, Result};
 use isoline_core::geom::{Point, Polyline, Pose};
-use isoline_core::{Map, MapParams, Scan};
+use isoline_core::Scan;
+use isoline_map::{Map, MapParams};
 
 /// `[map]` for the daemon, validated.
 #[derive(Clone, Debug, PartialEq)]
@@ -70,7 +71,7 @@ pub struct MapReport {
     /// Scans whose fusion failed (a bug, logged).
     pub failed: u64,
     /// Scans whose pose put them beyond the map's lattice
-    /// ([`isoline_core::MapParams::max_coordinate`]): left out, the first logged.
+    /// ([`isoline_map::MapParams::max_coordinate`]): left out, the first logged.
     pub refused: u64,
     /// Stored tiles forgotten beyond `[map] max_stored_tiles`.
     pub tiles_dropped: u64,
@@ -81,7 +82,7 @@ pub struct MapReport {
     /// Its length, metres.
     pub length: f64,
     /// Share of static returns within `hit_tolerance` of the map
-    /// ([`isoline_core::MapScores`]).
+    /// ([`isoline_map::MapScores`]).
     pub static_within: f64,
     /// Share of the map's length seen through more often than hit.
     pub seen_through: f64,
@@ -172,7 +173,7 @@ impl Mapper {
                     self.path.push(p);
                 }
             }
-            Ok(Err(e @ isoline_core::Error::PoseOutOfReach { .. })) => {
+            Ok(Err(e @ isoline_map::Error::PoseOutOfReach { .. })) => {
                 self.report.refused += 1;
                 if self.report.refused == 1 {
                     tracing::warn!("{e}; such scans are left out of the map (counted)");

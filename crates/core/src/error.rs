@@ -62,22 +62,6 @@ pub enum Error {
         /// Every problem found, each naming its key path.
         problems: Vec<String>,
     },
-    /// A map's tile store could not keep or give back a tile (a full disk, a removed
-    /// spill directory).
-    #[error("map tile store: {0}")]
-    TileStore(String),
-    /// A map was given a pose beyond the farthest its lattice holds.
-    #[error(
-        "pose ({}, {}, {}) is beyond the map's reach: sensors within {limit:e} m of the \
-         origin are placed",
-        pose[0], pose[1], pose[2]
-    )]
-    PoseOutOfReach {
-        /// The pose given.
-        pose: [f64; 3],
-        /// [`MapParams::max_coordinate`](crate::MapParams::max_coordinate), metres.
-        limit: f64,
-    },
     /// An internal invariant failed: a bug in isoline, not in the input.
     #[error("internal error: {0}")]
     Internal(String),

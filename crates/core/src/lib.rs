@@ -70,7 +70,6 @@ mod fusion;
 pub mod geom;
 mod index;
 mod levelset;
-mod map;
 mod mesh;
 mod reconstruct;
 mod redistance;
@@ -89,9 +88,6 @@ pub use fusion::{align_returns, Window, WindowLimits};
 pub use geom::{BBox, Point, Polyline, Pose};
 pub use index::SegmentIndex;
 pub use levelset::{Init, LinearSolver, Scheme, Settle, SolverParams, Start, StopReason};
-pub use map::{
-    Key as TileKey, Map, MapLayers, MapParams, MapScores, MapStats, MemoryStore, TileStore,
-};
 pub use mesh::Mesh;
 pub use reconstruct::{
     reconstruct, reconstruct_scan, reconstruct_warm, Params, Reconstruction, AREA_SHARE,

@@ -113,9 +113,9 @@ impl OneOrMore {
 
 impl MapConfig {
     /// The map parameters, validated; every problem is listed.
-    pub fn to_params(&self) -> std::result::Result<isoline_core::MapParams, Vec<String>> {
-        let d = isoline_core::MapParams::default();
-        let p = isoline_core::MapParams {
+    pub fn to_params(&self) -> std::result::Result<isoline_map::MapParams, Vec<String>> {
+        let d = isoline_map::MapParams::default();
+        let p = isoline_map::MapParams {
             cell: self.cell.unwrap_or(d.cell),
             tile: self.tile.unwrap_or(d.tile),
             min_scans: self.min_scans.unwrap_or(d.min_scans),
@@ -499,7 +499,7 @@ impl Config {
     }
 
     /// The validated map parameters.
-    pub fn map_params(&self) -> isoline_core::MapParams {
+    pub fn map_params(&self) -> isoline_map::MapParams {
         self.map.to_params().expect("validated when loaded")
     }
 

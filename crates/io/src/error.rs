@@ -11,6 +11,9 @@ pub enum Error {
     /// scan, a bad parameter).
     #[error(transparent)]
     Core(#[from] isoline_core::Error),
+    /// The world map failed: its tile store, or a pose beyond its reach.
+    #[error(transparent)]
+    Map(#[from] isoline_map::Error),
     /// A text input could not be parsed; `line` is 1-based.
     #[error("{source_name}, line {line}: {message}")]
     Parse {

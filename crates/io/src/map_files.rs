@@ -71,7 +71,7 @@ pub struct MapDrawing<'a> {
     /// Scans fused.
     pub scans: u64,
     /// A sample of the returns and the map seen through.
-    pub layers: Option<&'a isoline_core::MapLayers>,
+    pub layers: Option<&'a isoline_map::MapLayers>,
 }
 
 /// Returns at most drawn on a page: enough to see the walls' texture, few enough to
@@ -104,7 +104,7 @@ pub fn map_view(curves: &[Polyline], scans: u64) -> FrameView {
 /// among them (they visit its tiles). `path_taken` is the sensor's positions.
 pub fn write_maps(
     paths: &[std::path::PathBuf],
-    map: &mut isoline_core::Map,
+    map: &mut isoline_map::Map,
     curves: &[Polyline],
     path_taken: &[Point],
 ) -> Result<()> {
@@ -188,7 +188,7 @@ fn flat(points: &[Point]) -> Vec<f64> {
 /// The page: its data (flat arrays in metres) in a JSON script element of the
 /// template, which draws it.
 fn html(map: &MapDrawing<'_>) -> String {
-    let empty = isoline_core::MapLayers::default();
+    let empty = isoline_map::MapLayers::default();
     let layers = map.layers.unwrap_or(&empty);
     // The path thinned to a point every 10 cm: its shape, not the scans' jitter.
     let mut path: Vec<Point> = Vec::new();
@@ -255,7 +255,7 @@ mod tests {
     fn every_format_is_written_and_read_back() {
         let dir = tempfile::tempdir().unwrap();
         let curves = square();
-        let layers = isoline_core::MapLayers {
+        let layers = isoline_map::MapLayers {
             returns: vec![[0.0, 0.5], [1.0, 0.5]],
             seen_through: vec![[0.5, 0.0]],
         };

@@ -1,4 +1,4 @@
-//! A map's tiles on disk: where [`isoline_core::Map`] puts the tiles it holds no longer
+//! A map's tiles on disk: where [`isoline_map::Map`] puts the tiles it holds no longer
 //! in memory, one file a tile, in a directory of its own removed when the store goes.
 //!
 //! A run that is killed cannot remove its directory; the next store made in the same
@@ -8,7 +8,7 @@
 
 use std::path::{Path, PathBuf};
 
-use isoline_core::{TileKey, TileStore};
+use isoline_map::{TileKey, TileStore};
 
 /// A [`TileStore`] in a directory: `tile_I_J.bin` a tile. The directory is created, and
 /// removed with its files when the store is dropped.

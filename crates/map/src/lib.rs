@@ -1,5 +1,5 @@
 //! Mapping above isoline's method: the poses of a run's scans estimated from the scans
-//! themselves.
+//! themselves, and the run's scans fused into one map.
 //!
 //! - [`Registrar`]: the pose stage. Each scan is registered against the local map of
 //!   the last keyframes by robust point-to-line Gauss-Newton, the input poses' motion
@@ -7,6 +7,10 @@
 //!   loops are searched near each closed keyframe within the graph's uncertainty,
 //!   verified by matching submaps and checked against the graph, and the graph is
 //!   solved when one closes.
+//! - [`Map`]: the world map of a whole run. Each scan, placed by its pose, is fused
+//!   into world tiles of truncated signed distance and beam votes; the map's curves are
+//!   their zero crossing where enough scans support it and no beam saw through it.
+//!   Tiles beyond a bound leave memory for a [`TileStore`].
 //! - [`trajectory`]: the scores of an estimated trajectory against a reference (ATE
 //!   after the best rigid alignment, relative pose error over a path length) and the
 //!   TUM trajectory format.
@@ -40,15 +44,21 @@
 #![warn(missing_docs)]
 
 mod correlate;
+mod error;
 mod graph;
 mod icp;
 mod register;
 mod se2;
 mod submap;
 pub mod trajectory;
+mod world;
 
+pub use error::{Error, Result};
 pub use graph::{Edge, PoseGraph, Solved};
 pub use icp::{register as register_points, Match, Prior};
 pub use register::{RegisterParams, Registered, Registrar};
 pub use se2::{between, compose, inverse, wrap};
 pub use submap::Surface;
+pub use world::{
+    Key as TileKey, Map, MapLayers, MapParams, MapScores, MapStats, MemoryStore, TileStore,
+};

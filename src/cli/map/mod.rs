@@ -10,9 +10,10 @@ use rayon::prelude::*;
 use serde_json::json;
 
 use isoline_core::geom::{Point, Polyline, Pose};
-use isoline_core::{Map, MapScores, MapStats, Params, Scan};
+use isoline_core::{Params, Scan};
 use isoline_io::map_files::{MapFormat, MAP_EXTENSIONS};
 use isoline_io::{BadFrame, Frame};
+use isoline_map::{Map, MapScores, MapStats};
 
 mod register;
 
@@ -429,7 +430,7 @@ impl Run<'_> {
                     // With [map] align the pose the scan was fused at is the estimate.
                     let pose = match self.map.insert(&scan, pose, &r.polylines, r.noise_estimate) {
                         Ok(p) => p,
-                        Err(e @ isoline_core::Error::PoseOutOfReach { .. }) => {
+                        Err(e @ isoline_map::Error::PoseOutOfReach { .. }) => {
                             self.skipped.far += 1;
                             self.note(e.to_string());
                             continue;

@@ -5,9 +5,9 @@
 
 use super::Map;
 use crate::error::Result;
-use crate::geom::{dist, to_world, Point, Polyline, Pose};
-use crate::index::SegmentIndex;
-use crate::scan::Scan;
+use isoline_core::geom::{dist, to_world, Point, Polyline, Pose};
+use isoline_core::Scan;
+use isoline_core::SegmentIndex;
 
 /// Points kept for the scores, at most, each of returns and of scans' curves: a uniform
 /// sample of the run (reservoir sampling), so the scores cost the same on any run.

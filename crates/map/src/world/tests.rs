@@ -2,7 +2,7 @@ use rand::SeedableRng;
 use rand_distr::{Distribution, Normal};
 
 use super::*;
-use crate::{reconstruct_scan, LaserScan, Params};
+use isoline_core::{reconstruct_scan, LaserScan, Params};
 
 /// A room 6 m by 4 m with a pillar, and maybe a post of radius 0.2 m (a person).
 struct Scene {
@@ -23,7 +23,7 @@ impl Scene {
     fn distance(&self, q: Point) -> f64 {
         self.walls
             .iter()
-            .map(|&(a, b)| crate::geom::point_segment_dist2(q, a, b).0.sqrt())
+            .map(|&(a, b)| isoline_core::geom::point_segment_dist2(q, a, b).0.sqrt())
             .fold(f64::INFINITY, f64::min)
     }
 
@@ -153,7 +153,7 @@ fn a_room_driven_round_is_mapped_near_its_walls_and_nowhere_else() {
     for c in &curves {
         for w in c.points.windows(2) {
             let (a, b) = (w[0], w[1]);
-            let l = crate::geom::dist(a, b);
+            let l = isoline_core::geom::dist(a, b);
             if l < 0.05 {
                 continue;
             }
@@ -191,7 +191,7 @@ fn a_person_who_walked_away_leaves_the_map() {
                 .unwrap()
                 .iter()
                 .flat_map(|c| c.points.clone())
-                .filter(|&p| crate::geom::dist(p, person) < 0.3)
+                .filter(|&p| isoline_core::geom::dist(p, person) < 0.3)
                 .count();
             assert!(near > 0, "the person was never mapped");
         }
@@ -200,7 +200,7 @@ fn a_person_who_walked_away_leaves_the_map() {
     let near: Vec<Point> = curves
         .iter()
         .flat_map(|c| c.points.iter().copied())
-        .filter(|&p| crate::geom::dist(p, person) < 0.5)
+        .filter(|&p| isoline_core::geom::dist(p, person) < 0.5)
         .collect();
     assert!(near.is_empty(), "still mapped: {near:?}");
 }
@@ -345,7 +345,7 @@ fn curves_are_cut_to_the_beams_reach() {
     let cut = within(&[line], [0.0, 0.0], 20.0);
     assert_eq!(cut.len(), 1);
     assert_eq!(cut[0].points.first(), Some(&[0.0, 0.0]));
-    assert!(crate::geom::dist(*cut[0].points.last().unwrap(), [20.0, 0.0]) < 1e-12);
+    assert!(isoline_core::geom::dist(*cut[0].points.last().unwrap(), [20.0, 0.0]) < 1e-12);
     let ring = Polyline {
         closed: true,
         points: (0..64)
@@ -357,7 +357,7 @@ fn curves_are_cut_to_the_beams_reach() {
     };
     let cut = within(&[ring], [0.0, 0.0], 20.0);
     assert_eq!(cut.len(), 1, "{cut:?}");
-    let r = |p: &Point| crate::geom::dist(*p, [0.0, 0.0]);
+    let r = |p: &Point| isoline_core::geom::dist(*p, [0.0, 0.0]);
     assert!(cut[0].points.iter().all(|p| r(p) <= 20.0 + 1e-9));
     for end in [cut[0].points[0], *cut[0].points.last().unwrap()] {
         assert!((r(&end) - 20.0).abs() < 1e-9, "{end:?}");

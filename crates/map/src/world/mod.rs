@@ -31,8 +31,8 @@ use std::collections::HashMap;
 use rustc_hash::FxHashMap;
 
 use crate::error::{Error, Result};
-use crate::geom::{to_world, Point, Polyline, Pose};
-use crate::scan::Scan;
+use isoline_core::geom::{to_world, Point, Polyline, Pose};
+use isoline_core::Scan;
 
 pub use score::{MapLayers, MapScores};
 use tile::{locate, Border, Sample, Tile};
@@ -247,7 +247,8 @@ pub struct MapStats {
 /// be drawn at any time ([`Map::curves`]).
 ///
 /// ```
-/// use isoline_core::{reconstruct_scan, LaserScan, Map, MapParams, MemoryStore, Params, Scan};
+/// use isoline_core::{reconstruct_scan, LaserScan, Params, Scan};
+/// use isoline_map::{Map, MapParams, MemoryStore};
 /// // A wall 2 m ahead of a sensor that drives along it, scanned five times.
 /// let step = 0.5f64.to_radians();
 /// let ranges: Vec<Option<f64>> = (0..181)
@@ -429,7 +430,7 @@ impl Map {
             .returns()
             .into_iter()
             .map(|p| to_world(pose, p))
-            .filter(|&p| crate::geom::dist(p, origin) <= self.params.max_range)
+            .filter(|&p| isoline_core::geom::dist(p, origin) <= self.params.max_range)
             .flat_map(|p| {
                 let (i, j) = ((p[0] / cell).floor() as i64, (p[1] / cell).floor() as i64);
                 [(0, 0), (1, 0), (0, 1), (1, 1)].map(|(di, dj)| locate(i + di, j + dj, side).0)
@@ -482,7 +483,9 @@ impl Map {
             .returns()
             .into_iter()
             .map(|p| to_world(pose, p))
-            .filter(|p| crate::geom::dist(*p, to_world(pose, scan.origin)) <= self.params.max_range)
+            .filter(|p| {
+                isoline_core::geom::dist(*p, to_world(pose, scan.origin)) <= self.params.max_range
+            })
             .collect();
         if world.len() < 20 {
             return pose;
@@ -773,7 +776,7 @@ impl Map {
                         }
                         let side = d[0] * w[1] - d[1] * w[0];
                         let sd = if side > 0.0 { dist } else { -dist } as f32;
-                        let across = crate::geom::dist(p, origin) * heading;
+                        let across = isoline_core::geom::dist(p, origin) * heading;
                         let weight = (1.0 / (1.0 + (across / spread).powi(2))) as f32;
                         scratch
                             .entry((i, j))
@@ -1044,7 +1047,7 @@ fn incidence_cosines(scan: &Scan) -> Vec<f64> {
 /// The stretches of `curves` within `r` of `o`, each cut where it crosses the circle;
 /// a closed curve that leaves the disc comes out as open pieces.
 fn within(curves: &[Polyline], o: Point, r: f64) -> Vec<Polyline> {
-    let inside = |p: Point| crate::geom::dist(p, o) <= r;
+    let inside = |p: Point| isoline_core::geom::dist(p, o) <= r;
     // Where the segment from `a` (inside) to `b` (outside) leaves the disc.
     let exit = |a: Point, b: Point| -> Point {
         let (d, f) = ([b[0] - a[0], b[1] - a[1]], [a[0] - o[0], a[1] - o[1]]);
