@@ -29,18 +29,37 @@ RUSTDOCFLAGS="-D warnings" cargo doc --workspace --no-deps --features isoline/ka
 # Every crate in one invocation: the Python bindings have no Rust tests, but their
 # dependencies' features are unified with the others', so that their build below
 # reuses these crates (crates/py/Cargo.toml).
-# Four test threads on CI's two cores: the integration tests spend much of their time
-# waiting (on the Kafka broker, child daemons, sockets and timeouts), and four overlap
-# those waits: the integration suite 195 -> 159 s on two cores.
+tests=(--workspace --exclude isoline-bench --features isoline/kafka-tls --locked)
+cargo test "${tests[@]}" --no-run
 # The tests need the broker and the browser.
 if ! wait "$browser"; then
   cat target/browser-setup.log >&2
   exit 1
 fi
+# The integration tests (tests/it) are most of the tests' time, and spend part of it
+# waiting (on the Kafka broker, child daemons, sockets and timeouts): they run beside
+# the other tests and the Python package's, which fill those waits. Four test threads
+# on CI's two cores overlap the waits within them (195 -> 159 s on two cores).
 # The HTML map's test fails rather than skips without the browser.
-ISOLINE_REQUIRE_BROWSER=1 cargo test --workspace --exclude isoline-bench --features isoline/kafka-tls --locked -- --test-threads=4
+ISOLINE_REQUIRE_BROWSER=1 cargo test "${tests[@]}" --test it -- --test-threads=4 \
+  > target/it.log 2>&1 &
+it=$!
+# Every other test target, by the workspace's metadata: a test added is run.
+others=$(cargo metadata --format-version 1 --no-deps --locked | python3 -c '
+import json, sys
+m = json.load(sys.stdin)
+print(" ".join(sorted({"--test " + t["name"] for p in m["packages"] if p["name"] != "isoline-bench"
+                       for t in p["targets"] if "test" in t["kind"] and t["name"] != "it"})))')
+status=0
+# shellcheck disable=SC2086 # $others is a list of flags
+cargo test "${tests[@]}" --lib --bins --examples $others -- --test-threads=4 || status=1
+cargo test "${tests[@]}" --doc || status=1
 if ! wait "$setup"; then
   cat target/python-setup.log >&2
-  exit 1
+  status=1
+else
+  scripts/python.sh test || status=1
 fi
-scripts/python.sh test
+wait "$it" || status=1
+cat target/it.log
+exit "$status"
