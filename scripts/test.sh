@@ -44,7 +44,9 @@ fi
 ISOLINE_REQUIRE_BROWSER=1 cargo test "${tests[@]}" --test it -- --test-threads=4 \
   > target/it.log 2>&1 &
 it=$!
-# Every other test target, by the workspace's metadata: a test added is run.
+# Every other test target, by the workspace's metadata: a test added is run. (The
+# libraries and examples as `cargo test` picks them; the binary and the Python crate's
+# library set `test = false`, and `--bins` would build their test harnesses.)
 others=$(cargo metadata --format-version 1 --no-deps --locked | python3 -c '
 import json, sys
 m = json.load(sys.stdin)
@@ -52,7 +54,7 @@ print(" ".join(sorted({"--test " + t["name"] for p in m["packages"] if p["name"]
                        for t in p["targets"] if "test" in t["kind"] and t["name"] != "it"})))')
 status=0
 # shellcheck disable=SC2086 # $others is a list of flags
-cargo test "${tests[@]}" --lib --bins --examples $others -- --test-threads=4 || status=1
+cargo test "${tests[@]}" --lib --examples $others -- --test-threads=4 || status=1
 cargo test "${tests[@]}" --doc || status=1
 if ! wait "$setup"; then
   cat target/python-setup.log >&2
