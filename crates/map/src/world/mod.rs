@@ -28,11 +28,11 @@ mod tile;
 
 use std::collections::HashMap;
 
+use isoline_core::geom::{to_world, Point, Polyline, Pose};
+use isoline_core::Scan;
 use rustc_hash::FxHashMap;
 
 use crate::error::{Error, Result};
-use isoline_core::geom::{to_world, Point, Polyline, Pose};
-use isoline_core::Scan;
 
 pub use score::{MapLayers, MapScores};
 use tile::{locate, Border, Sample, Tile};

@@ -3,11 +3,11 @@
 //! through by one whose beam went past it; a return is static when its place was hit at
 //! least as often as seen through (people and opened doors are not).
 
+use isoline_core::geom::{dist, to_world, Point, Polyline, Pose};
+use isoline_core::{Scan, SegmentIndex};
+
 use super::Map;
 use crate::error::Result;
-use isoline_core::geom::{dist, to_world, Point, Polyline, Pose};
-use isoline_core::Scan;
-use isoline_core::SegmentIndex;
 
 /// Points kept for the scores, at most, each of returns and of scans' curves: a uniform
 /// sample of the run (reservoir sampling), so the scores cost the same on any run.
