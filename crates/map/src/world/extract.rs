@@ -8,7 +8,7 @@ use rayon::prelude::*;
 
 use super::tile::Sample;
 use super::{Key, Map};
-use isoline_core::geom::{Point, Polyline};
+use isoline_core::geom::{dist, point_segment_dist2, Point, Polyline};
 
 /// A lattice edge: from sample `(i, j)` to `(i + 1, j)` (`horizontal`) or `(i, j + 1)`.
 pub(crate) type Edge = (i64, i64, bool);
@@ -227,10 +227,7 @@ fn simplify(line: Polyline, tol: f64) -> Polyline {
     if line.closed {
         // A loop splits at its farthest point from the first.
         let far = (1..pts.len())
-            .max_by(|&a, &b| {
-                isoline_core::geom::dist(pts[a], pts[0])
-                    .total_cmp(&isoline_core::geom::dist(pts[b], pts[0]))
-            })
+            .max_by(|&a, &b| dist(pts[a], pts[0]).total_cmp(&dist(pts[b], pts[0])))
             .unwrap_or(last);
         keep[far] = true;
         stack = vec![(first, far), (far, last)];
@@ -241,7 +238,7 @@ fn simplify(line: Polyline, tol: f64) -> Polyline {
         }
         let (p, q) = (pts[a], pts[b]);
         let (k, d) = (a + 1..b)
-            .map(|k| (k, isoline_core::geom::point_segment_dist2(pts[k], p, q).0))
+            .map(|k| (k, point_segment_dist2(pts[k], p, q).0))
             .max_by(|x, y| x.1.total_cmp(&y.1))
             .expect("b > a + 1");
         if d > tol * tol {

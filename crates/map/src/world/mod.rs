@@ -28,7 +28,7 @@ mod tile;
 
 use std::collections::HashMap;
 
-use isoline_core::geom::{to_world, Point, Polyline, Pose};
+use isoline_core::geom::{dist, to_world, Point, Polyline, Pose};
 use isoline_core::Scan;
 use rustc_hash::FxHashMap;
 
@@ -430,7 +430,7 @@ impl Map {
             .returns()
             .into_iter()
             .map(|p| to_world(pose, p))
-            .filter(|&p| isoline_core::geom::dist(p, origin) <= self.params.max_range)
+            .filter(|&p| dist(p, origin) <= self.params.max_range)
             .flat_map(|p| {
                 let (i, j) = ((p[0] / cell).floor() as i64, (p[1] / cell).floor() as i64);
                 [(0, 0), (1, 0), (0, 1), (1, 1)].map(|(di, dj)| locate(i + di, j + dj, side).0)
@@ -479,13 +479,12 @@ impl Map {
     fn align(&self, scan: &Scan, pose: Pose, noise: f64) -> Pose {
         use nalgebra::{Matrix3, Vector3};
         const STEPS: usize = 10;
+        let origin = to_world(pose, scan.origin);
         let world: Vec<Point> = scan
             .returns()
             .into_iter()
             .map(|p| to_world(pose, p))
-            .filter(|p| {
-                isoline_core::geom::dist(*p, to_world(pose, scan.origin)) <= self.params.max_range
-            })
+            .filter(|&p| dist(p, origin) <= self.params.max_range)
             .collect();
         if world.len() < 20 {
             return pose;
@@ -770,13 +769,13 @@ impl Map {
                         }
                         let t = t.clamp(0.0, 1.0);
                         let q = [a[0] + t * d[0] - p[0], a[1] + t * d[1] - p[1]];
-                        let dist = (q[0] * q[0] + q[1] * q[1]).sqrt();
-                        if dist > trunc {
+                        let off = (q[0] * q[0] + q[1] * q[1]).sqrt();
+                        if off > trunc {
                             continue;
                         }
                         let side = d[0] * w[1] - d[1] * w[0];
-                        let sd = if side > 0.0 { dist } else { -dist } as f32;
-                        let across = isoline_core::geom::dist(p, origin) * heading;
+                        let sd = if side > 0.0 { off } else { -off } as f32;
+                        let across = dist(p, origin) * heading;
                         let weight = (1.0 / (1.0 + (across / spread).powi(2))) as f32;
                         scratch
                             .entry((i, j))
@@ -1047,7 +1046,7 @@ fn incidence_cosines(scan: &Scan) -> Vec<f64> {
 /// The stretches of `curves` within `r` of `o`, each cut where it crosses the circle;
 /// a closed curve that leaves the disc comes out as open pieces.
 fn within(curves: &[Polyline], o: Point, r: f64) -> Vec<Polyline> {
-    let inside = |p: Point| isoline_core::geom::dist(p, o) <= r;
+    let inside = |p: Point| dist(p, o) <= r;
     // Where the segment from `a` (inside) to `b` (outside) leaves the disc.
     let exit = |a: Point, b: Point| -> Point {
         let (d, f) = ([b[0] - a[0], b[1] - a[1]], [a[0] - o[0], a[1] - o[1]]);
