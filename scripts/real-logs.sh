@@ -10,7 +10,8 @@
 # 5 cm of a curve, curve within 10 cm of a return, curve in the free space the beams
 # swept, mean distance from explained returns to the curve and from the next scan's
 # returns ("next cm", held out), closed curves, phantom pieces within 1 m of the
-# sensor), and against the cold
+# sensor, frames whose curves cross a beam more than 5 cm / the frame's accuracy bound
+# 3 sigma + 2 hmin short of its return), and against the cold
 # run frame by frame (frames 5+ points worse). Medians over frames. Then, from the
 # daemon's summaries: frames/s, the process's CPU per frame and the stages' split.
 # Usage: ISOLINE_REAL=DIR scripts/real-logs.sh
@@ -67,14 +68,17 @@ def fps(r):
         return m[-1] if m else "-"
     except FileNotFoundError:
         return "-"
+def crossed(e):
+    past = e["frames_crossing_beams_past_bound"]
+    return f"{e['frames_crossing_beams']} / {'-' if past is None else past}"
 print(f"{name}: {len(cold)} frames")
-print(f"  {'run':8s} {'5cm':>6s} {'10cm':>6s} {'free':>7s} {'mean cm':>8s} {'next cm':>8s} {'worse':>6s} {'closed':>6s} {'phantom':>7s} {'ms':>6s} {'fps':>7s}")
+print(f"  {'run':8s} {'5cm':>6s} {'10cm':>6s} {'free':>7s} {'mean cm':>8s} {'next cm':>8s} {'worse':>6s} {'closed':>6s} {'phantom':>7s} {'crossed':>9s} {'ms':>6s} {'fps':>7s}")
 for r in ["cold", "warm", "posed", "refined", "sam"]:
     e = ev(r)
     worse = sum(1 for f in e["frames"] if f["frame"] in cold and f["returns_explained"] < cold[f["frame"]]["returns_explained"] - 0.05)
     ms = sam_ms() if r == "sam" else e.get("ms")
     print(f"  {r:8s} {e['returns_explained']:6.3f} {e['curve_on_data']:6.3f} {e['free_space_share']:7.4f} "
-          f"{100 * e['mean_distance']:8.2f} {100 * (e['held_out_distance'] or float('nan')):8.3f} {worse:6d} {e['frames_with_closed_curves']:6d} {e['frames_with_phantoms']:7d} "
+          f"{100 * e['mean_distance']:8.2f} {100 * (e['held_out_distance'] or float('nan')):8.3f} {worse:6d} {e['frames_with_closed_curves']:6d} {e['frames_with_phantoms']:7d} {crossed(e):>9s} "
           f"{(ms if ms is not None else float('nan')):6.2f} {fps(r) if r != 'sam' else '-':>7s}")
 for r in ["cold", "refined"]:
     line = open(f"{d}/{name}.{r}.log").read()

@@ -324,6 +324,11 @@ fn run_without_truth(a: &Args) -> Result<()> {
             .with_context(|| format!("no scan for stream {:?} frame {}", key.0, key.1))?;
         let pls: Vec<Polyline> = pls.iter().cloned().map(Into::into).collect();
         let s = eval::data_scores(&pls, scan, tol);
+        // isoline's own contract: no crossing by more than the curves' accuracy bound.
+        let past_bound = r.stats.as_ref().and_then(|st| {
+            st.range_noise
+                .map(|noise| eval::beam_crossings(&pls, scan, 3.0 * noise + 2.0 * st.hmin))
+        });
         let held_out = held_out(&posed, &key, &pls, tol);
         let placed =
             |which: Pick| placed_next(&posed, &placements, &key, &pls, which, (tol, 3.0 * tol));
@@ -335,7 +340,9 @@ fn run_without_truth(a: &Args) -> Result<()> {
             "next_scan_by_input_pose": placed(|p| p.0),
             "next_scan_by_registered_pose": placed(|p| p.1),
             "curve_on_data": s.curve_on_data, "free_space_share": s.free_space_share,
-            "length": s.length, "closed": s.closed, "phantoms": s.phantoms, "ms": ms,
+            "length": s.length, "closed": s.closed, "phantoms": s.phantoms,
+            "beam_crossings": s.beam_crossings, "beam_crossings_past_bound": past_bound,
+            "ms": ms,
         }));
     }
     let median = |k: &str| -> serde_json::Value {
@@ -371,6 +378,12 @@ fn run_without_truth(a: &Args) -> Result<()> {
         "ms": median("ms"),
         "frames_with_closed_curves": count("closed"),
         "frames_with_phantoms": count("phantoms"),
+        "frames_crossing_beams": count("beam_crossings"),
+        // Records from other tools carry no noise estimate.
+        "frames_crossing_beams_past_bound": rows
+            .iter()
+            .any(|r| !r["beam_crossings_past_bound"].is_null())
+            .then(|| count("beam_crossings_past_bound")),
         "frames": rows,
     });
     super::print(&format!("{out}\n"))

@@ -566,6 +566,25 @@ pub fn export_refined(
             r.stats.warm_start = fused;
             r.stats.cold_fallback = !fused;
             if fused {
+                // The window's average holds to the frame's beams as the frame's own
+                // curves do: the seen space is in the frame's local coordinates.
+                let in_local = |c: Polyline, f: &dyn Fn(Point) -> Point| Polyline {
+                    closed: c.closed,
+                    points: c.points.into_iter().map(f).collect(),
+                };
+                let hmin_local = at.len_to_local(hmin);
+                let margin = crate::scan::seen_margin(scan.scales.noise, hmin_local);
+                let moved = crate::export::support::outside_seen(
+                    moved
+                        .into_iter()
+                        .map(|c| in_local(c, &|p| at.to_local(p)))
+                        .collect(),
+                    &scan.seen.shrunk(margin),
+                    hmin_local,
+                )
+                .into_iter()
+                .map(|c| in_local(c, &|p| at.to_data(p)))
+                .collect();
                 adopt_refined(&mut r, prepared, &runs, moved, bound);
             }
         }

@@ -27,7 +27,7 @@ pub mod lidar;
 mod shapes;
 
 pub use eval::{
-    compare, compare_surfaces, data_scores, map_accuracy, scan_scores, Accuracy, DataScores,
-    MapAccuracy, ScanScores, PHANTOM_REACH,
+    beam_crossings, compare, compare_surfaces, data_scores, map_accuracy, scan_scores, Accuracy,
+    DataScores, MapAccuracy, ScanScores, PHANTOM_REACH,
 };
 pub use shapes::{generate, Shape, SynthFrame, SynthParams};

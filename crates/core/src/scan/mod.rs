@@ -30,6 +30,16 @@ use crate::geom::{add, dist, point_segment_dist2, sub, Placement, Point, Polylin
 /// count from deciding how much memory a frame takes.
 pub const MAX_BEAMS: usize = 1 << 16;
 
+/// How far short of its return a beam saw through a curve's place, for a frame of
+/// range noise `noise` meshed down to `hmin`: the curves' accuracy bound, `3 noise +
+/// 2 hmin`. The return's surface lies nearer than three noises with a chance of one in
+/// 740 (Gaussian noise), and a curve is placed to within two elements of its level set
+/// (the P1 isoline rounds the free space's corners, where a wall ends at the field of
+/// view's edge, by about one).
+pub(crate) fn seen_margin(noise: f64, hmin: f64) -> f64 {
+    3.0 * noise + 2.0 * hmin
+}
+
 /// Returns a side of the line that smooths a return along its run: four smooth a
 /// frame's noise along its runs and still follow the turn of a wall within a few beams.
 pub(crate) const SMOOTHING: usize = 4;
@@ -420,10 +430,15 @@ impl Scan {
         if offsets.len() < 8 {
             offsets.append(&mut grazing);
         }
+        // Ranges rounded to a step `q` (some scanners and logs keep 5 cm) are off by up
+        // to `q / 2`, uniformly: a deviation of `q / sqrt 12` at least. Where the noise
+        // is well below the step, a flat wall's returns round to the same step and lie
+        // exactly on their neighbours' chord, and the chords would see no noise at all.
+        let rounding = self.range_resolution() / 12f64.sqrt();
         let noise_estimate = (offsets.len() >= 8).then(|| {
             let mid = offsets.len() / 2;
             let m = *offsets.select_nth_unstable_by(mid, f64::total_cmp).1;
-            m / (0.6745 * 1.5f64.sqrt())
+            (m / (0.6745 * 1.5f64.sqrt())).max(rounding)
         });
         let mut spacing: Vec<f64> = self
             .ranges
@@ -445,6 +460,29 @@ impl Scan {
             noise_estimate,
             spacing,
         }
+    }
+
+    /// The step the ranges are rounded to: the smallest difference between two of
+    /// their distinct values (values within a relative `1e-9` of each other are one, so
+    /// that a step's float multiples count once). On ranges not rounded it is far below
+    /// their noise.
+    fn range_resolution(&self) -> f64 {
+        let mut r: Vec<f64> = self
+            .ranges
+            .iter()
+            .copied()
+            .filter(|r| r.is_finite())
+            .collect();
+        r.sort_by(f64::total_cmp);
+        let Some(&far) = r.last() else {
+            return 0.0;
+        };
+        let same = 1e-9 * far.abs();
+        r.windows(2)
+            .map(|w| w[1] - w[0])
+            .filter(|&d| d > same)
+            .reduce(f64::min)
+            .unwrap_or(0.0)
     }
 
     /// How far each beam saw free space: its range where it returned; inside a run, a
@@ -606,6 +644,9 @@ pub struct Analysis {
     pub scales: Scales,
     /// The free space its rays swept.
     pub free: FreeSpace,
+    /// The space its beams swept up to their own ranges (not smoothed): less
+    /// [`seen_margin`], what they certainly crossed, where no curve may cross a beam.
+    pub seen: FreeSpace,
     /// Runs with at least `min_run` returns, as open polylines through their returns
     /// smoothed along the run ([`Scan::smoothed_ranges`]; a run that wraps all the way
     /// round a full turn closes): where curves may run.
@@ -634,6 +675,7 @@ impl Analysis {
         // analysed alike: its own level set is the one the window must beat.
         let smooth = scan.smoothed_ranges(&runs, SMOOTHING, scales.noise);
         let free = scan.free_space(&runs, params.dropout_beams, &smooth);
+        let seen = scan.free_space(&runs, params.dropout_beams, &scan.ranges);
         let n = scan.angles.len();
         let support = runs
             .iter()
@@ -668,6 +710,7 @@ impl Analysis {
             runs,
             scales,
             free,
+            seen,
             support,
             refine: params.refine,
         }
@@ -738,6 +781,20 @@ impl Analysis {
             })
             .collect()
     }
+}
+
+/// Where the segment from `p` to `q` meets the segment from `c` to `d`, as a fraction of
+/// the first; `None` where they do not meet or are parallel.
+fn segment_parameter(p: Point, q: Point, c: Point, d: Point) -> Option<f64> {
+    let (e, f) = (sub(q, p), sub(d, c));
+    let den = crate::geom::cross(e, f);
+    if den == 0.0 {
+        return None;
+    }
+    let g = sub(c, p);
+    let s = crate::geom::cross(g, f) / den;
+    let t = crate::geom::cross(g, e) / den;
+    ((0.0..=1.0).contains(&s) && (0.0..=1.0).contains(&t)).then_some(s)
 }
 
 /// The next float above `x` (towards +inf).
@@ -835,6 +892,133 @@ impl FreeSpace {
         let (a, b) = (tip(i), tip(j));
         // The origin's side of a -> b (the triangle origin, a, b is counter-clockwise).
         crate::geom::orient(a, b, p) > 0.0
+    }
+
+    /// The same free space with every beam's reach less `by` (none below 0).
+    pub(crate) fn shrunk(&self, by: f64) -> FreeSpace {
+        FreeSpace {
+            reach: self.reach.iter().map(|r| (r - by).max(0.0)).collect(),
+            ..self.clone()
+        }
+    }
+
+    /// How far `p` lies inside the free space along its own bearing: the range at which
+    /// the ray from the origin through `p` leaves it (where it meets the segment joining
+    /// the reaches of the two beams round it), less `p`'s range; negative beyond that.
+    /// `None` where no two neighbouring beams sweep `p`'s bearing (outside the field of
+    /// view, across a wide gap, beside an unseen beam) or at the origin.
+    pub fn depth(&self, p: Point) -> Option<f64> {
+        self.depth_by(p, |i| self.point(i, self.reach[i]))
+    }
+
+    fn depth_by(&self, p: Point, tip: impl Fn(usize) -> Point) -> Option<f64> {
+        let b = self.bearing(p)?;
+        let n = self.angles.len();
+        let (i, j) = match b.next {
+            0 => return None,
+            k if k < n => (k - 1, k),
+            _ if self.full_turn => (n - 1, 0),
+            // Past the last beam: only the last beam itself, or the first one a rounding
+            // put a turn round, was seen (within rounding).
+            _ => {
+                let on = if b.phi - self.angles[n - 1] <= 1e-12 {
+                    n - 1
+                } else if self.angles[0] + TAU - b.phi <= 1e-12 {
+                    0
+                } else {
+                    return None;
+                };
+                return (self.reach[on] > 0.0).then(|| self.reach[on] - b.rho);
+            }
+        };
+        let gap = (self.angles[j] - self.angles[i]).rem_euclid(TAU);
+        if gap > self.max_gap || self.reach[i] <= 0.0 || self.reach[j] <= 0.0 {
+            return None;
+        }
+        let (a, c) = (tip(i), tip(j));
+        let d = sub(p, self.origin);
+        let e = sub(c, a);
+        let den = crate::geom::cross(d, e);
+        if den == 0.0 {
+            return None;
+        }
+        // The ray o + t d meets a + s e at t = cross(a - o, e) / cross(d, e), in units of
+        // |d| = rho.
+        let t = crate::geom::cross(sub(a, self.origin), e) / den;
+        Some((t - 1.0) * b.rho)
+    }
+
+    /// The parameters `s` in `(0, 1)` at which the segment from `a` to `b` crosses a beam
+    /// or the segment joining two neighbouring beams' reaches, appended to `out` in no
+    /// order: between two of them the segment lies wholly in the free space or wholly
+    /// out of it.
+    pub(crate) fn crossings(&self, a: Point, b: Point, out: &mut Vec<f64>) {
+        let (Some(ba), Some(bb)) = (self.bearing(a), self.bearing(b)) else {
+            return;
+        };
+        let n = self.angles.len();
+        // The segment sweeps the bearings between its ends the shorter way round.
+        let ccw = (bb.phi - ba.phi).rem_euclid(TAU);
+        let (from, sweep, flip) = if ccw <= std::f64::consts::PI {
+            (ba, ccw, false)
+        } else {
+            (bb, TAU - ccw, true)
+        };
+        let (p, q) = if flip { (b, a) } else { (a, b) };
+        let mut push = |s: Option<f64>| {
+            if let Some(s) = s.filter(|s| *s > 0.0 && *s < 1.0) {
+                out.push(if flip { 1.0 - s } else { s });
+            }
+        };
+        let chord = |i: usize, j: usize, push: &mut dyn FnMut(Option<f64>)| {
+            if i < n && j < n && self.reach[i] > 0.0 && self.reach[j] > 0.0 {
+                let (c, d) = (self.point(i, self.reach[i]), self.point(j, self.reach[j]));
+                push(segment_parameter(p, q, c, d));
+            }
+        };
+        let next = |k: usize| {
+            if k + 1 < n {
+                Some(k + 1)
+            } else if self.full_turn {
+                Some(0)
+            } else {
+                None
+            }
+        };
+        // The wedge `from` lies in, then each beam the segment passes and the wedge
+        // after it. Past the last beam of a field of view, the next beam round is the
+        // first, across the unseen gap.
+        let mut k = if from.next < n { from.next } else { 0 };
+        let prev = if k > 0 {
+            Some(k - 1)
+        } else if self.full_turn {
+            Some(n - 1)
+        } else {
+            None
+        };
+        if let Some(i) = prev {
+            chord(i, k, &mut push);
+        }
+        for _ in 0..n {
+            if (self.angles[k] - from.phi).rem_euclid(TAU) > sweep {
+                break;
+            }
+            push(segment_parameter(
+                p,
+                q,
+                self.origin,
+                self.point(k, self.range_reach()),
+            ));
+            let Some(j) = next(k) else { break };
+            chord(k, j, &mut push);
+            k = j;
+        }
+    }
+
+    /// A range past every reach: a beam's whole ray, as a segment.
+    fn range_reach(&self) -> f64 {
+        let far = self.reach.iter().fold(0.0_f64, |m, &r| m.max(r));
+        2.0 * far + 1.0
     }
 
     fn point(&self, i: usize, r: f64) -> Point {

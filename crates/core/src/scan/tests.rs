@@ -87,6 +87,31 @@ fn the_noise_estimate_recovers_the_range_noise() {
     assert!(scales.spacing > 2.0 * s.step && scales.spacing < 4.0 * s.step);
 }
 
+/// Ranges rounded to 5 cm with noise far below that: a flat wall's returns round to the
+/// same few values and lie on their neighbours' chords, which see no noise, but each is
+/// off by up to 2.5 cm. The estimate is the rounding's deviation, `0.05 / sqrt 12`; and
+/// with the noise above the step, the chords' own estimate stands.
+#[test]
+fn rounded_ranges_are_as_noisy_as_their_rounding() {
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(4);
+    let noise = Normal::new(0.0, 0.002).unwrap();
+    let s = scan(1081, |a| {
+        wall_with_doorway(a).map(|r| ((r + noise.sample(&mut rng)) / 0.05).round() * 0.05)
+    });
+    let p = ScanParams::default();
+    let runs = s.runs(0.01, &p);
+    let est = s.scales(&runs, &p).noise_estimate.unwrap();
+    assert!((est - 0.05 / 12f64.sqrt()).abs() < 1e-9, "{est}");
+    // As in the_noise_estimate_recovers_the_range_noise, within 15%.
+    let noise = Normal::new(0.0, 0.01).unwrap();
+    let s = scan(1081, |a| {
+        wall_with_doorway(a).map(|r| ((r + noise.sample(&mut rng)) / 0.001).round() * 0.001)
+    });
+    let runs = s.runs(0.01, &p);
+    let est = s.scales(&runs, &p).noise_estimate.unwrap();
+    assert!((est - 0.01).abs() < 0.15 * 0.01, "{est}");
+}
+
 #[test]
 fn free_space_is_in_front_of_the_returns_and_along_free_rays() {
     // A wall at x = 2 except for a gap of beams with no return around y = 0.
@@ -280,4 +305,29 @@ fn smoothing_keeps_corners() {
         worst <= 0.03,
         "a smoothed return {worst} m off the corner's walls"
     );
+}
+
+/// The depth along a point's bearing is where the ray through it leaves the free
+/// space (the segment joining the reaches of the beams round it) less its range; on
+/// the last beam it is that beam's reach less the range, and past it there is none.
+#[test]
+fn depth_is_measured_along_the_bearing() {
+    let free = FreeSpace {
+        origin: [0.0, 0.0],
+        angles: vec![0.0, std::f64::consts::FRAC_PI_2],
+        reach: vec![1.0, 1.0],
+        full_turn: false,
+        max_gap: f64::INFINITY,
+    };
+    let d = free.depth([0.2, 0.2]).unwrap();
+    assert!((d - (0.5f64.sqrt() - 0.08f64.sqrt())).abs() < 1e-12, "{d}");
+    let behind = free.depth([0.6, 0.6]).unwrap();
+    assert!(
+        (behind - (0.5f64.sqrt() - 0.72f64.sqrt())).abs() < 1e-12,
+        "{behind}"
+    );
+    let on_last = free.depth([0.0, 0.25]).unwrap();
+    assert!((on_last - 0.75).abs() < 1e-12, "{on_last}");
+    assert_eq!(free.depth([-0.1, 0.5]), None);
+    assert_eq!(free.depth([0.0, 0.0]), None);
 }
