@@ -426,7 +426,7 @@ fn placed_next(
 /// The mean distance to `curves` (frame `key`'s), capped at `tol`, of the next scan's
 /// returns in the same stream that lie within `tol` of this frame's returns: the next
 /// scan placed in this frame by the two poses, then laid onto this frame's returns by
-/// the alignment refinement uses ([`isoline_core::align_returns`]; poses are off by
+/// the alignment refinement uses ([`isoline_map::align_returns`]; poses are off by
 /// more than the noise). Returns the curves never saw, so a curve fitted to its own
 /// frame's noise gains nothing here: the score falls as the curves come nearer the
 /// walls. Which returns count depends on the two scans alone, not on the curves
@@ -477,7 +477,7 @@ fn overlap(
         .into_iter()
         .map(|p| to_sensor(pose, to_world(next_pose, p)))
         .collect();
-    let [x, y, theta] = isoline_core::align_returns(&placed, scan, &Default::default());
+    let [x, y, theta] = isoline_map::align_returns(&placed, scan, &Default::default());
     let (s, c) = theta.sin_cos();
     let own = isoline_core::SegmentIndex::new(
         &scan

@@ -21,7 +21,7 @@ pub use super::source::{FileInput, FileSource, Replay, StdinInput, TcpInput};
 use crate::config::{bounded, listen_address, read_value, resolve, take_table, Config};
 use crate::error::{Error, Result};
 use isoline_core::Params;
-use isoline_core::WindowLimits;
+use isoline_map::WindowLimits;
 
 /// Where frames come from, validated.
 #[derive(Clone, Debug, PartialEq)]
@@ -84,7 +84,7 @@ pub struct DaemonConfig {
     /// A stream not seen for this long is forgotten (its next frame starts cold).
     pub stream_idle: Duration,
     /// Refinement over frames: each scan frame with a pose has its level set averaged
-    /// with its stream's last frames' ([`isoline_core::Window`]).
+    /// with its stream's last frames' ([`isoline_map::Window`]).
     pub accumulate: Option<WindowLimits>,
     /// Serve a live view (Foxglove WebSocket) on this address.
     pub live: Option<SocketAddr>,

@@ -27,9 +27,9 @@ use isoline_core::stages::{self as reconstruct, Prepared};
 use isoline_core::stages::{AdaptedMesh, LevelSet, LevelSetMemory, MeshMemory, Solved};
 use isoline_core::Params;
 use isoline_core::Reconstruction;
-use isoline_core::{Window, WindowLimits};
 use isoline_io::format::ResultRecord;
 use isoline_map::{RegisterParams, Registrar};
+use isoline_map::{Window, WindowLimits};
 
 /// A frame on its way through the stages.
 pub(crate) struct Msg {
@@ -854,8 +854,14 @@ impl Exporter {
         let windows = &mut self.windows;
         catch_unwind(AssertUnwindSafe(|| match refine {
             Some((limits, pose)) => {
-                let window = windows.seen(key, lease, Instant::now(), |_| true, Window::default);
-                reconstruct::export_refined(&p, adapted, solved, frame, t, pose, window, limits)
+                let window = windows.seen(
+                    key,
+                    lease,
+                    Instant::now(),
+                    |_| true,
+                    || Window::new(*limits),
+                );
+                reconstruct::export_refined(&p, adapted, solved, frame, t, pose, window)
             }
             None => reconstruct::export(&p, adapted, solved),
         }))

@@ -49,7 +49,8 @@
 //!
 //! Successive frames of a stream warm-start from the previous one
 //! ([`reconstruct_warm`]); a scan stream with poses is refined over a window of frames
-//! by [`stages::export_refined`] and a [`Window`]. [`stages`] holds the pipeline's stages
+//! by [`stages::export_refined`] and a [`Refiner`] (isoline-map's window of the last
+//! frames). [`stages`] holds the pipeline's stages
 //! one by one, as the daemon runs them on channels.
 //!
 //! The modules are the stages, private; this page lists the API. ARCHITECTURE.md in the
@@ -66,13 +67,13 @@ mod error;
 mod export;
 mod fem;
 mod field;
-mod fusion;
 pub mod geom;
 mod index;
 mod levelset;
 mod mesh;
 mod reconstruct;
 mod redistance;
+mod refine;
 mod repair;
 mod scan;
 mod stats;
@@ -84,7 +85,6 @@ pub use error::{Error, Result};
 pub use export::support::Feature;
 pub use export::ExportParams;
 pub use field::MeshParams;
-pub use fusion::{align_returns, Window, WindowLimits};
 pub use geom::{BBox, Point, Polyline, Pose};
 pub use index::SegmentIndex;
 pub use levelset::{Init, LinearSolver, Scheme, Settle, SolverParams, Start, StopReason};
@@ -92,9 +92,10 @@ pub use mesh::Mesh;
 pub use reconstruct::{
     reconstruct, reconstruct_scan, reconstruct_warm, Params, Reconstruction, AREA_SHARE,
 };
+pub use refine::{RefineFrame, Refiner};
 pub use repair::strokes::Junction;
 pub use repair::Tolerances as RepairTolerances;
-pub use scan::{FreeSpace, LaserScan, Scan, ScanParams, MAX_BEAMS};
+pub use scan::{FreeSpace, LaserScan, RunReturns, Scan, ScanParams, MAX_BEAMS, SMOOTHING};
 pub use stats::{StageMs, Stats, WindowStats};
 pub use stream::{Stream, StreamFrame};
 pub use warning::Warning;

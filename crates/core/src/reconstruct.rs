@@ -482,11 +482,11 @@ pub fn export(prepared: &Prepared, adapted: AdaptedMesh, solved: Solved) -> Reco
     on_pool(|| export_with(prepared, prepared.scan.as_ref(), adapted, solved, None))
 }
 
-/// The export stage with refinement over frames (`crate::fusion`): the frame (a
-/// scan taken at `pose`) is exported as it would be alone, joins its stream's `window`,
-/// and its curves are moved to the average of the window's curves that agree with
-/// them. The record stays in the frame's coordinates; its mesh and level set are the
-/// frame's own.
+/// The export stage with refinement over frames: the frame (a scan taken at `pose`) is
+/// exported as it would be alone, joins its stream's window (`refiner`, isoline-map's
+/// `Window`), and each of its curves takes the window's refined curve where that
+/// explains the frame's returns and the window's evidence at least as well. The record
+/// stays in the frame's coordinates; its mesh and level set are the frame's own.
 #[allow(clippy::too_many_arguments)]
 pub fn export_refined(
     prepared: &Prepared,
@@ -495,8 +495,7 @@ pub fn export_refined(
     frame: u64,
     t: Option<f64>,
     pose: crate::geom::Pose,
-    window: &mut crate::fusion::Window,
-    limits: &crate::fusion::WindowLimits,
+    refiner: &mut dyn crate::refine::Refiner,
 ) -> Reconstruction {
     on_pool(move || {
         use crate::geom::{to_sensor, to_world};
@@ -526,20 +525,16 @@ pub fn export_refined(
                 points: c.points.iter().map(|&p| world(p)).collect(),
             })
             .collect();
-        window.push(
-            crate::fusion::View::new(
-                frame,
-                t,
-                &curves_world,
-                own_returns.iter().map(|&p| world(p)).collect(),
-                sigma,
-                tol,
-            ),
-            limits,
-        );
+        let refined = refiner.refine(crate::refine::RefineFrame {
+            frame,
+            t,
+            curves: curves_world,
+            returns: own_returns.iter().map(|&p| world(p)).collect(),
+            sigma,
+            tol,
+        });
         // A window of the frame alone has nothing to fuse: the frame is as it was.
-        if window.len() > 1 {
-            let (moved, evidence) = window.refined();
+        if let Some((moved, evidence)) = refined {
             let local = |c: Polyline| Polyline {
                 closed: c.closed,
                 points: c.points.into_iter().map(|p| to_sensor(pose, p)).collect(),
@@ -588,11 +583,7 @@ pub fn export_refined(
                 adopt_refined(&mut r, prepared, &runs, moved, bound);
             }
         }
-        r.stats.window = Some(WindowStats {
-            frames: window.len(),
-            points: window.points(),
-            bytes: window.bytes(),
-        });
+        r.stats.window = Some(refiner.stats());
         // The fusion is part of the export stage's time.
         let fusion = t0.elapsed().as_secs_f64() * 1e3 - single_ms;
         r.stats.ms.export += fusion.max(0.0);

@@ -8,19 +8,20 @@
 //!   frame's mesh is adapted from, moved by the sensor's motion;
 //! - the solve stage's [`LevelSetMemory`]: the last frame's renormalized level set, which
 //!   the next frame's level set starts from (the warm start), moved likewise;
-//! - the export stage's [`Window`]: the last frames of a scan stream with poses, which
-//!   the refined export fuses (`docs/method.md`, "Refinement over frames").
+//! - the export stage's [`Refiner`]: the last frames of a scan stream with poses, which
+//!   the refined export fuses (`docs/method.md`, "Refinement over frames"; isoline-map's
+//!   `Window`).
 //!
 //! A frame number that does not go up means the stream restarted: the next frame then
 //! starts cold.
 
 use crate::error::Result;
 use crate::field::AdaptedMesh;
-use crate::fusion::{Window, WindowLimits};
 use crate::geom::{to_sensor, to_world, Point, Pose};
 use crate::levelset::evolve::{LevelSet, Solved};
 use crate::mesh::Mesh;
 use crate::reconstruct::{self, Params, Prepared, Reconstruction};
+use crate::refine::Refiner;
 use crate::scan::Scan;
 
 /// What the adapt stage keeps of a stream: its last frame's mesh, in that frame's data
@@ -141,10 +142,9 @@ pub struct StreamFrame<'a> {
 pub struct Stream {
     params: Params,
     warm: bool,
-    refine: Option<WindowLimits>,
     mesh: MeshMemory,
     level_set: LevelSetMemory,
-    window: Window,
+    refiner: Option<Box<dyn Refiner>>,
 }
 
 impl Stream {
@@ -154,18 +154,17 @@ impl Stream {
         Stream {
             params,
             warm,
-            refine: None,
             mesh: MeshMemory::default(),
             level_set: LevelSetMemory::default(),
-            window: Window::default(),
+            refiner: None,
         }
     }
 
     /// The same stream with refinement on: each scan frame with a pose is fused with the
-    /// stream's last frames, within `limits`.
-    pub fn refining(mut self, limits: WindowLimits) -> Stream {
+    /// stream's last frames by `refiner` (isoline-map's `Window`).
+    pub fn refining(mut self, refiner: Box<dyn Refiner>) -> Stream {
         self.params.scan.refine = true;
-        self.refine = Some(limits);
+        self.refiner = Some(refiner);
         self
     }
 
@@ -174,9 +173,9 @@ impl Stream {
         &self.params
     }
 
-    /// The frames in its refinement window.
-    pub fn window(&self) -> &Window {
-        &self.window
+    /// What its refinement window holds, when refinement is on.
+    pub fn window(&self) -> Option<crate::stats::WindowStats> {
+        self.refiner.as_ref().map(|r| r.stats())
     }
 
     /// Reconstructs the stream's next frame. A frame that fails (bad points) leaves the
@@ -200,23 +199,18 @@ impl Stream {
             let kept = prepared.level_set(&adapted, &solved);
             self.level_set.keep(kept, f.pose);
         }
-        Ok(match self.refine.as_ref().zip(f.pose) {
-            Some((limits, pose)) if prepared.is_scan() => reconstruct::export_refined(
-                &prepared,
-                adapted,
-                solved,
-                f.frame,
-                f.t,
-                pose,
-                &mut self.window,
-                limits,
-            ),
+        Ok(match (self.refiner.as_deref_mut(), f.pose) {
+            (Some(refiner), Some(pose)) if prepared.is_scan() => {
+                reconstruct::export_refined(&prepared, adapted, solved, f.frame, f.t, pose, refiner)
+            }
             _ => reconstruct::export(&prepared, adapted, solved),
         })
     }
 
     /// Bytes of state it holds between frames, roughly.
     pub fn bytes(&self) -> usize {
-        self.mesh.bytes() + self.level_set.bytes() + self.window.bytes()
+        self.mesh.bytes()
+            + self.level_set.bytes()
+            + self.refiner.as_ref().map_or(0, |r| r.stats().bytes)
     }
 }

@@ -11,6 +11,11 @@
 //!   into world tiles of truncated signed distance and beam votes; the map's curves are
 //!   their zero crossing where enough scans support it and no beam saw through it.
 //!   Tiles beyond a bound leave memory for a [`TileStore`].
+//! - [`Window`]: refinement over frames. A stream's last scan frames, each aligned onto
+//!   the newest, whose curves move the newest frame's to their average where they
+//!   agree; it is the [`isoline_core::Refiner`] a refined export
+//!   ([`isoline_core::stages::export_refined`], [`isoline_core::Stream::refining`])
+//!   hands each frame to. [`align_returns`] lays one scan's returns onto another's runs.
 //! - [`trajectory`]: the scores of an estimated trajectory against a reference (ATE
 //!   after the best rigid alignment, relative pose error over a path length) and the
 //!   TUM trajectory format.
@@ -45,6 +50,7 @@
 
 mod correlate;
 mod error;
+mod fusion;
 mod graph;
 mod icp;
 mod register;
@@ -54,6 +60,7 @@ pub mod trajectory;
 mod world;
 
 pub use error::{Error, Result};
+pub use fusion::{align_returns, Window, WindowLimits};
 pub use graph::{Edge, PoseGraph, Solved};
 pub use icp::{register as register_points, Match, Prior};
 pub use register::{RegisterParams, Registered, Registrar};

@@ -19,8 +19,9 @@ use pyo3::create_exception;
 use pyo3::exceptions::{PyMemoryError, PyOSError, PyStopIteration, PyTypeError, PyValueError};
 use pyo3::prelude::*;
 
-use isoline_core::{Point, WindowLimits};
+use isoline_core::Point;
 use isoline_io::format::{FrameRecord, ResultRecord};
+use isoline_map::WindowLimits;
 
 create_exception!(
     isoline,
@@ -666,11 +667,11 @@ impl Stream {
         }
         let mut inner = isoline_core::Stream::new(params_or_default(params), warm_start);
         if accumulate > 1 {
-            inner = inner.refining(WindowLimits {
+            inner = inner.refining(Box::new(isoline_map::Window::new(WindowLimits {
                 frames: accumulate,
                 seconds: accumulate_seconds,
                 max_bytes: Some(max_state_bytes),
-            });
+            })));
         }
         let registrar = if register {
             let params = params.map_or_else(Default::default, |p| p.register);

@@ -42,7 +42,19 @@ pub(crate) fn seen_margin(noise: f64, hmin: f64) -> f64 {
 
 /// Returns a side of the line that smooths a return along its run: four smooth a
 /// frame's noise along its runs and still follow the turn of a wall within a few beams.
-pub(crate) const SMOOTHING: usize = 4;
+pub const SMOOTHING: usize = 4;
+
+/// A scan's runs and scales as the pipeline reads them ([`Scan::run_returns`]): what a
+/// caller needs to lay other returns onto its surfaces.
+#[derive(Clone, Debug, PartialEq)]
+pub struct RunReturns {
+    /// Each run's returns, in bearing order.
+    pub runs: Vec<Vec<Point>>,
+    /// The range noise (the configured one, or the frame's estimate).
+    pub noise: f64,
+    /// The median beam spacing, `r dphi`.
+    pub spacing: f64,
+}
 
 /// How scan frames are read: the breakpoint test, dropouts and small clusters.
 #[derive(Clone, Debug, PartialEq)]
@@ -174,6 +186,17 @@ pub struct Scales {
 }
 
 impl Scan {
+    /// Its runs' returns, range noise and beam spacing, read with `params` as a frame's
+    /// reconstruction reads them.
+    pub fn run_returns(&self, params: &ScanParams) -> RunReturns {
+        let a = Analysis::new(self.clone(), params);
+        RunReturns {
+            runs: a.run_points(),
+            noise: a.scales.noise,
+            spacing: a.scales.spacing,
+        }
+    }
+
     /// A scan from a sensor's beams. Ranges outside `[range_min, range_max)` or not
     /// finite are no returns. Fails when the message is malformed: no beams, a step that
     /// is zero, not finite or sweeps more than a turn, or a bad range limit.

@@ -16,7 +16,7 @@
 use kiddo::{ImmutableKdTree, SquaredEuclidean};
 use nalgebra::{Matrix3, Vector3};
 
-use crate::geom::Point;
+use isoline_core::geom::Point;
 
 /// A rigid motion of the plane: `p -> R p + t`.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -91,8 +91,8 @@ impl Surface {
     /// The surface of a scan's runs whose support's tolerance is `tol`: normals fitted
     /// over a stretch of four tolerances (two each side), several noise widths and
     /// several returns, short enough to follow a wall round a bend.
-    pub fn of(analysis: &crate::scan::Analysis, tol: f64) -> Surface {
-        let mut s = Surface::new(&analysis.run_points(), 2.0 * tol, analysis.scales.noise);
+    pub fn of(scan: &isoline_core::RunReturns, tol: f64) -> Surface {
+        let mut s = Surface::new(&scan.runs, 2.0 * tol, scan.noise);
         s.tol = tol;
         s
     }
@@ -109,7 +109,7 @@ impl Surface {
             let mut acc = 0.0;
             for (i, p) in run.iter().enumerate() {
                 if i > 0 {
-                    acc += crate::geom::dist(run[i - 1], *p);
+                    acc += isoline_core::geom::dist(run[i - 1], *p);
                 }
                 s.push(acc);
             }
@@ -252,7 +252,7 @@ pub(crate) fn align(source: &[Point], target: &Surface) -> Rigid {
         cutoff = (0.5 * cutoff).max(floor);
     }
     let moved = m.apply(c);
-    if crate::geom::dist(moved, c) > gate || m.sin.abs() > 0.1 {
+    if isoline_core::geom::dist(moved, c) > gate || m.sin.abs() > 0.1 {
         return Rigid::IDENTITY;
     }
     m
@@ -311,7 +311,7 @@ mod tests {
                 let m = align(&source, &target);
                 for (p, acc) in probes.iter().zip(&mut mean) {
                     let back = m.apply(error.apply(*p));
-                    let d = crate::geom::dist(back, *p);
+                    let d = isoline_core::geom::dist(back, *p);
                     assert!(d < 6e-3, "seed {seed}: {p:?} -> {back:?}, {d}");
                     acc[0] += (back[0] - p[0]) / 16.0;
                     acc[1] += (back[1] - p[1]) / 16.0;

@@ -25,9 +25,8 @@ mod align;
 
 use align::{Rigid, Surface};
 
-use crate::geom::{Point, Polyline};
-use crate::index::SegmentIndex;
-use crate::scan::{Analysis, SMOOTHING};
+use isoline_core::geom::{Point, Polyline};
+use isoline_core::{RefineFrame, Refiner, SegmentIndex, WindowStats, SMOOTHING};
 
 /// Deviations of the newest frame's range noise a curve point must stand off its
 /// chord before the window looks for older curves between the two: the refinement
@@ -141,12 +140,12 @@ impl View {
         }
         let at_end = (s <= 0.0 && self.ends[i] & 1 != 0) || (s >= 1.0 && self.ends[i] & 2 != 0);
         let (a, b) = self.index.segments()[i];
-        let dir = crate::geom::sub(b, a);
-        if at_end || crate::geom::dot(dir, t) <= 0.0 {
+        let dir = isoline_core::geom::sub(b, a);
+        if at_end || isoline_core::geom::dot(dir, t) <= 0.0 {
             return None;
         }
-        let foot = crate::geom::add(a, crate::geom::scale(dir, s));
-        Some(crate::geom::dot(crate::geom::sub(foot, p), n))
+        let foot = isoline_core::geom::add(a, isoline_core::geom::scale(dir, s));
+        Some(isoline_core::geom::dot(isoline_core::geom::sub(foot, p), n))
     }
 
     /// Bytes this view holds: its curves, returns and index.
@@ -167,13 +166,13 @@ fn subdivided(c: &Polyline, step: f64) -> Polyline {
     let mut points = Vec::with_capacity(c.points.len());
     for (a, b) in c.segments() {
         points.push(a);
-        let n = (crate::geom::dist(a, b) / step).ceil();
+        let n = (isoline_core::geom::dist(a, b) / step).ceil();
         if n.is_finite() && n > 1.0 {
             for k in 1..n as usize {
                 let f = k as f64 / n;
-                points.push(crate::geom::add(
+                points.push(isoline_core::geom::add(
                     a,
-                    crate::geom::scale(crate::geom::sub(b, a), f),
+                    isoline_core::geom::scale(isoline_core::geom::sub(b, a), f),
                 ));
             }
         }
@@ -190,9 +189,9 @@ fn subdivided(c: &Polyline, step: f64) -> Polyline {
 }
 
 /// A stream's window of views, oldest first.
-#[derive(Default)]
 pub struct Window {
     views: VecDeque<View>,
+    limits: WindowLimits,
 }
 
 impl std::fmt::Debug for Window {
@@ -205,10 +204,19 @@ impl std::fmt::Debug for Window {
 }
 
 impl Window {
+    /// An empty window that keeps frames within `limits`.
+    pub fn new(limits: WindowLimits) -> Window {
+        Window {
+            views: VecDeque::new(),
+            limits,
+        }
+    }
+
     /// Adds the newest view, lays every older one onto it, and lets the views the limits
     /// no longer allow leave. A frame number that does not follow the last one's (a
     /// restarted stream) or a time that goes back empties the window first.
-    pub(crate) fn push(&mut self, view: View, limits: &WindowLimits) {
+    pub(crate) fn push(&mut self, view: View) {
+        let limits = self.limits;
         let restarted = self.views.back().is_some_and(|last| {
             view.frame <= last.frame || matches!((last.t, view.t), (Some(a), Some(b)) if b < a)
         });
@@ -328,7 +336,7 @@ fn found(newest: &View, older: &[&View]) -> Vec<Vec<Option<Found>>> {
             .into_iter()
             .flatten()
             .filter_map(|k| r.get(k))
-            .map(|q| crate::geom::dist(*q, r[j]))
+            .map(|q| isoline_core::geom::dist(*q, r[j]))
             .fold(f64::INFINITY, f64::min);
         Some(spacing)
     };
@@ -360,7 +368,9 @@ fn found(newest: &View, older: &[&View]) -> Vec<Vec<Option<Found>>> {
                     }
                     let n = [-t[1], t[0]];
                     let dev = chord
-                        .map_or(0.0, |(f, _)| crate::geom::dot(crate::geom::sub(f, p), n))
+                        .map_or(0.0, |(f, _)| {
+                            isoline_core::geom::dot(isoline_core::geom::sub(f, p), n)
+                        })
                         .clamp(-reach, reach);
                     let dev = if dev.abs() > SPIKE * newest.sigma {
                         dev
@@ -418,7 +428,10 @@ fn moved(curves: &[Polyline], found: &[Vec<Option<Found>>], weights: &[f64]) -> 
                             total += w;
                         }
                     }
-                    crate::geom::add(p, crate::geom::scale([-t[1], t[0]], sum / total))
+                    isoline_core::geom::add(
+                        p,
+                        isoline_core::geom::scale([-t[1], t[0]], sum / total),
+                    )
                 })
                 .collect();
             Polyline {
@@ -494,10 +507,10 @@ fn tangent(c: &Polyline, i: usize) -> Point {
         (i, false) if i + 1 == n => (c.points[i - 1], c.points[i]),
         (i, _) => (c.points[i - 1], c.points[i + 1]),
     };
-    let d = crate::geom::sub(b, a);
-    let len = crate::geom::norm(d);
+    let d = isoline_core::geom::sub(b, a);
+    let len = isoline_core::geom::norm(d);
     if len > 0.0 {
-        crate::geom::scale(d, 1.0 / len)
+        isoline_core::geom::scale(d, 1.0 / len)
     } else {
         [0.0, 0.0]
     }
@@ -528,11 +541,11 @@ fn chord_offset(c: &Polyline, i: usize, len: f64) -> Option<(Point, Point)> {
                 return None;
             }
             let (a, b) = (c.points[j], c.points[k]);
-            let l = crate::geom::dist(a, b);
+            let l = isoline_core::geom::dist(a, b);
             if l >= left {
-                return Some(crate::geom::add(
+                return Some(isoline_core::geom::add(
                     a,
-                    crate::geom::scale(crate::geom::sub(b, a), left / l),
+                    isoline_core::geom::scale(isoline_core::geom::sub(b, a), left / l),
                 ));
             }
             left -= l;
@@ -545,21 +558,38 @@ fn chord_offset(c: &Polyline, i: usize, len: f64) -> Option<(Point, Point)> {
         (Some(a), None) => (walk(-1, 2.0 * len)?, a),
         (None, None) => return None,
     };
-    let d = crate::geom::sub(b, a);
-    let l2 = crate::geom::dot(d, d);
+    let d = isoline_core::geom::sub(b, a);
+    let l2 = isoline_core::geom::dot(d, d);
     if l2 <= 0.0 {
         return None;
     }
-    let s = crate::geom::dot(crate::geom::sub(c.points[i], a), d) / l2;
+    let s = isoline_core::geom::dot(isoline_core::geom::sub(c.points[i], a), d) / l2;
     Some((
-        crate::geom::add(a, crate::geom::scale(d, s)),
-        crate::geom::scale(d, 1.0 / l2.sqrt()),
+        isoline_core::geom::add(a, isoline_core::geom::scale(d, s)),
+        isoline_core::geom::scale(d, 1.0 / l2.sqrt()),
     ))
 }
 
 /// The direction `d` turned back by `m`'s rotation.
 fn rotate_back(m: &Rigid, d: Point) -> Point {
     [m.cos * d[0] + m.sin * d[1], -m.sin * d[0] + m.cos * d[1]]
+}
+
+impl Refiner for Window {
+    fn refine(&mut self, f: RefineFrame) -> Option<(Vec<Polyline>, Vec<Point>)> {
+        self.push(View::new(
+            f.frame, f.t, &f.curves, f.returns, f.sigma, f.tol,
+        ));
+        (self.len() > 1).then(|| self.refined())
+    }
+
+    fn stats(&self) -> WindowStats {
+        WindowStats {
+            frames: self.len(),
+            points: self.points(),
+            bytes: self.bytes(),
+        }
+    }
 }
 
 /// The rigid motion `[x, y, theta]` (`p -> R(theta) p + (x, y)`) that lays `source`,
@@ -570,7 +600,8 @@ fn rotate_back(m: &Rigid, d: Point) -> Point {
 /// corrected. `[0, 0, 0]` when too few returns pair.
 ///
 /// ```
-/// use isoline_core::{align_returns, LaserScan, Scan, ScanParams};
+/// use isoline_core::{LaserScan, Scan, ScanParams};
+/// use isoline_map::align_returns;
 /// // A corner seen from the origin, and the same corner's returns moved by 2 cm.
 /// let ranges: Vec<Option<f64>> = (0..90)
 ///     .map(|i| {
@@ -589,12 +620,12 @@ fn rotate_back(m: &Rigid, d: Point) -> Point {
 /// ```
 pub fn align_returns(
     source: &[Point],
-    target: &crate::scan::Scan,
-    params: &crate::scan::ScanParams,
-) -> crate::geom::Pose {
-    let analysis = Analysis::new(target.clone(), params);
-    let tol = 2.0 * analysis.scales.noise + analysis.scales.spacing;
-    let m = align::align(source, &Surface::of(&analysis, tol));
+    target: &isoline_core::Scan,
+    params: &isoline_core::ScanParams,
+) -> isoline_core::geom::Pose {
+    let target = target.run_returns(params);
+    let tol = 2.0 * target.noise + target.spacing;
+    let m = align::align(source, &Surface::of(&target, tol));
     [m.t[0], m.t[1], m.sin.atan2(m.cos)]
 }
 
@@ -629,14 +660,14 @@ mod tests {
     /// where its pose put it) to test the average alone.
     #[test]
     fn agreeing_views_average_and_others_are_left_out() {
-        let mut w = Window::default();
-        w.push(wall(0, 0.0, 1.0 + 10.0 * SIGMA), &limits(10));
-        w.push(wall(1, 1.0, 1.0 + 0.5 * SIGMA), &limits(10));
+        let mut w = Window::new(limits(10));
+        w.push(wall(0, 0.0, 1.0 + 10.0 * SIGMA));
+        w.push(wall(1, 1.0, 1.0 + 0.5 * SIGMA));
         let mut reversed = wall(2, 2.0, 1.0 + 0.5 * SIGMA);
         reversed.curves[0].points.reverse();
         reversed.index = SegmentIndex::new(&reversed.curves);
-        w.push(reversed, &limits(10));
-        w.push(wall(3, 3.0, 1.0), &limits(10));
+        w.push(reversed);
+        w.push(wall(3, 3.0, 1.0));
         w.views
             .iter_mut()
             .for_each(|v| v.to_newest = Rigid::IDENTITY);
@@ -671,9 +702,9 @@ mod tests {
             View::new(frame, None, &[curve], returns, SIGMA, 3.0 * SIGMA)
         };
         let error = Rigid::IDENTITY.then(0.2f64.to_radians(), [0.5, 0.0], [0.012, -0.008]);
-        let mut w = Window::default();
-        w.push(corner(0, error), &limits(10));
-        w.push(corner(1, Rigid::IDENTITY), &limits(10));
+        let mut w = Window::new(limits(10));
+        w.push(corner(0, error));
+        w.push(corner(1, Rigid::IDENTITY));
         let (curves, _) = w.refined();
         let own = subdivided(
             &Polyline {
@@ -685,7 +716,7 @@ mod tests {
         assert_eq!(curves[0].points.len(), own.points.len());
         for (p, q) in curves[0].points.iter().zip(&own.points) {
             assert!(
-                crate::geom::dist(*p, *q) < 0.05 * SIGMA,
+                isoline_core::geom::dist(*p, *q) < 0.05 * SIGMA,
                 "{p:?} against {q:?}"
             );
         }
@@ -732,11 +763,11 @@ mod tests {
     fn a_spike_of_the_newest_frame_alone_is_averaged_away() {
         const HEIGHT: f64 = 3.5 * SIGMA;
         let refined = |older: fn(u64) -> View| {
-            let mut w = Window::default();
+            let mut w = Window::new(limits(10));
             for i in 0..3 {
-                w.push(older(i), &limits(10));
+                w.push(older(i));
             }
-            w.push(spiked(3, HEIGHT), &limits(10));
+            w.push(spiked(3, HEIGHT));
             w.views
                 .iter_mut()
                 .for_each(|v| v.to_newest = Rigid::IDENTITY);
@@ -760,7 +791,7 @@ mod tests {
         assert!((tip - (1.0 + HEIGHT / 4.0)).abs() < 1e-9, "{tip}");
         let kept = refined(|i| spiked(i, HEIGHT));
         for (p, q) in kept[0].points.iter().zip(&own.points) {
-            assert!(crate::geom::dist(*p, *q) < 1e-9, "{p:?} from {q:?}");
+            assert!(isoline_core::geom::dist(*p, *q) < 1e-9, "{p:?} from {q:?}");
         }
     }
 
@@ -813,15 +844,15 @@ mod tests {
             frames: 3,
             seconds: Some(2.5),
         };
-        let mut w = Window::default();
+        let mut w = Window::new(limits);
         for i in 0..5u64 {
-            w.push(wall(i, 0.1 * i as f64, 1.0), &limits);
+            w.push(wall(i, 0.1 * i as f64, 1.0));
         }
         assert_eq!(w.views().map(|v| v.frame).collect::<Vec<_>>(), [2, 3, 4]);
-        w.push(wall(5, 2.85, 1.0), &limits);
+        w.push(wall(5, 2.85, 1.0));
         // 2.85 - 0.3 > 2.5: frame 3 leaves with frame 2; 2.85 - 0.4 < 2.5.
         assert_eq!(w.views().map(|v| v.frame).collect::<Vec<_>>(), [4, 5]);
-        w.push(wall(1, 4.0, 1.0), &limits);
+        w.push(wall(1, 4.0, 1.0));
         assert_eq!(w.len(), 1);
         assert!(w.bytes() > 0);
     }
@@ -831,19 +862,18 @@ mod tests {
     #[test]
     fn frames_leave_the_window_by_bytes() {
         let one = wall(0, 0.0, 1.0).bytes();
-        let mut limits = WindowLimits {
+        let mut w = Window::new(WindowLimits {
             max_bytes: Some(3 * one + one / 2),
             frames: 10,
             seconds: None,
-        };
-        let mut w = Window::default();
+        });
         for i in 0..8u64 {
-            w.push(wall(i, 0.1 * i as f64, 1.0), &limits);
-            assert!(w.bytes() <= limits.max_bytes.unwrap());
+            w.push(wall(i, 0.1 * i as f64, 1.0));
+            assert!(w.bytes() <= 3 * one + one / 2);
         }
         assert_eq!(w.views().map(|v| v.frame).collect::<Vec<_>>(), [5, 6, 7]);
-        limits.max_bytes = Some(one / 2);
-        w.push(wall(8, 0.8, 1.0), &limits);
+        w.limits.max_bytes = Some(one / 2);
+        w.push(wall(8, 0.8, 1.0));
         assert_eq!(w.views().map(|v| v.frame).collect::<Vec<_>>(), [8]);
     }
 }
