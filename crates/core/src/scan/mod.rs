@@ -820,6 +820,22 @@ fn segment_parameter(p: Point, q: Point, c: Point, d: Point) -> Option<f64> {
     ((0.0..=1.0).contains(&s) && (0.0..=1.0).contains(&t)).then_some(s)
 }
 
+/// Where the segment from `p` to `q` crosses the ray from `origin` at `bearing`, as a
+/// fraction of the segment; `None` where it does not or runs parallel.
+fn ray_parameter(p: Point, q: Point, origin: Point, bearing: f64) -> Option<f64> {
+    let (s, c) = bearing.sin_cos();
+    let (d, e) = ([c, s], sub(q, p));
+    let den = crate::geom::cross(d, e);
+    if den == 0.0 {
+        return None;
+    }
+    // origin + t d = p + u e: t = cross(p - o, e) / den, u = cross(p - o, d) / den.
+    let g = sub(p, origin);
+    let t = crate::geom::cross(g, e) / den;
+    let u = crate::geom::cross(g, d) / den;
+    (t > 0.0 && (0.0..=1.0).contains(&u)).then_some(u)
+}
+
 /// The next float above `x` (towards +inf).
 fn next_up(x: f64) -> f64 {
     if x.is_nan() || x == f64::INFINITY {
@@ -1026,22 +1042,11 @@ impl FreeSpace {
             if (self.angles[k] - from.phi).rem_euclid(TAU) > sweep {
                 break;
             }
-            push(segment_parameter(
-                p,
-                q,
-                self.origin,
-                self.point(k, self.range_reach()),
-            ));
+            push(ray_parameter(p, q, self.origin, self.angles[k]));
             let Some(j) = next(k) else { break };
             chord(k, j, &mut push);
             k = j;
         }
-    }
-
-    /// A range past every reach: a beam's whole ray, as a segment.
-    fn range_reach(&self) -> f64 {
-        let far = self.reach.iter().fold(0.0_f64, |m, &r| m.max(r));
-        2.0 * far + 1.0
     }
 
     fn point(&self, i: usize, r: f64) -> Point {
