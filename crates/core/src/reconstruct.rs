@@ -567,15 +567,15 @@ pub fn export_refined(
                     closed: c.closed,
                     points: c.points.into_iter().map(f).collect(),
                 };
-                let hmin_local = at.len_to_local(hmin);
-                let margin = crate::scan::seen_margin(scan.scales.noise, hmin_local);
+                // `bound` is the seen margin, in data units.
                 let moved = crate::export::support::outside_seen(
                     moved
                         .into_iter()
                         .map(|c| in_local(c, &|p| at.to_local(p)))
                         .collect(),
-                    &scan.seen.shrunk(margin),
-                    hmin_local,
+                    &scan.seen,
+                    at.len_to_local(bound),
+                    at.len_to_local(hmin),
                 )
                 .into_iter()
                 .map(|c| in_local(c, &|p| at.to_data(p)))

@@ -83,10 +83,8 @@ pub fn curves(
         if a.refine {
             crate::repair::corners::sharpen(&mut polylines, tol);
         }
-        let seen = a
-            .seen
-            .shrunk(crate::scan::seen_margin(a.scales.noise, hmin));
-        polylines = support::outside_seen(polylines, &seen, hmin);
+        let margin = crate::scan::seen_margin(a.scales.noise, hmin);
+        polylines = support::outside_seen(polylines, &a.seen, margin, hmin);
         features = support::unexplained(&a.run_points(), &polylines, explained);
         for f in &mut features {
             f.center = at.to_data(f.center);

@@ -360,9 +360,10 @@ fn to_run_end(points: &mut Vec<Point>, tail: &[Point], tol: f64) {
     *points = head;
 }
 
-/// The parts of `curves` outside `seen`, the space a scan's beams certainly crossed
-/// ([`crate::scan::Analysis::seen`] less [`crate::scan::seen_margin`]): no piece of a
-/// curve crosses a beam nearer than its return by more than that margin. The free-space start runs along every
+/// The parts of `curves` outside the space a scan's beams swept (`swept`,
+/// [`crate::scan::Analysis::seen`]) less `margin` ([`crate::scan::seen_margin`]): no
+/// piece of a curve crosses a beam nearer than its return by more than the margin;
+/// pieces shorter than `min_len` go. The free-space start runs along every
 /// boundary of what the rays swept, shadow edges included, and on a mesh coarser than
 /// the beams' spacing its zero isoline cuts across the thin wedge of a beam that passed
 /// between two objects (past a wall's end, beside a table leg) a few centimetres from
@@ -372,9 +373,11 @@ fn to_run_end(points: &mut Vec<Point>, tail: &[Point], tol: f64) {
 /// by sampling. A closed curve that `seen` cuts comes out open.
 pub fn outside_seen(
     curves: Vec<Polyline>,
-    seen: &crate::scan::FreeSpace,
+    swept: &crate::scan::FreeSpace,
+    margin: f64,
     min_len: f64,
 ) -> Vec<Polyline> {
+    let seen = &swept.shrunk(margin);
     let mut out = Vec::with_capacity(curves.len());
     let mut cuts = Vec::new();
     for c in curves {
@@ -755,7 +758,7 @@ mod tests {
     fn curves_stop_where_a_beam_saw_through() {
         let free = one_beam_through();
         let behind = line(&arc(2.05, 50.0, 70.0), false);
-        let out = outside_seen(vec![behind.clone()], &free, 0.0);
+        let out = outside_seen(vec![behind.clone()], &free, 0.0, 0.0);
         assert_eq!(out.len(), 2, "{out:?}");
         for p in &out {
             for w in p.points.windows(2) {
@@ -775,7 +778,7 @@ mod tests {
         let kept: f64 = out.iter().map(Polyline::length).sum();
         assert!((behind.length() - kept - dist(end, start)).abs() < 1e-3 * dist(end, start));
         let in_front = line(&arc(1.95, 50.0, 70.0), false);
-        assert!(outside_seen(vec![in_front], &free, 0.0).is_empty());
+        assert!(outside_seen(vec![in_front], &free, 0.0, 0.0).is_empty());
     }
 
     /// A closed curve wholly behind the reaches stays as it is; one that a beam saw
@@ -785,12 +788,12 @@ mod tests {
         let free = one_beam_through();
         let mut square = arc(2.05, 30.0, 40.0);
         square.extend(arc(2.3, 40.0, 30.0));
-        let kept = outside_seen(vec![line(&square, true)], &free, 0.0);
+        let kept = outside_seen(vec![line(&square, true)], &free, 0.0, 0.0);
         assert_eq!(kept, vec![line(&square, true)]);
         // Its far side lies past the beam's reach.
         let mut across = arc(2.05, 55.0, 65.0);
         across.extend(arc(6.5, 65.0, 55.0));
-        let out = outside_seen(vec![line(&across, true)], &free, 0.0);
+        let out = outside_seen(vec![line(&across, true)], &free, 0.0, 0.0);
         assert_eq!(out.len(), 1, "{out:?}");
         assert!(!out[0].closed);
         let bearing = |q: Point| q[1].atan2(q[0]).to_degrees();
@@ -798,6 +801,8 @@ mod tests {
         assert!(bearing(a) > 60.0 && bearing(a) < 61.0, "{a:?}");
         assert!(bearing(b) > 59.0 && bearing(b) < 60.0, "{b:?}");
         // Crumbs shorter than the least length go.
-        assert!(outside_seen(vec![line(&arc(2.05, 59.5, 60.5), false)], &free, 0.05).is_empty());
+        assert!(
+            outside_seen(vec![line(&arc(2.05, 59.5, 60.5), false)], &free, 0.0, 0.05).is_empty()
+        );
     }
 }

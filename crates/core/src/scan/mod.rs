@@ -806,34 +806,34 @@ impl Analysis {
     }
 }
 
-/// Where the segment from `p` to `q` meets the segment from `c` to `d`, as a fraction of
-/// the first; `None` where they do not meet or are parallel.
-fn segment_parameter(p: Point, q: Point, c: Point, d: Point) -> Option<f64> {
+/// Where the line through `p` and `q` meets the line through `c` and `d`: the fractions
+/// `(s, t)` of the two, `p + s (q - p) = c + t (d - c)`; `None` where they are parallel.
+fn meet(p: Point, q: Point, c: Point, d: Point) -> Option<(f64, f64)> {
     let (e, f) = (sub(q, p), sub(d, c));
     let den = crate::geom::cross(e, f);
     if den == 0.0 {
         return None;
     }
     let g = sub(c, p);
-    let s = crate::geom::cross(g, f) / den;
-    let t = crate::geom::cross(g, e) / den;
+    Some((
+        crate::geom::cross(g, f) / den,
+        crate::geom::cross(g, e) / den,
+    ))
+}
+
+/// Where the segment from `p` to `q` meets the segment from `c` to `d`, as a fraction of
+/// the first.
+fn segment_parameter(p: Point, q: Point, c: Point, d: Point) -> Option<f64> {
+    let (s, t) = meet(p, q, c, d)?;
     ((0.0..=1.0).contains(&s) && (0.0..=1.0).contains(&t)).then_some(s)
 }
 
 /// Where the segment from `p` to `q` crosses the ray from `origin` at `bearing`, as a
-/// fraction of the segment; `None` where it does not or runs parallel.
+/// fraction of the segment.
 fn ray_parameter(p: Point, q: Point, origin: Point, bearing: f64) -> Option<f64> {
-    let (s, c) = bearing.sin_cos();
-    let (d, e) = ([c, s], sub(q, p));
-    let den = crate::geom::cross(d, e);
-    if den == 0.0 {
-        return None;
-    }
-    // origin + t d = p + u e: t = cross(p - o, e) / den, u = cross(p - o, d) / den.
-    let g = sub(p, origin);
-    let t = crate::geom::cross(g, e) / den;
-    let u = crate::geom::cross(g, d) / den;
-    (t > 0.0 && (0.0..=1.0).contains(&u)).then_some(u)
+    let (sin, cos) = bearing.sin_cos();
+    let (s, t) = meet(p, q, origin, add(origin, [cos, sin]))?;
+    (t > 0.0 && (0.0..=1.0).contains(&s)).then_some(s)
 }
 
 /// The next float above `x` (towards +inf).
