@@ -2,10 +2,13 @@
 """A development corpus of point clouds that is not the tests: glyphs.
 
 Shapes are the outlines of the TrueType fonts Debian ships (closed curves with holes,
-narrow counters, sharp corners; read with fontTools) and the Hershey stroke fonts
-(open strokes, T-junctions, crossings; Debian's hershey-fonts-data). Each case samples
-one shape at a density, a noise level and with or without 5% outliers, all drawn from
-the case's seed. Shapes and seeds are split: a shape belongs to the development part or
+narrow counters, sharp corners; read with fontTools), the Hershey stroke fonts (open
+strokes, T-junctions, crossings; Debian's hershey-fonts-data) and procedural shapes the
+fonts lack (spirals whose turns run close, their bands' outlines, combs with narrow
+slots, rings with a narrow gap; scored with the outlines or the strokes by their kind).
+Each case samples one shape at a density, a noise level (up to 1% of the shape's size),
+a sampling (uniform, or a density varying 5-fold along the curves) and with or without
+5% outliers, all drawn from the case's seed. Shapes and seeds are split: a shape belongs to the development part or
 to the test part by a hash of its name, and development seeds are 0..99_999, test seeds
 100_000 and up, so that tuning on one part never sees the other.
 
@@ -42,9 +45,14 @@ HERSHEY_FONTS = [
     "cursive", "timesr", "timesi", "greek", "greekc", "cyrillic", "gothiceng",
 ]
 CHARS = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789&%@$#?"
-NOISES = [0.0, 0.002, 0.005]
+# Noise per coordinate: none, 0.25%, 0.6% and 1% of the shapes' size (0.8 of the box).
+NOISES = [0.0, 0.002, 0.005, 0.008]
 DENSITIES = [1000, 2000, 4000]
 OUTLIERS = 0.05
+# Samplings: uniform by arc length, or with a density that varies smoothly along the
+# curves by a factor of NONUNIFORM between the densest and the sparsest stretch.
+SAMPLINGS = ["uniform", "nonuniform"]
+NONUNIFORM = 5.0
 TEST_SEEDS = 100_000
 
 
@@ -172,7 +180,56 @@ def shapes():
             for ch, pls in read_hershey(path).items():
                 if pls:
                     out.append((f"hershey-{font}:{ord(ch):x}", "strokes", pls))
-    return sorted(out, key=lambda s: s[0])
+    return sorted(out, key=lambda s: s[0]) + procedural()
+
+
+def spiral_points(turns, inner, k=64):
+    """An Archimedean spiral from radius `inner` to 1 over `turns` turns, k points a turn."""
+    n = int(turns * k) + 1
+    th = np.linspace(0.0, 2 * math.pi * turns, n)
+    r = inner + (1.0 - inner) * th / th[-1]
+    return np.stack([r * np.cos(th), r * np.sin(th)], axis=1)
+
+
+def procedural():
+    """Shapes the fonts lack, by name: spirals whose turns run close (narrow channels
+    between open strokes, a centre), their bands' outlines, combs (outlines with narrow
+    slots) and rings with a narrow gap between two loops."""
+    out = []
+    for turns in (1.5, 2, 2.5, 3, 4, 5):
+        for inner in (0.05, 0.3, 0.5, 0.7):
+            p = spiral_points(turns, inner)
+            out.append((f"proc-spiral:{turns}:{inner}", "strokes", [{"closed": False, "points": p.tolist()}]))
+    for turns in (1.5, 2, 3):
+        for width in (0.3, 0.5):
+            # The band between the spiral and itself moved outwards by a share of the pitch.
+            p = spiral_points(turns, 0.3)
+            pitch = (1.0 - 0.3) / turns
+            th = np.linspace(0.0, 2 * math.pi * turns, len(p))
+            dirs = np.stack([np.cos(th), np.sin(th)], axis=1)
+            outer = p + width * pitch * dirs
+            ring = np.vstack([p, outer[::-1]])
+            out.append((f"proc-band:{turns}:{width}", "outline", [{"closed": True, "points": ring.tolist()}]))
+    for teeth in (1, 2, 3):
+        for slot in (0.01, 0.02, 0.04, 0.06):
+            for depth in (0.4, 0.7):
+                # A unit square whose top has `teeth` slots `slot` wide cut `depth` deep.
+                pts = [(0.0, 0.0), (1.0, 0.0), (1.0, 1.0)]
+                for t in range(teeth, 0, -1):
+                    cx = t / (teeth + 1)
+                    pts += [(cx + slot / 2, 1.0), (cx + slot / 2, 1.0 - depth), (cx - slot / 2, 1.0 - depth), (cx - slot / 2, 1.0)]
+                pts.append((0.0, 1.0))
+                out.append((f"proc-comb:{teeth}:{slot}:{depth}", "outline", [{"closed": True, "points": [list(p) for p in pts]}]))
+    for gap in (0.01, 0.02, 0.04):
+        for inner in (0.3, 0.6):
+            th = np.linspace(0.0, 2 * math.pi, 256, endpoint=False)
+            c = np.stack([np.cos(th), np.sin(th)], axis=1)
+            out.append((f"proc-rings:{gap}:{inner}", "outline", [
+                {"closed": True, "points": c.tolist()},
+                {"closed": True, "points": ((1.0 - gap) * c).tolist()},
+                {"closed": True, "points": (inner * c).tolist()},
+            ]))
+    return out
 
 
 def normalized(pls):
@@ -184,10 +241,12 @@ def normalized(pls):
     return [{"closed": pl["closed"], "points": [list(s * np.array(p) + off) for p in pl["points"]]} for pl in pls]
 
 
-def sample(pls, n, sigma, outliers, rng):
-    """n points uniform by arc length over the curves (a stroke's two ends among them,
-    as a pen records them), Gaussian noise sigma per coordinate, and a share of them
-    replaced by outliers uniform over the padded box."""
+def sample(pls, n, sigma, outliers, rng, sampling="uniform"):
+    """n points by arc length over the curves (a stroke's two ends among them, as a pen
+    records them), uniform or with a density varying smoothly along them by a factor of
+    NONUNIFORM (three swells over the whole length, at a random phase), Gaussian noise
+    sigma per coordinate, and a share of them replaced by outliers uniform over the
+    padded box."""
     segs = []
     for pl in pls:
         p = np.array(pl["points"])
@@ -201,7 +260,16 @@ def sample(pls, n, sigma, outliers, rng):
     n_out = int(round(outliers * n))
     ends = [np.array(pl["points"][e]) for pl in pls if not pl["closed"] for e in (0, -1)]
     m = max(n - n_out - len(ends), 0)
-    s = rng.random(m) * cum[-1]
+    if sampling == "nonuniform":
+        # Rejection from the uniform: the density exp(a sin(.)) spans e^(2a) = NONUNIFORM.
+        a_, phase, s = 0.5 * math.log(NONUNIFORM), rng.random() * 2 * math.pi, np.zeros(0)
+        while len(s) < m:
+            c = rng.random(4 * m + 16) * cum[-1]
+            w = np.exp(a_ * np.sin(2 * math.pi * 3 * c / cum[-1] + phase) - a_)
+            s = np.concatenate([s, c[rng.random(len(c)) < w]])
+        s = s[:m]
+    else:
+        s = rng.random(m) * cum[-1]
     k = np.searchsorted(cum, s, side="right").clip(0, len(a) - 1)
     t = (s - (cum[k] - length[k])) / np.maximum(length[k], 1e-300)
     pts = a[k] + (b[k] - a[k]) * t[:, None]
@@ -218,16 +286,20 @@ def make(args):
     pool = [s for s in shapes() if part_of(s[0]) == args.part]
     first = 0 if args.part == "dev" else TEST_SEEDS
     if args.grid:
-        # Distinct shapes, each at every noise level with and without outliers: the
-        # variants of a shape differ only in what the grid varies (and their draws).
+        # Distinct shapes, each at every noise level and sampling, with and without
+        # outliers: the variants of a shape differ only in what the grid varies (and
+        # their draws). The part's procedural shapes (spirals, bands, combs, rings) come
+        # first, as the fonts hold few narrow channels.
         order = np.random.default_rng(first).permutation(len(pool))
+        order = sorted(order, key=lambda i: not pool[int(i)][0].startswith("proc-"))
+        variants = [(s, o, m) for s in NOISES for o in (0.0, OUTLIERS) for m in SAMPLINGS]
         for i in range(min(args.cases, len(pool))):
             seed = first + i
             name, kind, pls = pool[int(order[i])]
             n = DENSITIES[int(np.random.default_rng(seed).integers(len(DENSITIES)))]
-            for k, (sigma, out) in enumerate((s, o) for s in NOISES for o in (0.0, OUTLIERS)):
+            for k, (sigma, out, sampling) in enumerate(variants):
                 rng = np.random.default_rng([seed, k])
-                write_case(args.dir, f"{seed:06d}-{k}", name, kind, pls, n, sigma, out, rng)
+                write_case(args.dir, f"{seed:06d}-{k:02d}", name, kind, pls, n, sigma, out, rng, sampling)
         return
     for seed in range(first, first + args.cases):
         rng = np.random.default_rng(seed)
@@ -235,20 +307,21 @@ def make(args):
         sigma = NOISES[int(rng.integers(len(NOISES)))]
         n = DENSITIES[int(rng.integers(len(DENSITIES)))]
         out = OUTLIERS if rng.random() < 0.5 else 0.0
-        write_case(args.dir, f"{seed:06d}", name, kind, pls, n, sigma, out, rng)
+        sampling = SAMPLINGS[int(rng.integers(len(SAMPLINGS)))]
+        write_case(args.dir, f"{seed:06d}", name, kind, pls, n, sigma, out, rng, sampling)
 
 
-def write_case(dir, case, name, kind, pls, n, sigma, out, rng):
+def write_case(dir, case, name, kind, pls, n, sigma, out, rng, sampling="uniform"):
     """One case's points (NDJSON frame), truth and description."""
     truth = normalized(pls)
-    pts = sample(truth, n, sigma, out, rng)
+    pts = sample(truth, n, sigma, out, rng, sampling)
     with open(os.path.join(dir, case + ".ndjson"), "w") as f:
         json.dump({"stream": "glyphs", "frame": 0, "points": pts.round(7).tolist()}, f)
         f.write("\n")
     with open(os.path.join(dir, case + ".truth.json"), "w") as f:
         json.dump({"polylines": truth}, f)
     with open(os.path.join(dir, case + ".case.json"), "w") as f:
-        json.dump({"case": case, "shape": name, "kind": kind, "points": n, "sigma": sigma, "outliers": out}, f)
+        json.dump({"case": case, "shape": name, "kind": kind, "points": n, "sigma": sigma, "outliers": out, "sampling": sampling}, f)
 
 
 # ---- scoring ----
@@ -456,7 +529,26 @@ def score_case(d, case, peer="recon"):
     comp_truth = components(truth, link_t)
     comp_recon = components(pls, max(bound, 1e-9)) if pls else 0
     right = comp_truth == comp_recon and (c["kind"] == "strokes" or all(pl["closed"] for pl in pls))
+    # A vertex where ten or more segments meet (curves' ends and interiors alike).
+    degree = {}
+    for pl in pls:
+        p = [tuple(q) for q in pl["points"]]
+        for a_, b_ in zip(p, p[1:] + (p[:1] if pl["closed"] and len(p) > 2 else [])):
+            if a_ != b_:
+                degree[a_] = degree.get(a_, 0) + 1
+                degree[b_] = degree.get(b_, 0) + 1
+    # The truth's length farther than the bound from every curve, as a share of it.
+    if len(rdense):
+        missed = float(np.mean(rtree.query(tdense)[0] > bound))
+    else:
+        missed = 1.0
+    closed_truth = sum(1 for pl in truth if pl["closed"])
+    loops = c["kind"] == "outline" and len(pls) == closed_truth and all(pl["closed"] for pl in pls)
     row.update(
+        empty=not pls,
+        max_degree=max(degree.values(), default=0),
+        missed=missed,
+        right_loops=bool(loops),
         hmin=hmin,
         bound=bound,
         curves=len(pls),
@@ -504,6 +596,32 @@ def summary(rows):
         for out in (0.0, OUTLIERS):
             for sigma in NOISES:
                 row(rows, kind, out, sigma)
+    contract(rows)
+
+
+def contract(rows):
+    """The point-cloud contract's measures (issue 64), by kind, outliers and sampling:
+    cases with no curve, stars (a vertex of degree ten or more), outlines with the right
+    number of closed loops, the share of the strokes' length farther than the bound from
+    every curve, and the median Hausdorff distance."""
+    print()
+    print("| shapes | outliers | sampling | cases | empty | stars | right loops | strokes missed | median Hausdorff |")
+    print("|---|---:|---|---:|---:|---:|---:|---:|---:|")
+    for kind in ("outline", "strokes"):
+        for out in (0.0, OUTLIERS):
+            for sampling in SAMPLINGS + [None]:
+                rs = [r for r in rows if r["kind"] == kind and r["outliers"] == out and (sampling is None or r.get("sampling", "uniform") == sampling)]
+                if not rs:
+                    continue
+                ok = [r for r in rs if "error" not in r]
+                hd = [r["hausdorff"] if r["hausdorff"] is not None else float("inf") for r in ok]
+                loops = f"{100 * sum(r['right_loops'] for r in ok) / len(rs):.1f}%" if kind == "outline" else "-"
+                missed = f"{100 * sum(r['missed'] for r in ok) / max(len(ok), 1):.2f}%" if kind == "strokes" else "-"
+                print(
+                    f"| {'font outlines' if kind == 'outline' else 'Hershey strokes'} | {'5%' if out else 'none'} | {sampling or 'all'} | {len(rs)} | "
+                    f"{sum(r['empty'] for r in ok)} | {sum(r['max_degree'] >= 10 for r in ok)} | {loops} | {missed} | "
+                    f"{np.median(hd) if hd else float('nan'):.4f} |"
+                )
 
 
 def header(by_noise=False):

@@ -1,16 +1,21 @@
 #!/usr/bin/env bash
-# The glyph corpus (scripts/glyphs.py): font outlines and Hershey strokes sampled at
-# several densities and noise levels, with and without 5% outliers, reconstructed with
-# the defaults and scored against their truth. Installs what it reads: Debian's
+# The glyph corpus (scripts/glyphs.py): font outlines, Hershey strokes and procedural
+# shapes (spirals, spiral bands, combs with narrow slots, rings with narrow gaps)
+# sampled at several densities, noise levels up to 1% of their size and samplings
+# (uniform, or a density varying 5-fold along the curves), with and without 5%
+# outliers, reconstructed with the defaults and scored against their truth. Installs what it reads: Debian's
 # fonts-dejavu-core and hershey-fonts-data (apt-get, when missing) and fontTools, numpy
 # and scipy in a fresh virtual environment (.tools/glyphs).
 #
 #   scripts/glyphs.sh [dev|test] [CASES] [OUT_DIR]   # default: test 600 target/glyphs-PART
 #   CGAL=N scripts/glyphs.sh ...                     # also CGAL on the first N cases
-#   GRID=1 scripts/glyphs.sh test 300 ...            # 300 distinct shapes, each at every
-#                                                    # noise level with and without outliers
+#   GRID=1 scripts/glyphs.sh test 100 ...            # 100 distinct shapes (the part's
+#                                                    # procedural ones first), each at every
+#                                                    # noise level and sampling, with and
+#                                                    # without outliers
 #
-# Prints one JSON line a case, then the Markdown table of docs/benchmarks.md; with CGAL,
+# Prints one JSON line a case, then the Markdown tables of docs/benchmarks.md (the last
+# one the point-cloud contract's measures: empty results, stars, loops, strokes missed); with CGAL,
 # then the same for CGAL's optimal-transport reconstruction (scripts/cgal/otr2.cpp,
 # Wasserstein tolerance 0.01, built as scripts/cgal-peer.sh builds it) and for isoline
 # on the same cases.
