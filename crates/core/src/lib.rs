@@ -61,6 +61,7 @@
 #![deny(rustdoc::broken_intra_doc_links)]
 
 mod band;
+mod cloud;
 mod disjoint;
 mod distance;
 mod error;

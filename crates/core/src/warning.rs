@@ -50,8 +50,9 @@ pub enum Warning {
     },
     /// The points fill an area rather than sample a curve: at every scale up to a
     /// sixteenth of their extent, fewer than [`crate::AREA_SHARE`] of the noise
-    /// measurement's windows see one (strokes hatched closer than the sampling
-    /// resolves, scattered points). No curve is drawn; the points are features.
+    /// measurement's windows see one, and fewer than that share of the samples' own
+    /// windows (strokes hatched closer than the sampling resolves, scattered points).
+    /// No curve is drawn; the points are features.
     Area {
         /// The share of the windows that see a curve, in `[0, 1]`.
         curve_share: f64,

@@ -1,0 +1,848 @@
+//! A point cloud's curves drawn through its samples by a graph: the point-cloud curve
+//! stage where the level set has no curve to follow (a noise band wider than most of
+//! the noise measurement's windows, where [`crate::reconstruct`] once gave up).
+//!
+//! Its contract, met by construction rather than by a cut afterwards:
+//! - every vertex is a sample moved onto the curve its own window sees, by at most
+//!   three of the window's residuals, or the corner where two ends' directions meet
+//!   within two windows of each; a sample whose window never sees a curve is in none;
+//! - every edge of the tree joins two vertices within both their windows; a join of
+//!   two ends spans at most two windows (a gap wider stays open);
+//! - no two edges cross (the tree's edges are Delaunay edges, and every join is added
+//!   only where it crosses none);
+//! - no vertex is a star: a Euclidean minimum spanning tree's vertex has at most six
+//!   edges, and a join goes to a vertex of at most two.
+//!
+//! The steps, each with its reason:
+//! 0. *Area.* Where fewer than [`AREA_SHARE`] of the samples' windows see a curve
+//!    (below), the samples fill an area and nothing is drawn: in scattered points
+//!    windows pass by chance, at the edges of the area they fill.
+//! 1. *Windows.* Each sample's window grows from the radius of its ten nearest samples
+//!    by a quarter at a time until the fit of its own sheet within it holds ten samples
+//!    and spans four times its residual (the noise measurement's rule,
+//!    [`crate::mesh::metric`]): the smallest window in which the samples look like a
+//!    curve rather than a blob. Up to [`largest_window`]; a sample whose window never
+//!    qualifies lies in an area, not on a curve.
+//! 2. *Onto the curve.* The sample moves to the fitted parabola's foot (moving least
+//!    squares, Lee 2000), then once more with the window centred on where it moved, so a
+//!    sample in the band's tail fits the same stretch as those in its middle. A sample
+//!    farther than three residuals from the parabola is an outlier of it.
+//! 3. *Tree.* The moved samples' Euclidean minimum spanning tree over their Delaunay
+//!    edges, each edge within both ends' windows: along a curve the nearest moved
+//!    samples are its neighbours, across a channel the other wall is farther.
+//! 4. *Spurs.* A branch from a free end to a fork shorter than the fork's window is
+//!    noise across the band, not a stroke, and goes.
+//! 5. *Ends.* Within two windows: two free ends facing each other are joined (a loop's
+//!    tree misses one edge; a gap the sampling left); then an end continues into the
+//!    nearest curve vertex ahead of it (within 60 degrees of its direction: a stroke
+//!    running into another); then the ends left meet at corners (a corner's own samples
+//!    see two walls, so the tree stops short of it on both sides). Never into its own
+//!    branch within `2 pi` windows. The spurs the joins leave go.
+//! 6. *Curves.* Two chains between the same two forks but the shortest go where they
+//!    are shorter than `2 pi` windows (a bubble); connected pieces of fewer than ten
+//!    vertices (one window's samples) go; the rest are chains between vertices of
+//!    degree other than two, the forks junctions. A chain from a free end shorter than
+//!    its window holds no curve.
+
+use rayon::prelude::*;
+
+use crate::disjoint::root;
+use crate::distance::DistanceField;
+use crate::geom::{add, crossing, dist, dot, scale, sub, Point, Polyline};
+use crate::mesh::metric::{fit_within, largest_window, sees_a_curve, AREA_SHARE, SHEET_SAMPLES};
+use crate::repair::strokes::Junction;
+
+/// A sample farther than this many residuals from the curve its window sees is an
+/// outlier of it (three standard deviations of Gaussian noise hold 99.7% of a band).
+const OUTLYING: f64 = 3.0;
+/// An end continues across at most this many of its windows: the longest gap of a
+/// random sampling of `n` samples is about `ln n` mean spacings (under 10 below 20,000
+/// samples), and a window holds ten samples, about five spacings either side.
+const GAP_WINDOWS: f64 = 2.0;
+/// An end continues to a vertex ahead of it within this cosine of its direction (60
+/// degrees): a loop's two ends face each other across the edge the tree left out.
+const AHEAD_COS: f64 = 0.5;
+/// An end's continuation skips vertices of its own branch within this many windows
+/// along the tree (2 pi): a window sees a curve only where it bends over more than the
+/// window, so no loop it sees is shorter than a circle of one window's radius, and a
+/// shorter one would be a bubble round the band's own samples.
+const OWN_BRANCH_WINDOWS: f64 = std::f64::consts::TAU;
+
+/// What [`graph_curves`] draws.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Graphed {
+    /// The curves, in the field's coordinates.
+    pub polylines: Vec<Polyline>,
+    /// Where three or more curves meet (indices into `polylines`).
+    pub junctions: Vec<Junction>,
+}
+
+/// The curves through the samples of `field`, by the steps of the module's doc: each
+/// sample's window from the radius that holds ten samples up to
+/// [`largest_window`].
+pub fn graph_curves(field: &DistanceField) -> Graphed {
+    let nodes = settled(field, largest_window(field));
+    // Windows pass by chance in scattered points, at the edges of the area they fill.
+    if nodes.len() < 2 || (nodes.len() as f64) < AREA_SHARE * field.points().len() as f64 {
+        return Graphed::default();
+    }
+    let mut q: Vec<Point> = nodes.iter().map(|n| n.at).collect();
+    let mut r: Vec<f64> = nodes.iter().map(|n| n.window).collect();
+    let tangents: Vec<Point> = nodes.iter().map(|n| n.tangent).collect();
+    let Ok(q_field) = DistanceField::new(&q) else {
+        return Graphed::default();
+    };
+    let mut adj = spanning_tree(&q, &r);
+    prune_spurs(&q, &r, &mut adj);
+    continue_ends(&q, &r, &tangents, &q_field, &mut adj);
+    meet_at_corners(&mut q, &mut r, &tangents, &q_field, &mut adj);
+    pop_bubbles(&q, &r, &mut adj);
+    // An end continued into its curve's side leaves the stub past it a spur.
+    prune_spurs(&q, &r, &mut adj);
+    drop_small_components(&mut adj);
+    chains(&q, &r, &adj)
+}
+
+/// Step 1 and 2: each sample that sees a curve, moved onto it, with its window's
+/// radius; sorted and without duplicates (the order [`DistanceField::new`] keeps).
+fn settled(field: &DistanceField, r_max: f64) -> Vec<Node> {
+    let mut out: Vec<Node> = field
+        .points()
+        .par_iter()
+        .map_init(
+            || (Vec::new(), Vec::new()),
+            |(idx, sel): &mut (Vec<u32>, Vec<Point>), &c| {
+                field.nearest_k(c, SHEET_SAMPLES, idx);
+                let mut r = idx
+                    .last()
+                    .map_or(0.0, |&j| dist(c, field.points()[j as usize]));
+                while r <= r_max {
+                    let f = fit_within(field, c, r, idx, sel);
+                    if sees_a_curve(&f, idx.len(), r) {
+                        let p = foot(c, sel, f.normal, OUTLYING * f.residual)?;
+                        // Once more from where it moved, at the same radius.
+                        let g = fit_within(field, p, r, idx, sel);
+                        let (p, normal) = if sees_a_curve(&g, idx.len(), r) {
+                            let q = foot(p, sel, g.normal, OUTLYING * g.residual);
+                            q.map_or((p, f.normal), |q| (q, g.normal))
+                        } else {
+                            (p, f.normal)
+                        };
+                        return Some(Node {
+                            at: p,
+                            window: r,
+                            tangent: [normal[1], -normal[0]],
+                        });
+                    }
+                    r *= 1.25;
+                }
+                None
+            },
+        )
+        .flatten()
+        .collect();
+    out.sort_unstable_by(|a, b| {
+        a.at[0]
+            .total_cmp(&b.at[0])
+            .then(a.at[1].total_cmp(&b.at[1]))
+    });
+    out.dedup_by(|a, b| a.at == b.at);
+    out
+}
+
+/// A sample moved onto the curve its window sees.
+#[derive(Clone, Copy, Debug)]
+struct Node {
+    /// Where it moved.
+    at: Point,
+    /// Its window's radius.
+    window: f64,
+    /// The curve's unit tangent there (either way).
+    tangent: Point,
+}
+
+/// The foot on the parabola fitted to `pts` in the frame at `c` with unit `normal`
+/// (least squares of the offset along the normal on the position along the tangent):
+/// `c` moved along the normal to the parabola's value there, or `None` where the fit is
+/// singular or its foot lies farther than `within`.
+fn foot(c: Point, pts: &[Point], normal: Point, within: f64) -> Option<Point> {
+    let t = [normal[1], -normal[0]];
+    let mut ata = nalgebra::Matrix3::<f64>::zeros();
+    let mut atb = nalgebra::Vector3::<f64>::zeros();
+    for &p in pts {
+        let d = sub(p, c);
+        let (s, h) = (dot(d, t), dot(d, normal));
+        let row = nalgebra::Vector3::new(1.0, s, s * s);
+        ata += row * row.transpose();
+        atb += row * h;
+    }
+    let x = ata.lu().solve(&atb)?;
+    (x[0].is_finite() && x[0].abs() <= within).then(|| add(c, scale(normal, x[0])))
+}
+
+/// Step 3: the minimum spanning forest of the Delaunay edges of `q` no longer than
+/// both ends' windows `r`, as adjacency lists.
+fn spanning_tree(q: &[Point], r: &[f64]) -> Vec<Vec<u32>> {
+    use spade::{DelaunayTriangulation, Point2, Triangulation};
+    let n = q.len();
+    let mut adj = vec![Vec::new(); n];
+    let verts: Vec<Point2<f64>> = q.iter().map(|p| Point2::new(p[0], p[1])).collect();
+    let Ok(dt) = DelaunayTriangulation::<Point2<f64>>::bulk_load_stable(verts) else {
+        return adj;
+    };
+    let mut edges: Vec<(f64, u32, u32)> = dt
+        .undirected_edges()
+        .filter_map(|e| {
+            let [a, b] = e.vertices().map(|v| v.fix().index() as u32);
+            let d = dist(q[a as usize], q[b as usize]);
+            (d <= r[a as usize].min(r[b as usize])).then_some((d, a, b))
+        })
+        .collect();
+    edges.sort_unstable_by(|x, y| x.0.total_cmp(&y.0));
+    let mut parent: Vec<u32> = (0..n as u32).collect();
+    for (_, a, b) in edges {
+        let (ra, rb) = (root(&mut parent, a), root(&mut parent, b));
+        if ra != rb {
+            parent[ra as usize] = rb;
+            adj[a as usize].push(b);
+            adj[b as usize].push(a);
+        }
+    }
+    adj
+}
+
+/// The branch from the free end `leaf` to the first vertex of degree other than two
+/// (its path, the vertex last) and its length.
+fn branch(q: &[Point], adj: &[Vec<u32>], leaf: u32) -> (Vec<u32>, f64) {
+    let mut path = vec![leaf];
+    let (mut prev, mut cur, mut len) = (u32::MAX, leaf, 0.0);
+    loop {
+        let next = adj[cur as usize].iter().copied().find(|&x| x != prev);
+        let Some(next) = next else { break };
+        len += dist(q[cur as usize], q[next as usize]);
+        path.push(next);
+        (prev, cur) = (cur, next);
+        if adj[cur as usize].len() != 2 {
+            break;
+        }
+    }
+    (path, len)
+}
+
+fn unlink(adj: &mut [Vec<u32>], a: u32, b: u32) {
+    adj[a as usize].retain(|&x| x != b);
+    adj[b as usize].retain(|&x| x != a);
+}
+
+/// Step 4: branches from a free end to a fork shorter than the fork's window go, until
+/// none does (each round removes a branch or stops; bounded by the vertices).
+fn prune_spurs(q: &[Point], r: &[f64], adj: &mut [Vec<u32>]) {
+    loop {
+        let mut changed = false;
+        for leaf in 0..q.len() as u32 {
+            if adj[leaf as usize].len() != 1 {
+                continue;
+            }
+            let (path, len) = branch(q, adj, leaf);
+            let fork = *path.last().expect("a branch holds its end");
+            if adj[fork as usize].len() >= 3 && len < r[fork as usize] {
+                for w in path.windows(2) {
+                    unlink(adj, w[0], w[1]);
+                }
+                changed = true;
+            }
+        }
+        if !changed {
+            break;
+        }
+    }
+}
+
+/// Step 5: each free end continued to the nearest vertex ahead of it within its
+/// window, not of its own branch within [`OWN_BRANCH_WINDOWS`] windows, where the
+/// continuation crosses no edge.
+fn continue_ends(
+    q: &[Point],
+    r: &[f64],
+    tangents: &[Point],
+    q_field: &DistanceField,
+    adj: &mut [Vec<u32>],
+) {
+    let longest = (0..q.len())
+        .flat_map(|a| adj[a].iter().map(move |&b| (a, b)))
+        .map(|(a, b)| dist(q[a], q[b as usize]))
+        .fold(0.0, f64::max);
+    let mut near = Vec::new();
+    let mut stamp = vec![u32::MAX; q.len()];
+    let mut stack = Vec::new();
+    // Two free ends that face each other first (a loop's, or a gap's two sides); then
+    // an end into any vertex ahead (a stroke that runs into another).
+    for pass in [Pass::Facing, Pass::Ahead] {
+        for u in 0..q.len() as u32 {
+            if adj[u as usize].len() != 1 {
+                continue;
+            }
+            let ru = r[u as usize];
+            own_branch(q, adj, u, OWN_BRANCH_WINDOWS * ru, &mut stamp, &mut stack);
+            let dir = end_direction(q, r, tangents, adj, u);
+            q_field.within(q[u as usize], GAP_WINDOWS * ru, &mut near);
+            let best = near
+                .iter()
+                .copied()
+                // A vertex takes a continuation where it is a curve's end or middle, not
+                // at a fork: no vertex is a star.
+                .filter(|&v| stamp[v as usize] != u && (1..=2).contains(&adj[v as usize].len()))
+                .filter(|&v| {
+                    let e = sub(q[v as usize], q[u as usize]);
+                    let ahead = |d: Point, e: Point| dot(e, d) >= AHEAD_COS * dot(e, e).sqrt();
+                    let free = adj[v as usize].len() == 1;
+                    match pass {
+                        Pass::Facing => {
+                            free && ahead(dir, e)
+                                && ahead(end_direction(q, r, tangents, adj, v), scale(e, -1.0))
+                        }
+                        Pass::Ahead => ahead(dir, e),
+                    }
+                })
+                .min_by(|&a, &b| {
+                    dist(q[u as usize], q[a as usize])
+                        .total_cmp(&dist(q[u as usize], q[b as usize]))
+                });
+            let Some(v) = best else { continue };
+            let (a, b) = (q[u as usize], q[v as usize]);
+            let crosses = crosses_an_edge(q, q_field, adj, a, b, [u, v], longest, &mut near);
+            if !crosses {
+                adj[u as usize].push(v);
+                adj[v as usize].push(u);
+            }
+        }
+    }
+}
+
+/// Marks with `u` in `stamp` the vertices within `limit` of the end `u` along the tree.
+fn own_branch(
+    q: &[Point],
+    adj: &[Vec<u32>],
+    u: u32,
+    limit: f64,
+    stamp: &mut [u32],
+    stack: &mut Vec<(u32, f64)>,
+) {
+    stamp[u as usize] = u;
+    stack.clear();
+    stack.push((u, 0.0));
+    while let Some((a, da)) = stack.pop() {
+        for &b in &adj[a as usize] {
+            let db = da + dist(q[a as usize], q[b as usize]);
+            if stamp[b as usize] != u && db <= limit {
+                stamp[b as usize] = u;
+                stack.push((b, db));
+            }
+        }
+    }
+}
+
+/// Whether the segment `a b` crosses an edge of `adj` but at the vertices `ends`:
+/// such an edge has an end within half its length and the `longest` edge of its
+/// middle.
+#[allow(clippy::too_many_arguments)]
+fn crosses_an_edge(
+    q: &[Point],
+    q_field: &DistanceField,
+    adj: &[Vec<u32>],
+    a: Point,
+    b: Point,
+    ends: [u32; 2],
+    longest: f64,
+    near: &mut Vec<u32>,
+) -> bool {
+    let mid = scale(add(a, b), 0.5);
+    q_field.within(mid, 0.5 * dist(a, b) + longest, near);
+    near.iter().any(|&x| {
+        adj[x as usize].iter().any(|&y| {
+            !ends.contains(&x)
+                && !ends.contains(&y)
+                && crossing(a, b, q[x as usize], q[y as usize]).is_some()
+        })
+    })
+}
+
+/// Step 5, last: the free ends left meet at corners. A corner's own samples see two
+/// walls, not a curve, so the tree stops short of it on both sides; two free ends
+/// whose directions meet ahead of both, within [`GAP_WINDOWS`] windows of each, are
+/// joined through that point (a new vertex, the corner), and two within
+/// [`GAP_WINDOWS`] windows whose lines do not meet ahead are joined directly. Not
+/// ends of one branch within [`OWN_BRANCH_WINDOWS`] windows, nor across an edge.
+fn meet_at_corners(
+    q: &mut Vec<Point>,
+    r: &mut Vec<f64>,
+    tangents: &[Point],
+    q_field: &DistanceField,
+    adj: &mut Vec<Vec<u32>>,
+) {
+    let longest = (0..q.len())
+        .flat_map(|a| adj[a].iter().map(move |&b| (a, b)))
+        .map(|(a, b)| dist(q[a], q[b as usize]))
+        .fold(0.0, f64::max);
+    let n = q.len();
+    let mut near = Vec::new();
+    let mut stamp = vec![u32::MAX; n];
+    let mut stack = Vec::new();
+    for u in 0..n as u32 {
+        if adj[u as usize].len() != 1 {
+            continue;
+        }
+        let ru = r[u as usize];
+        own_branch(q, adj, u, OWN_BRANCH_WINDOWS * ru, &mut stamp, &mut stack);
+        let du = end_direction(q, r, tangents, adj, u);
+        q_field.within(q[u as usize], 2.0 * GAP_WINDOWS * ru, &mut near);
+        let mut best: Option<(f64, u32, Option<Point>)> = None;
+        for &v in &near {
+            if v == u || stamp[v as usize] == u || adj[v as usize].len() != 1 {
+                continue;
+            }
+            let (pu, pv) = (q[u as usize], q[v as usize]);
+            let rv = r[v as usize];
+            let dv = end_direction(q, r, tangents, adj, v);
+            // Where the two ends' lines meet: pu + s du = pv + t dv.
+            let den = crate::geom::cross(du, dv);
+            let corner = (den.abs() > 1e-12).then(|| {
+                let w = sub(pv, pu);
+                (
+                    crate::geom::cross(w, dv) / den,
+                    crate::geom::cross(w, du) / den,
+                )
+            });
+            let joint = match corner {
+                Some((s, t))
+                    if s >= 0.0 && t >= 0.0 && s <= GAP_WINDOWS * ru && t <= GAP_WINDOWS * rv =>
+                {
+                    Some(Some(add(pu, scale(du, s))))
+                }
+                _ if dist(pu, pv) <= GAP_WINDOWS * ru => Some(None),
+                _ => None,
+            };
+            if let Some(joint) = joint {
+                let d = dist(pu, pv);
+                if best.is_none_or(|b| d < b.0) {
+                    best = Some((d, v, joint));
+                }
+            }
+        }
+        let Some((_, v, joint)) = best else { continue };
+        let (pu, pv) = (q[u as usize], q[v as usize]);
+        let crosses = |a: Point, b: Point, near: &mut Vec<u32>| {
+            crosses_an_edge(q, q_field, adj, a, b, [u, v], longest, near)
+        };
+        match joint {
+            Some(c) => {
+                if crosses(pu, c, &mut near) || crosses(c, pv, &mut near) {
+                    continue;
+                }
+                let k = q.len() as u32;
+                q.push(c);
+                r.push(0.5 * (ru + r[v as usize]));
+                adj.push(vec![u, v]);
+                stamp.push(u32::MAX);
+                adj[u as usize].push(k);
+                adj[v as usize].push(k);
+            }
+            None => {
+                if crosses(pu, pv, &mut near) {
+                    continue;
+                }
+                adj[u as usize].push(v);
+                adj[v as usize].push(u);
+            }
+        }
+    }
+}
+
+/// The passes of [`continue_ends`].
+#[derive(Clone, Copy)]
+enum Pass {
+    Facing,
+    Ahead,
+}
+
+/// The curve's direction at the free end `u`: its window's tangent, turned away from
+/// the mean of its branch's vertices within [`OWN_BRANCH_WINDOWS`] windows along the
+/// tree (their mean, not one vertex, as the tree may hook back by a few samples at its
+/// end, where the windows are one-sided).
+fn end_direction(q: &[Point], r: &[f64], tangents: &[Point], adj: &[Vec<u32>], u: u32) -> Point {
+    let (mut sum, mut count) = (q[u as usize], 1.0);
+    let (mut prev, mut cur, mut len) = (u32::MAX, u, 0.0);
+    while let Some(next) = adj[cur as usize].iter().copied().find(|&x| x != prev) {
+        len += dist(q[cur as usize], q[next as usize]);
+        if len > OWN_BRANCH_WINDOWS * r[u as usize] || adj[next as usize].len() > 2 {
+            break;
+        }
+        sum = add(sum, q[next as usize]);
+        count += 1.0;
+        (prev, cur) = (cur, next);
+    }
+    let back = sub(q[u as usize], scale(sum, 1.0 / count));
+    let t = tangents[u as usize];
+    if dot(t, back) >= 0.0 {
+        t
+    } else {
+        scale(t, -1.0)
+    }
+}
+
+/// Two or more chains between the same two forks, but for the shortest, that are
+/// shorter than [`OWN_BRANCH_WINDOWS`] windows go: they are one stretch of curve drawn
+/// twice round the band's samples (a bubble), no loop a window could see.
+fn pop_bubbles(q: &[Point], r: &[f64], adj: &mut [Vec<u32>]) {
+    // Chains by their two forks: (length, vertices).
+    type Chains = Vec<(f64, Vec<u32>)>;
+    let mut by_ends: std::collections::HashMap<(u32, u32), Chains> = Default::default();
+    for v in 0..q.len() as u32 {
+        if adj[v as usize].len() < 3 {
+            continue;
+        }
+        for &w in &adj[v as usize] {
+            let mut path = vec![v, w];
+            let (mut prev, mut cur) = (v, w);
+            while adj[cur as usize].len() == 2 {
+                let next = adj[cur as usize][usize::from(adj[cur as usize][0] == prev)];
+                path.push(next);
+                (prev, cur) = (cur, next);
+                if cur == v {
+                    break;
+                }
+            }
+            // Each chain once, from its lower fork.
+            if adj[cur as usize].len() >= 3 && v < cur {
+                let len = path
+                    .windows(2)
+                    .map(|e| dist(q[e[0] as usize], q[e[1] as usize]))
+                    .sum();
+                by_ends.entry((v, cur)).or_default().push((len, path));
+            }
+        }
+    }
+    for ((a, b), mut paths) in by_ends {
+        if paths.len() < 2 {
+            continue;
+        }
+        paths.sort_by(|x, y| x.0.total_cmp(&y.0));
+        let window = r[a as usize].max(r[b as usize]);
+        for (len, path) in paths.into_iter().skip(1) {
+            if len < OWN_BRANCH_WINDOWS * window {
+                for e in path.windows(2) {
+                    unlink(adj, e[0], e[1]);
+                }
+            }
+        }
+    }
+}
+
+/// Connected pieces of fewer than [`SHEET_SAMPLES`] vertices go: a curve holds at
+/// least the samples one window needs to see it, and windows that pass by chance in
+/// scattered points (a few in a hundred) link into such crumbs.
+fn drop_small_components(adj: &mut [Vec<u32>]) {
+    let n = adj.len();
+    let mut parent: Vec<u32> = (0..n as u32).collect();
+    for (a, links) in adj.iter().enumerate() {
+        for &b in links {
+            let (ra, rb) = (root(&mut parent, a as u32), root(&mut parent, b));
+            if ra != rb {
+                parent[ra as usize] = rb;
+            }
+        }
+    }
+    let mut size = vec![0usize; n];
+    for a in 0..n as u32 {
+        size[root(&mut parent, a) as usize] += 1;
+    }
+    for a in 0..n as u32 {
+        if size[root(&mut parent, a) as usize] < SHEET_SAMPLES {
+            adj[a as usize].clear();
+        }
+    }
+}
+
+/// Step 6: the chains between vertices of degree other than two, and the cycles left;
+/// pieces shorter than their first vertex's window go. The forks are junctions.
+fn chains(q: &[Point], r: &[f64], adj: &[Vec<u32>]) -> Graphed {
+    let n = q.len();
+    let mut used = std::collections::HashSet::new();
+    let key = |a: u32, b: u32| (a.min(b), a.max(b));
+    let mut pieces: Vec<(Vec<u32>, bool)> = Vec::new();
+    let walk = |start: u32, next: u32, used: &mut std::collections::HashSet<(u32, u32)>| {
+        let mut path = vec![start];
+        let (mut prev, mut cur) = (start, next);
+        used.insert(key(start, next));
+        loop {
+            path.push(cur);
+            if adj[cur as usize].len() != 2 || cur == start {
+                break;
+            }
+            let Some(nx) = adj[cur as usize]
+                .iter()
+                .copied()
+                .find(|&x| x != prev && !used.contains(&key(cur, x)))
+            else {
+                break;
+            };
+            used.insert(key(cur, nx));
+            (prev, cur) = (cur, nx);
+        }
+        path
+    };
+    for v in 0..n as u32 {
+        if adj[v as usize].len() != 2 {
+            for &w in &adj[v as usize] {
+                if !used.contains(&key(v, w)) {
+                    // A loop through a fork comes back to it.
+                    let mut path = walk(v, w, &mut used);
+                    let closed = path.len() > 3 && path.first() == path.last();
+                    if closed {
+                        path.pop();
+                    }
+                    pieces.push((path, closed));
+                }
+            }
+        }
+    }
+    for v in 0..n as u32 {
+        for &w in &adj[v as usize] {
+            if !used.contains(&key(v, w)) {
+                let mut path = walk(v, w, &mut used);
+                let closed = path.len() > 3 && path.first() == path.last();
+                if closed {
+                    path.pop();
+                }
+                pieces.push((path, closed));
+            }
+        }
+    }
+    let mut out = Graphed::default();
+    let mut forks: std::collections::BTreeMap<u32, Vec<usize>> = Default::default();
+    for (path, closed) in pieces {
+        let pts: Vec<Point> = path.iter().map(|&i| q[i as usize]).collect();
+        let len: f64 = pts.windows(2).map(|w| dist(w[0], w[1])).sum();
+        let ends_at_fork = |i: u32| adj[i as usize].len() >= 3;
+        let first = path[0];
+        let last = *path.last().expect("a piece has two vertices");
+        // A short piece between two forks is the curve itself; one with a free end
+        // shorter than its window holds no curve.
+        let between_forks = ends_at_fork(first) && ends_at_fork(last);
+        if !closed && !between_forks && len < r[first as usize] {
+            continue;
+        }
+        let k = out.polylines.len();
+        if !closed {
+            for end in [first, last] {
+                if ends_at_fork(end) {
+                    forks.entry(end).or_default().push(k);
+                }
+            }
+        }
+        out.polylines.push(Polyline {
+            closed,
+            points: pts,
+        });
+    }
+    out.junctions = forks
+        .into_iter()
+        .filter(|(_, ps)| ps.len() >= 2)
+        .map(|(at, polylines)| Junction {
+            at: q[at as usize],
+            polylines,
+        })
+        .collect();
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A deterministic pseudo-random sequence in [0, 1).
+    fn lcg(seed: &mut u64) -> f64 {
+        *seed = seed
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        (*seed >> 11) as f64 / (1u64 << 53) as f64
+    }
+
+    fn gauss(seed: &mut u64) -> f64 {
+        let (u, v) = (lcg(seed).max(1e-300), lcg(seed));
+        (-2.0 * u.ln()).sqrt() * (std::f64::consts::TAU * v).cos()
+    }
+
+    /// Samples of a noisy Archimedean spiral from radius 0.12 to 0.4 over three turns
+    /// round (0.5, 0.5), and the distance from a point to it.
+    fn spiral(n: usize, sigma: f64, seed: &mut u64) -> (Vec<Point>, impl Fn(Point) -> f64) {
+        let turns = 3.0;
+        let at = |t: f64| {
+            let th = std::f64::consts::TAU * turns * t;
+            let rad = 0.12 + 0.28 * t;
+            [0.5 + rad * th.cos(), 0.5 + rad * th.sin()]
+        };
+        let dense: Vec<Point> = (0..=20_000).map(|i| at(i as f64 / 20_000.0)).collect();
+        let pts = (0..n)
+            .map(|_| {
+                let p = at(lcg(seed));
+                [p[0] + sigma * gauss(seed), p[1] + sigma * gauss(seed)]
+            })
+            .collect();
+        let d = move |p: Point| {
+            dense
+                .iter()
+                .map(|&c| dist(c, p))
+                .fold(f64::INFINITY, f64::min)
+        };
+        (pts, d)
+    }
+
+    /// A noisy spiral whose turns lie 0.093 apart at sigma = 0.008 (its band's edges
+    /// 0.06 apart) is one open curve, every vertex within the accuracy bound of the
+    /// truth (3 sigma plus the sampling's spacing) and the truth within it of a
+    /// vertex but near the ends (a free end stops short by up to a window).
+    #[test]
+    fn a_noisy_spiral_is_one_curve_near_its_truth() {
+        let sigma = 0.008;
+        let mut seed = 7;
+        let (pts, truth) = spiral(3000, sigma, &mut seed);
+        let field = DistanceField::new(&pts).unwrap();
+        let g = graph_curves(&field);
+        assert_eq!(g.polylines.len(), 1, "{:?}", g.polylines.len());
+        assert!(!g.polylines[0].closed);
+        let worst = g.polylines[0]
+            .points
+            .iter()
+            .map(|&p| truth(p))
+            .fold(0.0, f64::max);
+        assert!(worst <= 3.0 * sigma + 0.005, "{worst}");
+    }
+
+    /// Uniformly scattered points fill an area: no window sees a curve, nothing is drawn.
+    #[test]
+    fn scattered_points_draw_nothing() {
+        let mut seed = 3;
+        let pts: Vec<Point> = (0..2000)
+            .map(|_| [lcg(&mut seed), lcg(&mut seed)])
+            .collect();
+        let field = DistanceField::new(&pts).unwrap();
+        let g = graph_curves(&field);
+        let len: f64 = g
+            .polylines
+            .iter()
+            .flat_map(|pl| pl.points.windows(2).map(|w| dist(w[0], w[1])))
+            .sum();
+        assert!(len < 0.1, "{len} of curve through scattered points");
+    }
+
+    /// A noisy circle closes: its tree misses one edge, and the ends face each other.
+    #[test]
+    fn a_noisy_circle_is_one_loop() {
+        let mut seed = 11;
+        let pts: Vec<Point> = (0..1500)
+            .map(|_| {
+                let a = std::f64::consts::TAU * lcg(&mut seed);
+                [
+                    0.5 + 0.3 * a.cos() + 0.005 * gauss(&mut seed),
+                    0.5 + 0.3 * a.sin() + 0.005 * gauss(&mut seed),
+                ]
+            })
+            .collect();
+        let field = DistanceField::new(&pts).unwrap();
+        let g = graph_curves(&field);
+        let shape: Vec<(bool, usize, Point, Point)> = g
+            .polylines
+            .iter()
+            .map(|pl| {
+                (
+                    pl.closed,
+                    pl.points.len(),
+                    pl.points[0],
+                    *pl.points.last().unwrap(),
+                )
+            })
+            .collect();
+        assert_eq!(g.polylines.len(), 1, "{shape:?} {:?}", g.junctions);
+        assert!(g.polylines[0].closed);
+        for &p in &g.polylines[0].points {
+            let d = (dist(p, [0.5, 0.5]) - 0.3).abs();
+            assert!(d <= 3.0 * 0.005, "{d}");
+        }
+    }
+
+    /// The segments of `g`'s curves, and each vertex's count of segments.
+    fn segments(g: &Graphed) -> Vec<(Point, Point)> {
+        g.polylines
+            .iter()
+            .flat_map(|pl| {
+                let n = pl.points.len();
+                let m = if pl.closed { n } else { n - 1 };
+                (0..m).map(move |i| (pl.points[i], pl.points[(i + 1) % n]))
+            })
+            .collect()
+    }
+
+    proptest::proptest! {
+        #![proptest_config(proptest::prelude::ProptestConfig::with_cases(24))]
+        /// Whatever the drawing (random strokes, noise up to 1% of the box, up to 10%
+        /// outliers), the stage's own output meets its contract, with no cut after
+        /// it: no two segments cross but at a shared vertex, no vertex has more than
+        /// six segments, every vertex lies within the largest window of a sample,
+        /// and junctions index the curves.
+        #[test]
+        fn the_graph_meets_its_contract(
+            strokes in proptest::collection::vec(
+                proptest::collection::vec((0.1f64..0.9, 0.1f64..0.9), 2..5), 1..5),
+            sigma in 0.0f64..0.01,
+            outliers in 0.0f64..0.1,
+            seed in 0u64..1000,
+        ) {
+            let mut seed = seed;
+            let mut pts = Vec::new();
+            for s in &strokes {
+                for w in s.windows(2) {
+                    let (a, b) = ([w[0].0, w[0].1], [w[1].0, w[1].1]);
+                    let k = (dist(a, b) * 600.0) as usize + 2;
+                    for _ in 0..k {
+                        let t = lcg(&mut seed);
+                        let p = add(a, scale(sub(b, a), t));
+                        pts.push([p[0] + sigma * gauss(&mut seed), p[1] + sigma * gauss(&mut seed)]);
+                    }
+                }
+            }
+            let n_out = (outliers * pts.len() as f64) as usize;
+            for _ in 0..n_out {
+                pts.push([lcg(&mut seed), lcg(&mut seed)]);
+            }
+            let field = DistanceField::new(&pts).unwrap();
+            let g = graph_curves(&field);
+            let segs = segments(&g);
+            for (i, &(a, b)) in segs.iter().enumerate() {
+                for &(c, d) in &segs[i + 1..] {
+                    let shared = [c, d].iter().any(|&x| x == a || x == b);
+                    proptest::prop_assert!(
+                        shared || crossing(a, b, c, d).is_none(),
+                        "{a:?}-{b:?} crosses {c:?}-{d:?}"
+                    );
+                }
+            }
+            let mut degree = std::collections::HashMap::new();
+            for &(a, b) in &segs {
+                for p in [a, b] {
+                    *degree.entry((p[0].to_bits(), p[1].to_bits())).or_insert(0) += 1;
+                }
+            }
+            proptest::prop_assert!(degree.values().all(|&d| d <= 6), "{:?}", degree.values().max());
+            let r_max = largest_window(&field);
+            for pl in &g.polylines {
+                for &p in &pl.points {
+                    proptest::prop_assert!(field.distance(p) <= r_max);
+                }
+            }
+            for j in &g.junctions {
+                proptest::prop_assert!(j.polylines.iter().all(|&k| k < g.polylines.len()));
+            }
+        }
+    }
+}
