@@ -119,11 +119,11 @@ fn settled(field: &DistanceField, r_max: f64) -> Vec<Node> {
                 while r <= r_max {
                     let f = fit_within(field, c, r, idx, sel);
                     if sees_a_curve(&f, idx.len(), r) {
-                        let p = foot(c, sel, f.normal, OUTLYING * f.residual)?;
+                        let p = foot(c, sel, f.normal, outlying(f.residual, r))?;
                         // Once more from where it moved, at the same radius.
                         let g = fit_within(field, p, r, idx, sel);
                         let (p, normal) = if sees_a_curve(&g, idx.len(), r) {
-                            let q = foot(p, sel, g.normal, OUTLYING * g.residual);
+                            let q = foot(p, sel, g.normal, outlying(g.residual, r));
                             q.map_or((p, f.normal), |q| (q, g.normal))
                         } else {
                             (p, f.normal)
@@ -159,6 +159,13 @@ struct Node {
     window: f64,
     /// The curve's unit tangent there (either way).
     tangent: Point,
+}
+
+/// How far from its window's fit (residual `residual`, radius `r`) a sample may lie
+/// and not be an outlier of it: [`OUTLYING`] residuals, and at least a billionth of the
+/// window, the fit's own rounding on samples that lie exactly on a curve.
+fn outlying(residual: f64, r: f64) -> f64 {
+    (OUTLYING * residual).max(1e-9 * r)
 }
 
 /// The foot on the parabola fitted to `pts` in the frame at `c` with unit `normal`
@@ -717,6 +724,26 @@ mod tests {
             .map(|&p| truth(p))
             .fold(0.0, f64::max);
         assert!(worst <= 3.0 * sigma + 0.005, "{worst}");
+    }
+
+    /// Samples exactly on a line (no noise: their fits' residuals are rounding) are one
+    /// curve along it, none an outlier of its own window's fit.
+    #[test]
+    fn clean_samples_on_a_line_are_one_curve() {
+        let pts: Vec<Point> = (0..300)
+            .map(|i| {
+                let t = i as f64 / 299.0;
+                [0.1 + 0.8 * t, 0.3 + 0.4 * t]
+            })
+            .collect();
+        let field = DistanceField::new(&pts).unwrap();
+        let g = graph_curves(&field);
+        assert_eq!(g.polylines.len(), 1);
+        assert!(
+            g.polylines[0].points.len() >= 290,
+            "{}",
+            g.polylines[0].points.len()
+        );
     }
 
     /// Uniformly scattered points fill an area: no window sees a curve, nothing is drawn.
