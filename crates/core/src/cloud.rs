@@ -598,22 +598,12 @@ fn chains(q: &[Point], r: &[f64], adj: &[Vec<u32>]) -> Graphed {
         }
         path
     };
-    for v in 0..n as u32 {
-        if adj[v as usize].len() != 2 {
-            for &w in &adj[v as usize] {
-                if !used.contains(&key(v, w)) {
-                    // A loop through a fork comes back to it.
-                    let mut path = walk(v, w, &mut used);
-                    let closed = path.len() > 3 && path.first() == path.last();
-                    if closed {
-                        path.pop();
-                    }
-                    pieces.push((path, closed));
-                }
-            }
-        }
-    }
-    for v in 0..n as u32 {
+    // From the ends and forks first, then round the cycles left; a piece that comes
+    // back to where it started (a cycle, or a loop through a fork) is closed.
+    let starts = (0..n as u32)
+        .filter(|&v| adj[v as usize].len() != 2)
+        .chain(0..n as u32);
+    for v in starts {
         for &w in &adj[v as usize] {
             if !used.contains(&key(v, w)) {
                 let mut path = walk(v, w, &mut used);
