@@ -31,18 +31,26 @@
 //!    edges, each edge within both ends' windows: along a curve the nearest moved
 //!    samples are its neighbours, across a channel the other wall is farther.
 //! 4. *Spurs.* A branch from a free end to a fork shorter than the fork's window is
-//!    noise across the band, not a stroke, and goes.
-//! 5. *Ends.* Within two windows: two free ends facing each other are joined (a loop's
-//!    tree misses one edge; a gap the sampling left); then an end continues into the
-//!    nearest curve vertex ahead of it (within 60 degrees of its direction: a stroke
-//!    running into another); then the ends left meet at corners (a corner's own samples
-//!    see two walls, so the tree stops short of it on both sides). Never into its own
-//!    branch within `2 pi` windows. The spurs the joins leave go.
+//!    noise across the band, not a stroke, and goes: the shortest first, each checked
+//!    again when its turn comes, as of two short branches at one fork the longer is the
+//!    curve's end once the shorter is gone (in the samples' order they ate curves' ends
+//!    one fork at a time).
+//! 5. *Ends.* An end's window is the largest of its branch's first ten vertices' (one
+//!    window's samples): an end is often a sample of the band's tail whose own window
+//!    qualified early, by chance. Within two such windows: two free ends facing each
+//!    other are joined (a loop's tree misses one edge; a gap the sampling left); then an
+//!    end continues into the nearest curve vertex ahead of it (within 60 degrees of its
+//!    direction: a stroke running into another); then the ends left meet at corners (a
+//!    corner's own samples see two walls, so the tree stops short of it on both sides).
+//!    Never into its own branch within `2 pi` windows.
 //! 6. *Curves.* Two chains between the same two forks but the shortest go where they
-//!    are shorter than `2 pi` windows (a bubble); connected pieces of fewer than ten
-//!    vertices (one window's samples) go; the rest are chains between vertices of
-//!    degree other than two, the forks junctions. A chain from a free end shorter than
-//!    its window holds no curve.
+//!    are shorter than `2 pi` windows (a bubble). Spurs go again, now those shorter than
+//!    two windows: two windows is the graph's resolution along a curve (a gap that short
+//!    is closed in step 5, so a branch that short cannot be told from the sampling), and
+//!    at an acute corner the two walls' samples, within a window of each other, fall onto
+//!    one line and leave such a spur at the tip. Connected pieces of fewer than ten
+//!    vertices (one window's samples) go; the rest are chains between vertices of degree
+//!    other than two, the forks junctions.
 
 use rayon::prelude::*;
 
@@ -93,12 +101,12 @@ pub fn graph_curves(field: &DistanceField) -> Graphed {
         return Graphed::default();
     };
     let mut adj = spanning_tree(&q, &r);
-    prune_spurs(&q, &r, &mut adj);
+    prune_spurs(&q, &r, &mut adj, 1.0);
     continue_ends(&q, &r, &tangents, &q_field, &mut adj);
     meet_at_corners(&mut q, &mut r, &tangents, &q_field, &mut adj);
     pop_bubbles(&q, &r, &mut adj);
     // An end continued into its curve's side leaves the stub past it a spur.
-    prune_spurs(&q, &r, &mut adj);
+    prune_spurs(&q, &r, &mut adj, GAP_WINDOWS);
     drop_small_components(&mut adj);
     chains(&q, &r, &adj)
 }
@@ -243,24 +251,34 @@ fn unlink(adj: &mut [Vec<u32>], a: u32, b: u32) {
 
 /// Step 4: branches from a free end to a fork shorter than the fork's window go, until
 /// none does (each round removes a branch or stops; bounded by the vertices).
-fn prune_spurs(q: &[Point], r: &[f64], adj: &mut [Vec<u32>]) {
+fn prune_spurs(q: &[Point], r: &[f64], adj: &mut [Vec<u32>], windows: f64) {
     loop {
-        let mut changed = false;
-        for leaf in 0..q.len() as u32 {
+        // Shortest first, each checked again when its turn comes: of two short
+        // branches at one fork, the longer is the curve's end once the shorter is gone.
+        let mut spurs: Vec<(f64, u32)> = (0..q.len() as u32)
+            .filter(|&leaf| adj[leaf as usize].len() == 1)
+            .filter_map(|leaf| {
+                let (path, len) = branch(q, adj, leaf);
+                let fork = *path.last().expect("a branch holds its end");
+                (adj[fork as usize].len() >= 3 && len < windows * r[fork as usize])
+                    .then_some((len, leaf))
+            })
+            .collect();
+        if spurs.is_empty() {
+            break;
+        }
+        spurs.sort_by(|a, b| a.0.total_cmp(&b.0));
+        for (_, leaf) in spurs {
             if adj[leaf as usize].len() != 1 {
                 continue;
             }
             let (path, len) = branch(q, adj, leaf);
             let fork = *path.last().expect("a branch holds its end");
-            if adj[fork as usize].len() >= 3 && len < r[fork as usize] {
+            if adj[fork as usize].len() >= 3 && len < windows * r[fork as usize] {
                 for w in path.windows(2) {
                     unlink(adj, w[0], w[1]);
                 }
-                changed = true;
             }
-        }
-        if !changed {
-            break;
         }
     }
 }
@@ -275,10 +293,9 @@ fn continue_ends(
     q_field: &DistanceField,
     adj: &mut [Vec<u32>],
 ) {
-    let longest = (0..q.len())
-        .flat_map(|a| adj[a].iter().map(move |&b| (a, b)))
-        .map(|(a, b)| dist(q[a], q[b as usize]))
-        .fold(0.0, f64::max);
+    // The crossing check finds an edge by its ends within the longest edge: each join
+    // keeps it the longest so far.
+    let mut longest = longest_edge(q, adj);
     let mut near = Vec::new();
     let mut stamp = vec![u32::MAX; q.len()];
     let mut stack = Vec::new();
@@ -289,7 +306,7 @@ fn continue_ends(
             if adj[u as usize].len() != 1 {
                 continue;
             }
-            let ru = r[u as usize];
+            let ru = end_window(r, adj, u);
             own_branch(q, adj, u, OWN_BRANCH_WINDOWS * ru, &mut stamp, &mut stack);
             let dir = end_direction(q, r, tangents, adj, u);
             q_field.within(q[u as usize], GAP_WINDOWS * ru, &mut near);
@@ -321,6 +338,7 @@ fn continue_ends(
             if !crosses {
                 adj[u as usize].push(v);
                 adj[v as usize].push(u);
+                longest = longest.max(dist(a, b));
             }
         }
     }
@@ -347,6 +365,14 @@ fn own_branch(
             }
         }
     }
+}
+
+/// The longest edge of `adj`.
+fn longest_edge(q: &[Point], adj: &[Vec<u32>]) -> f64 {
+    (0..q.len())
+        .flat_map(|a| adj[a].iter().map(move |&b| (a, b)))
+        .map(|(a, b)| dist(q[a], q[b as usize]))
+        .fold(0.0, f64::max)
 }
 
 /// Whether the segment `a b` crosses an edge of `adj` but at the vertices `ends`:
@@ -387,10 +413,9 @@ fn meet_at_corners(
     q_field: &DistanceField,
     adj: &mut Vec<Vec<u32>>,
 ) {
-    let longest = (0..q.len())
-        .flat_map(|a| adj[a].iter().map(move |&b| (a, b)))
-        .map(|(a, b)| dist(q[a], q[b as usize]))
-        .fold(0.0, f64::max);
+    // As in `continue_ends`; a corner is not in `q_field`, so its edges are found by
+    // their other ends.
+    let mut longest = longest_edge(q, adj);
     let n = q.len();
     let mut near = Vec::new();
     let mut stamp = vec![u32::MAX; n];
@@ -399,7 +424,7 @@ fn meet_at_corners(
         if adj[u as usize].len() != 1 {
             continue;
         }
-        let ru = r[u as usize];
+        let ru = end_window(r, adj, u);
         own_branch(q, adj, u, OWN_BRANCH_WINDOWS * ru, &mut stamp, &mut stack);
         let du = end_direction(q, r, tangents, adj, u);
         q_field.within(q[u as usize], 2.0 * GAP_WINDOWS * ru, &mut near);
@@ -409,7 +434,7 @@ fn meet_at_corners(
                 continue;
             }
             let (pu, pv) = (q[u as usize], q[v as usize]);
-            let rv = r[v as usize];
+            let rv = end_window(r, adj, v);
             let dv = end_direction(q, r, tangents, adj, v);
             // Where the two ends' lines meet: pu + s du = pv + t dv.
             let den = crate::geom::cross(du, dv);
@@ -446,6 +471,7 @@ fn meet_at_corners(
                 if crosses(pu, c, &mut near) || crosses(c, pv, &mut near) {
                     continue;
                 }
+                longest = longest.max(dist(pu, c)).max(dist(c, pv));
                 let k = q.len() as u32;
                 q.push(c);
                 r.push(0.5 * (ru + r[v as usize]));
@@ -458,11 +484,31 @@ fn meet_at_corners(
                 if crosses(pu, pv, &mut near) {
                     continue;
                 }
+                longest = longest.max(dist(pu, pv));
                 adj[u as usize].push(v);
                 adj[v as usize].push(u);
             }
         }
     }
+}
+
+/// The window of the curve at the free end `u`: the largest of its branch's first
+/// [`SHEET_SAMPLES`] vertices' windows (one window's samples). An end is often a sample
+/// of the band's tail whose own window qualified early, by chance, at a fraction of the
+/// window its curve's samples need.
+fn end_window(r: &[f64], adj: &[Vec<u32>], u: u32) -> f64 {
+    let (mut prev, mut cur, mut most) = (u32::MAX, u, r[u as usize]);
+    for _ in 1..SHEET_SAMPLES {
+        let Some(next) = adj[cur as usize].iter().copied().find(|&x| x != prev) else {
+            break;
+        };
+        most = most.max(r[next as usize]);
+        if adj[next as usize].len() != 2 {
+            break;
+        }
+        (prev, cur) = (cur, next);
+    }
+    most
 }
 
 /// The passes of [`continue_ends`].
