@@ -50,7 +50,8 @@
 //!    at an acute corner the two walls' samples, within a window of each other, fall onto
 //!    one line and leave such a spur at the tip. Connected pieces of fewer than ten
 //!    vertices (one window's samples) go; the rest are chains between vertices of degree
-//!    other than two, the forks junctions.
+//!    other than two, the forks junctions. A chain from a free end shorter than its window
+//!    holds no curve.
 
 use rayon::prelude::*;
 
@@ -249,8 +250,9 @@ fn unlink(adj: &mut [Vec<u32>], a: u32, b: u32) {
     adj[b as usize].retain(|&x| x != a);
 }
 
-/// Step 4: branches from a free end to a fork shorter than the fork's window go, until
-/// none does (each round removes a branch or stops; bounded by the vertices).
+/// Steps 4 and 6: branches from a free end to a fork shorter than `windows` of the
+/// fork's window go, until none does (each round removes a branch or stops; bounded by
+/// the vertices).
 fn prune_spurs(q: &[Point], r: &[f64], adj: &mut [Vec<u32>], windows: f64) {
     loop {
         // Shortest first, each checked again when its turn comes: of two short
@@ -473,8 +475,9 @@ fn meet_at_corners(
                 }
                 longest = longest.max(dist(pu, c)).max(dist(c, pv));
                 let k = q.len() as u32;
+                let rv = end_window(r, adj, v);
                 q.push(c);
-                r.push(0.5 * (ru + r[v as usize]));
+                r.push(0.5 * (ru + rv));
                 adj.push(vec![u, v]);
                 stamp.push(u32::MAX);
                 adj[u as usize].push(k);
