@@ -1,4 +1,11 @@
-//! Benchmark of the pose graph's solve: a robot that drives four laps of a 20 x 10 m
+//! Benchmarks of mapping's two solvers.
+//!
+//! The scan-to-map registration: a simulated SICK-like scan of the clutter scene laid
+//! onto the surface of the five scans before it (placed by their true poses), started
+//! 20 cm and 3 degrees off with the odometry's prior, as the map's registration does
+//! each scan.
+//!
+//! The pose graph's solve: a robot that drives four laps of a 20 x 10 m
 //! corridor loop, a keyframe every half metre (480 nodes), each lap's keyframes tied by
 //! loop edges to the first lap's at the same place, every edge measured with a
 //! centimetre and a tenth of a degree of noise, solved from the odometry's drifted
@@ -7,7 +14,9 @@
 //! for.
 
 use criterion::{criterion_group, criterion_main, Criterion};
-use isoline_map::{between, compose, Edge, PoseGraph};
+use isoline_core::geom::to_world;
+use isoline_map::{between, compose, register_points, Edge, PoseGraph, Prior, Surface};
+use isoline_sim::lidar::{simulate, LidarParams, SceneKind};
 use nalgebra::Matrix3;
 use rand::SeedableRng;
 use rand_distr::{Distribution, Normal};
@@ -91,5 +100,41 @@ fn pose_graph(c: &mut Criterion) {
     g.finish();
 }
 
-criterion_group!(benches, pose_graph);
+fn scan_to_map(c: &mut Criterion) {
+    let mut params = LidarParams::new(SceneKind::Clutter);
+    params.frames = 6;
+    params.motion = 0.3;
+    let frames = simulate(&params).expect("valid parameters");
+    let returns = |f: &isoline_sim::lidar::ScanFrame| -> Vec<[f64; 2]> {
+        f.scan().expect("a valid scan").returns()
+    };
+    let (last, before) = frames.split_last().expect("six frames");
+    let world: Vec<[f64; 2]> = before
+        .iter()
+        .flat_map(|f| returns(f).into_iter().map(|p| to_world(f.pose, p)))
+        .collect();
+    let target = Surface::new(&world, 0.3);
+    let scan = returns(last);
+    let truth = last.pose;
+    let start = [truth[0] + 0.2, truth[1] - 0.1, truth[2] + 3f64.to_radians()];
+    let prior = Prior {
+        mean: start,
+        info: Matrix3::from_diagonal(&nalgebra::Vector3::new(100.0, 100.0, 400.0)),
+    };
+    // What is timed must be right: a thousand returns with centimetres of noise place
+    // the scan to millimetres.
+    let found = register_points(&scan, &target, start, Some(&prior), 0.02, 0.5).pose;
+    let off = between(truth, found);
+    assert!(
+        off[0].hypot(off[1]) < 0.01 && off[2].abs() < 0.2f64.to_radians(),
+        "registered {off:?} off the truth"
+    );
+    let mut g = c.benchmark_group("scan_to_map");
+    g.bench_function("clutter_scan_onto_five_scans", |b| {
+        b.iter(|| register_points(&scan, &target, start, Some(&prior), 0.02, 0.5).pose)
+    });
+    g.finish();
+}
+
+criterion_group!(benches, pose_graph, scan_to_map);
 criterion_main!(benches);
