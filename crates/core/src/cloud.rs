@@ -5,7 +5,8 @@
 //! Its contract, met by construction rather than by a cut afterwards:
 //! - every vertex is a sample moved onto the curve its own window sees, by at most
 //!   three of the window's residuals, or the corner where two ends' directions meet
-//!   within two windows of each; a sample whose window never sees a curve is in none;
+//!   within two windows of each and within its window of a sample; a sample whose
+//!   window never sees a curve is in none;
 //! - every edge of the tree joins two vertices within both their windows; a join of
 //!   two ends spans at most two windows (a gap wider stays open);
 //! - no two edges cross (the tree's edges are Delaunay edges, and every join is added
@@ -41,7 +42,8 @@
 //!    other are joined (a loop's tree misses one edge; a gap the sampling left); then an
 //!    end continues into the nearest curve vertex ahead of it (within 60 degrees of its
 //!    direction: a stroke running into another); then the ends left meet at corners (a
-//!    corner's own samples see two walls, so the tree stops short of it on both sides).
+//!    corner's own samples see two walls, so the tree stops short of it on both sides),
+//!    where a sample lies within the corner's window (its own samples are there).
 //!    Never into its own branch within `2 pi` windows.
 //! 6. *Curves.* Two chains between the same two forks but the shortest go where they
 //!    are shorter than `2 pi` windows (a bubble). Spurs go again, now those shorter than
@@ -104,7 +106,7 @@ pub fn graph_curves(field: &DistanceField) -> Graphed {
     let mut adj = spanning_tree(&q, &r);
     prune_spurs(&q, &r, &mut adj, 1.0);
     continue_ends(&q, &r, &tangents, &q_field, &mut adj);
-    meet_at_corners(&mut q, &mut r, &tangents, &q_field, &mut adj);
+    meet_at_corners(&mut q, &mut r, &tangents, field, &q_field, &mut adj);
     pop_bubbles(&q, &r, &mut adj);
     // An end continued into its curve's side leaves the stub past it a spur.
     prune_spurs(&q, &r, &mut adj, GAP_WINDOWS);
@@ -405,13 +407,15 @@ fn crosses_an_edge(
 /// Step 5, last: the free ends left meet at corners. A corner's own samples see two
 /// walls, not a curve, so the tree stops short of it on both sides; two free ends
 /// whose directions meet ahead of both, within [`GAP_WINDOWS`] windows of each, are
-/// joined through that point (a new vertex, the corner), and two within
-/// [`GAP_WINDOWS`] windows whose lines do not meet ahead are joined directly. Not
-/// ends of one branch within [`OWN_BRANCH_WINDOWS`] windows, nor across an edge.
+/// joined through that point (a new vertex, the corner) where a sample of `field` lies
+/// within the corner's window of it, and two within [`GAP_WINDOWS`] windows whose lines
+/// do not meet there are joined directly. Not ends of one branch within
+/// [`OWN_BRANCH_WINDOWS`] windows, nor across an edge.
 fn meet_at_corners(
     q: &mut Vec<Point>,
     r: &mut Vec<f64>,
     tangents: &[Point],
+    field: &DistanceField,
     q_field: &DistanceField,
     adj: &mut Vec<Vec<u32>>,
 ) {
@@ -447,9 +451,17 @@ fn meet_at_corners(
                     crate::geom::cross(w, du) / den,
                 )
             });
+            // A corner lies where samples are: its own samples, which see two walls and
+            // so are in no branch, are within its window of it. Two ends' lines that
+            // meet in empty space (an end's direction is its window's tangent, and two
+            // windows ahead a degree of it is a window off) meet at no corner.
             let joint = match corner {
                 Some((s, t))
-                    if s >= 0.0 && t >= 0.0 && s <= GAP_WINDOWS * ru && t <= GAP_WINDOWS * rv =>
+                    if s >= 0.0
+                        && t >= 0.0
+                        && s <= GAP_WINDOWS * ru
+                        && t <= GAP_WINDOWS * rv
+                        && field.distance(add(pu, scale(du, s))) <= 0.5 * (ru + rv) =>
                 {
                     Some(Some(add(pu, scale(du, s))))
                 }
@@ -847,6 +859,63 @@ mod tests {
                 (0..m).map(move |i| (pl.points[i], pl.points[(i + 1) % n]))
             })
             .collect()
+    }
+
+    /// Two strokes with gaps that cross: a long gap (0.6, its ends' windows 0.31) and,
+    /// through its middle, a short one (0.2, windows 0.11). The long gap closes first;
+    /// the short one would cross that join, whose ends lie farther from the crossing
+    /// than the short gap's half length plus the tree's longest edge (0.01). The
+    /// crossing check's reach must have grown with the first join to see it.
+    #[test]
+    fn a_join_is_not_crossed_by_a_shorter_one() {
+        let mut q: Vec<Point> = Vec::new();
+        let mut r = Vec::new();
+        let mut tangents = Vec::new();
+        let mut adj: Vec<Vec<u32>> = Vec::new();
+        let mut piece = |from: Point, step: Point, n: usize, window: f64| {
+            let first = q.len() as u32;
+            for i in 0..n {
+                q.push(add(from, scale(step, i as f64)));
+                r.push(window);
+                tangents.push(scale(step, 1.0 / dist(step, [0.0, 0.0])));
+                adj.push(Vec::new());
+            }
+            for k in first..first + n as u32 - 1 {
+                adj[k as usize].push(k + 1);
+                adj[k as usize + 1].push(k);
+            }
+        };
+        // The long gap, from (0.1, 0) to (0.7, 0), first: its ends are the first
+        // visited.
+        piece([0.1, 0.0], [-0.01, 0.0], 31, 0.31);
+        piece([0.7, 0.0], [0.01, 0.0], 31, 0.31);
+        // The short gap, from (0.4, -0.1) to (0.4, 0.1).
+        piece([0.4, -0.1], [0.0, -0.01], 26, 0.11);
+        piece([0.4, 0.1], [0.0, 0.01], 26, 0.11);
+        let q_field = DistanceField::new(&q).unwrap();
+        continue_ends(&q, &r, &tangents, &q_field, &mut adj);
+        assert!(adj[0].contains(&31), "the long gap closes");
+        assert_eq!(
+            adj[62].len(),
+            1,
+            "the short gap's ends stay free: {:?}",
+            adj[62]
+        );
+        assert_eq!(adj[88].len(), 1, "{:?}", adj[88]);
+        let edges: Vec<(Point, Point)> = (0..q.len())
+            .flat_map(|a| adj[a].iter().map(move |&b| (a, b as usize)))
+            .filter(|&(a, b)| a < b)
+            .map(|(a, b)| (q[a], q[b]))
+            .collect();
+        for (i, &(a, b)) in edges.iter().enumerate() {
+            for &(c, d) in &edges[i + 1..] {
+                let shared = [c, d].iter().any(|&x| x == a || x == b);
+                assert!(
+                    shared || crossing(a, b, c, d).is_none(),
+                    "{a:?}-{b:?} crosses {c:?}-{d:?}"
+                );
+            }
+        }
     }
 
     proptest::proptest! {
