@@ -88,6 +88,9 @@ struct Run<'a> {
     placed: Vec<(f64, Pose)>,
     /// With --register, every scan's estimated pose in reading order, and the next's.
     registered: Option<(Vec<Pose>, usize)>,
+    /// With --register, the scans' reconstructions from its pass, in reading order,
+    /// each taken (left `None`) when its scan is fused.
+    drawn: Vec<Option<register::Drawn>>,
     reconstruct_s: f64,
     fuse_s: f64,
     /// CPU seconds (all threads) spent reconstructing and fusing.
@@ -105,6 +108,10 @@ struct Run<'a> {
     /// The input's frames, once a thread of its own has counted them.
     total: Arc<OnceLock<u64>>,
 }
+
+/// A scan the map takes: the scan, its pose, its time (else its frame number) and,
+/// with --register, the reconstruction registration drew of it.
+type Accepted = (Scan, Pose, f64, Option<register::Drawn>);
 
 /// Scans a row of the summary's `blocks` covers.
 const BLOCK: u64 = 1000;
@@ -145,7 +152,7 @@ pub fn run(mut a: Args) -> Result<()> {
     }
     let start = Instant::now();
     let cpu = cpu_time::ProcessTime::try_now().ok();
-    let registration = if a.register {
+    let mut registration = if a.register {
         let mut params = cfg.register;
         params.max_range = params.max_range.min(map_params.max_range);
         Some(
@@ -155,7 +162,9 @@ pub fn run(mut a: Args) -> Result<()> {
     } else {
         None
     };
-    let registered = registration.as_ref().map(|r| r.poses.clone());
+    let registered = registration
+        .as_mut()
+        .map(|r| (r.poses.clone(), std::mem::take(&mut r.curves)));
     let mut run = Run::new(
         map,
         cfg.params(),
@@ -165,7 +174,7 @@ pub fn run(mut a: Args) -> Result<()> {
         a.quiet,
         total,
     );
-    let mut batch: Vec<(Scan, Pose, f64)> = Vec::with_capacity(BATCH);
+    let mut batch: Vec<Accepted> = Vec::with_capacity(BATCH);
     let mut failure: Option<anyhow::Error> = None;
     let read = isoline_io::for_each_item_capped(&a.input, &bag, cap, |item| {
         if let Some(scan) = run.accept(item) {
@@ -225,11 +234,12 @@ pub fn run(mut a: Args) -> Result<()> {
 }
 
 impl<'a> Run<'a> {
-    /// A run that fuses into `map`, placing scans by `registered` poses when given.
+    /// A run that fuses into `map`, placing scans by `registered` poses when given
+    /// (with the registration's reconstructions of them).
     fn new(
         map: Map,
         params: Params,
-        registered: Option<Vec<Pose>>,
+        mut registered: Option<(Vec<Pose>, Vec<Option<register::Drawn>>)>,
         outputs: &'a [PathBuf],
         every: u64,
         quiet: bool,
@@ -242,7 +252,11 @@ impl<'a> Run<'a> {
             first_errors: Vec::new(),
             poses: Vec::new(),
             placed: Vec::new(),
-            registered: registered.map(|poses| (poses, 0)),
+            drawn: registered
+                .as_mut()
+                .map(|r| std::mem::take(&mut r.1))
+                .unwrap_or_default(),
+            registered: registered.map(|(poses, _)| (poses, 0)),
             reconstruct_s: 0.0,
             fuse_s: 0.0,
             reconstruct_cpu_s: 0.0,
@@ -363,7 +377,7 @@ fn pose_hint(input: &Path, bag: &isoline_io::bag::BagOptions, no_pose: u64) -> S
 
 impl Run<'_> {
     /// The frame's scan, pose and time, or why it is skipped (counted).
-    fn accept(&mut self, item: Result<Frame, BadFrame>) -> Option<(Scan, Pose, f64)> {
+    fn accept(&mut self, item: Result<Frame, BadFrame>) -> Option<Accepted> {
         match item {
             Err(bad) => {
                 self.skipped.unreadable += 1;
@@ -374,8 +388,10 @@ impl Run<'_> {
                 // Registration read the same frames in the same order.
                 (Some(scan), _, Some((poses, next))) => {
                     let pose = poses.get(*next).copied()?;
+                    // The registration's reconstruction of this scan, when it kept one.
+                    let drawn = self.drawn.get_mut(*next).and_then(Option::take);
                     *next += 1;
-                    Some((scan, pose, f.t.unwrap_or(f.frame as f64)))
+                    Some((scan, pose, f.t.unwrap_or(f.frame as f64), drawn))
                 }
                 (None, _, Some(_)) => {
                     self.skipped.no_beams += 1;
@@ -389,7 +405,9 @@ impl Run<'_> {
                     self.skipped.no_beams += 1;
                     None
                 }
-                (Some(scan), Some(pose), None) => Some((scan, pose, f.t.unwrap_or(f.frame as f64))),
+                (Some(scan), Some(pose), None) => {
+                    Some((scan, pose, f.t.unwrap_or(f.frame as f64), None))
+                }
             },
         }
     }
@@ -402,15 +420,19 @@ impl Run<'_> {
 
     /// Reconstructs the batch's scans in parallel, fuses them in order, and writes the
     /// outputs when `every` scans have come since the last write.
-    fn fuse(&mut self, batch: &mut Vec<(Scan, Pose, f64)>) -> Result<()> {
+    fn fuse(&mut self, batch: &mut Vec<Accepted>) -> Result<()> {
         let t = Instant::now();
         // The process's CPU over each phase: the main thread waits for the batch, and
         // fuses alone.
         let cpu = cpu_time::ProcessTime::try_now().ok();
         let params = &self.params;
         let results: Vec<_> = batch
-            .par_iter()
-            .map(|(scan, _, _)| isoline_core::reconstruct_scan(scan, params))
+            .par_iter_mut()
+            .map(|(scan, _, _, drawn)| match drawn.take() {
+                Some(d) => Ok(d),
+                None => isoline_core::reconstruct_scan(scan, params)
+                    .map(|r| (r.polylines, r.noise_estimate)),
+            })
             .collect();
         let reconstruct = t.elapsed().as_secs_f64();
         self.reconstruct_s += reconstruct;
@@ -423,12 +445,12 @@ impl Run<'_> {
         let cpu = cpu_time::ProcessTime::try_now().ok();
         let each = 1e3 * batch_cpu / batch.len().max(1) as f64;
         let t = Instant::now();
-        for ((scan, pose, time), r) in batch.drain(..).zip(results) {
+        for ((scan, pose, time, _), r) in batch.drain(..).zip(results) {
             match r {
-                Ok(r) => {
+                Ok((polylines, noise)) => {
                     let t = Instant::now();
                     // With [map] align the pose the scan was fused at is the estimate.
-                    let pose = match self.map.insert(&scan, pose, &r.polylines, r.noise_estimate) {
+                    let pose = match self.map.insert(&scan, pose, &polylines, noise) {
                         Ok(p) => p,
                         Err(e @ isoline_map::Error::PoseOutOfReach { .. }) => {
                             self.skipped.far += 1;

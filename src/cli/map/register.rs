@@ -17,8 +17,20 @@ use super::BATCH;
 /// The estimated poses, one per scan in reading order, and what it took.
 pub struct Registration {
     pub poses: Vec<Pose>,
+    /// Each scan's curves and noise estimate as this pass reconstructed them, in reading
+    /// order, for the map's pass to fuse rather than reconstruct again; `None` where
+    /// the reconstruction failed or the cache was full.
+    pub curves: Vec<Option<Drawn>>,
     pub summary: Summary,
 }
+
+/// A scan's reconstruction as the map fuses it: its curves and its noise estimate.
+pub type Drawn = (Vec<isoline_core::Polyline>, f64);
+
+/// The curve vertices kept for the map's pass at most (64 MB): a bound on memory
+/// whatever the run's length. Past it the map's pass reconstructs its scans again, as
+/// it did before the cache (a few thousand scans of a 2D scanner fit).
+const CACHED_VERTICES: usize = 4_000_000;
 
 /// The summary's `registration` object.
 #[derive(Debug, serde::Serialize)]
@@ -57,26 +69,33 @@ pub fn run(
     let cpu = cpu_time::ProcessTime::try_now().ok();
     let (mut without_pose, mut degenerate) = (0usize, 0usize);
     let mut shares = Vec::new();
+    let (mut cache, mut cached) = (Vec::new(), 0usize);
     // Scans are reconstructed in parallel batches, then registered in order by their
     // curves (Registrar::push_curves).
     let mut batch: Vec<(isoline_core::Scan, Option<Pose>)> = Vec::with_capacity(BATCH);
     let mut run = |batch: &mut Vec<(isoline_core::Scan, Option<Pose>)>| {
-        let curves: Vec<Vec<isoline_core::Polyline>> = batch
+        let drawn: Vec<Option<Drawn>> = batch
             .par_iter()
             .map(|(scan, _)| {
                 isoline_core::reconstruct_scan(scan, params_method)
-                    .map(|r| r.polylines)
-                    .unwrap_or_default()
+                    .ok()
+                    .map(|r| (r.polylines, r.noise_estimate))
             })
             .collect();
-        for ((scan, pose), curves) in batch.drain(..).zip(curves) {
+        for ((scan, pose), drawn) in batch.drain(..).zip(drawn) {
             without_pose += usize::from(pose.is_none());
+            let curves = drawn.as_ref().map_or(&[][..], |d| &d.0[..]);
             // A scan whose reconstruction drew nothing is registered by its returns.
             let r = if curves.is_empty() {
                 reg.push(&scan, pose)
             } else {
-                reg.push_curves(&curves, pose)
+                reg.push_curves(curves, pose)
             };
+            let vertices: usize = curves.iter().map(|c| c.points.len()).sum();
+            cache.push(drawn.filter(|_| cached + vertices <= CACHED_VERTICES));
+            if cache.last().is_some_and(Option::is_some) {
+                cached += vertices;
+            }
             degenerate += usize::from(r.degenerate);
             shares.push(r.inlier_share);
         }
@@ -108,6 +127,7 @@ pub fn run(
     };
     Ok(Registration {
         poses,
+        curves: cache,
         summary: Summary {
             scans: n,
             without_pose,
