@@ -123,7 +123,7 @@ fn scan_to_map(c: &mut Criterion) {
     };
     // What is timed must be right: a thousand returns with centimetres of noise place
     // the scan to millimetres.
-    let found = register_points(&scan, &target, start, Some(&prior), 0.02, 0.5).pose;
+    let found = register_points(&scan, 1.0, &target, start, Some(&prior), 0.02, 0.5).pose;
     let off = between(truth, found);
     assert!(
         off[0].hypot(off[1]) < 0.01 && off[2].abs() < 0.2f64.to_radians(),
@@ -131,7 +131,7 @@ fn scan_to_map(c: &mut Criterion) {
     );
     let mut g = c.benchmark_group("scan_to_map");
     g.bench_function("clutter_scan_onto_five_scans", |b| {
-        b.iter(|| register_points(&scan, &target, start, Some(&prior), 0.02, 0.5).pose)
+        b.iter(|| register_points(&scan, 1.0, &target, start, Some(&prior), 0.02, 0.5).pose)
     });
     g.finish();
 }

@@ -81,8 +81,11 @@ const INNER_STEPS: usize = 8;
 
 /// Registers `points` (in the scan's frame) onto `target` (world), starting at
 /// `start`: the pose minimising the robust point-to-line distances plus the prior's
-/// term. `noise` is the measurement noise (the returns' and the target's together),
-/// `reach` the farthest a return's target may lie at the start.
+/// term. `weight` is the share of an independent measurement each point is (1 for
+/// returns; below 1 for points sampled along curves more densely than the returns they
+/// were drawn from, which hold no more of the walls than those returns). `noise` is the
+/// measurement noise (the returns' and the target's together), `reach` the farthest a
+/// return's target may lie at the start.
 ///
 /// Each round pairs every return with its nearest target and then minimises over
 /// those pairs until the pose settles (Censi's PL-ICP: the pairs are the expensive
@@ -90,6 +93,7 @@ const INNER_STEPS: usize = 8;
 /// along a wall a few millimetres a round).
 pub fn register(
     points: &[Point],
+    weight: f64,
     target: &Surface,
     start: Pose,
     prior: Option<&Prior>,
@@ -136,8 +140,9 @@ pub fn register(
                 h += w * j * j.transpose();
                 g += w * r * j;
             }
-            // Weighted by the kernel's scale: the residuals are in units of k^2.
-            let (mut h, mut g) = (h / (k * k), g / (k * k));
+            // Weighted by the kernel's scale (the residuals are in units of k^2) and by
+            // the points' share of a measurement.
+            let (mut h, mut g) = (weight * h / (k * k), weight * g / (k * k));
             if let Some(p) = prior {
                 h += p.info;
                 g += p.info * diff(pose, p.mean);
@@ -171,7 +176,7 @@ pub fn register(
             break;
         }
     }
-    finish(points, target, pose, prior, noise, k.min(reach))
+    finish(points, weight, target, pose, prior, noise, k.min(reach))
 }
 
 /// Pairs every return with its nearest target within `gate` at `pose`.
@@ -193,6 +198,7 @@ fn pair(
 /// The match at `pose`: pairs, inliers, the scan's information and the covariance.
 fn finish(
     points: &[Point],
+    weight: f64,
     target: &Surface,
     pose: Pose,
     prior: Option<&Prior>,
@@ -216,7 +222,7 @@ fn finish(
     } else {
         noise * noise
     };
-    let info = h / s2;
+    let info = weight * h / s2;
     let prior_info = prior.map_or(Matrix3::zeros(), |p| p.info);
     let total = info + prior_info;
     let cov = total
@@ -325,7 +331,7 @@ mod tests {
         let truth = [0.3, -0.2, 0.05];
         let scan = seen_from(&room(), truth);
         // Started 20 cm and 3 degrees off: well within the reach.
-        let m = register(&scan, &target, [0.45, -0.05, 0.0], None, 0.005, 0.5);
+        let m = register(&scan, 1.0, &target, [0.45, -0.05, 0.0], None, 0.005, 0.5);
         let e = diff(m.pose, truth);
         assert!(e.xy().norm() < 1e-4 && e[2].abs() < 1e-4, "{:?}", m.pose);
         assert!(m.inlier_share() > 0.95 && !m.degenerate, "{m:?}");
@@ -351,7 +357,7 @@ mod tests {
             mean: [0.3, 0.0, 0.0],
             info: diag(0.1, 1.0, 1.0).try_inverse().unwrap(),
         };
-        let m = register(&scan, &target, prior.mean, Some(&prior), 0.005, 0.5);
+        let m = register(&scan, 1.0, &target, prior.mean, Some(&prior), 0.005, 0.5);
         assert!(m.degenerate);
         // y and theta come from the walls, x stays the prior's.
         assert!(
@@ -365,13 +371,39 @@ mod tests {
     }
 
     #[test]
+    fn a_points_weight_scales_its_information_not_the_pose() {
+        // Without a prior the weight scales the whole objective: the same minimum, its
+        // information the weight's share (to rounding).
+        let target = Surface::new(&room(), 0.1);
+        let scan = seen_from(&room(), [0.3, -0.2, 0.05]);
+        let one = register(&scan, 1.0, &target, [0.4, -0.1, 0.0], None, 0.005, 0.5);
+        let fifth = register(&scan, 0.2, &target, [0.4, -0.1, 0.0], None, 0.005, 0.5);
+        assert!(
+            diff(one.pose, fifth.pose).norm() < 1e-9,
+            "{one:?} {fifth:?}"
+        );
+        assert!((fifth.info - 0.2 * one.info).norm() < 1e-9 * one.info.norm());
+        // With the odometry's prior, a lighter scan leaves the pose nearer the prior.
+        let prior = Prior {
+            mean: [0.3, -0.2 + 0.02, 0.05],
+            info: diag(0.01, 0.01, 0.01).try_inverse().unwrap(),
+        };
+        let heavy = register(&scan, 1.0, &target, prior.mean, Some(&prior), 0.005, 0.5);
+        let light = register(&scan, 0.01, &target, prior.mean, Some(&prior), 0.005, 0.5);
+        assert!(
+            diff(light.pose, prior.mean).norm() < diff(heavy.pose, prior.mean).norm(),
+            "{heavy:?} {light:?}"
+        );
+    }
+
+    #[test]
     fn returns_on_something_new_stop_pulling() {
         let target = Surface::new(&room(), 0.1);
         let truth = [0.0, 0.0, 0.0];
         let mut scan = seen_from(&room(), truth);
         // A third as many returns again on a box the map does not hold, 30 cm off a wall.
         scan.extend((0..300).map(|i| [-1.0 + i as f64 * 0.005, 1.7]));
-        let m = register(&scan, &target, [0.05, 0.05, 0.01], None, 0.005, 0.5);
+        let m = register(&scan, 1.0, &target, [0.05, 0.05, 0.01], None, 0.005, 0.5);
         let e = diff(m.pose, truth);
         assert!(e.xy().norm() < 2e-3 && e[2].abs() < 1e-3, "{:?}", m.pose);
     }

@@ -159,6 +159,9 @@ fn sample(curves: &[Polyline], step: f64, reach: f64) -> Vec<Point> {
 struct Keyframe {
     /// Thinned returns of its scans.
     points: Vec<Point>,
+    /// The share of a measurement each of its points is: its scans' mean (see
+    /// [`Registrar::push_curves`]).
+    weight: f64,
     surface: Surface,
     /// Path travelled when it opened, metres.
     path: f64,
@@ -171,6 +174,8 @@ pub struct Registrar {
     keyframes: Vec<Keyframe>,
     /// Raw returns of the open (newest) keyframe's scans, in its frame.
     open: Vec<Point>,
+    /// The open keyframe's scans' weights: their sum and count.
+    open_weight: (f64, usize),
     /// Each scan's keyframe and pose relative to it (kept when the trajectory is).
     anchors: Vec<(usize, Pose)>,
     keep_trajectory: bool,
@@ -224,6 +229,7 @@ impl Registrar {
             graph: PoseGraph::default(),
             keyframes: Vec::new(),
             open: Vec::new(),
+            open_weight: (1.0, 0),
             anchors: Vec::new(),
             keep_trajectory: true,
             count: 0,
@@ -290,19 +296,48 @@ impl Registrar {
     /// with the range noise averaged along each run, so the point-to-line residuals
     /// measure where the walls are, not the noise of one scan (on the SICK logs the
     /// error over 10 m of path falls by about half; docs/benchmarks.md, "Poses").
-    pub fn push_curves(&mut self, curves: &[Polyline], input: Option<Pose>) -> Registered {
+    ///
+    /// The samples hold no more of the walls than the returns of `scan` (the scan the
+    /// curves were drawn from) within `max_range`: where there are more samples than
+    /// returns (a wall 10 m from a 1-degree scanner has returns 17 cm apart, samples
+    /// 3 cm apart), each weighs as that share of a return. Counted as independent
+    /// measurements they would claim millimetres along a corridor that its door jambs'
+    /// few returns place only to centimetres, and outweigh the odometry there.
+    pub fn push_curves(
+        &mut self,
+        scan: &Scan,
+        curves: &[Polyline],
+        input: Option<Pose>,
+    ) -> Registered {
         let points = sample(curves, self.params.cell, self.params.max_range);
-        self.push_points(points, input)
+        let r = self.params.max_range;
+        let returns = scan
+            .returns()
+            .into_iter()
+            .filter(|&p| isoline_core::geom::dist(p, scan.origin) <= r)
+            .count();
+        let weight = (returns as f64 / points.len().max(1) as f64).min(1.0);
+        self.push_weighted(points, weight, input)
     }
 
     /// Registers the next scan given as points in its frame, as
     /// [`push`](Registrar::push) does with its returns.
     pub fn push_points(&mut self, points: Vec<Point>, input: Option<Pose>) -> Registered {
+        self.push_weighted(points, 1.0, input)
+    }
+
+    /// Registers the next scan's `points`, each `weight` of a measurement.
+    fn push_weighted(
+        &mut self,
+        points: Vec<Point>,
+        weight: f64,
+        input: Option<Pose>,
+    ) -> Registered {
         let _span = tracing::debug_span!("register", scan = self.count).entered();
         let Some((last_input, last)) = self.last else {
             // The first scan fixes the world: where its input puts it, else the origin.
             let pose = input.unwrap_or([0.0, 0.0, 0.0]);
-            self.open_keyframe(pose, &points, Cov3::zeros());
+            self.open_keyframe(pose, &points, weight, Cov3::zeros());
             self.last = Some((input, pose));
             self.anchor(0, [0.0, 0.0, 0.0]);
             return Registered {
@@ -317,6 +352,7 @@ impl Registrar {
         let m = match &self.local {
             Some(local) if !local.is_empty() => register(
                 &points,
+                weight,
                 local,
                 prior.mean,
                 Some(&prior),
@@ -348,12 +384,14 @@ impl Registrar {
             // relative to it.
             let pose = compose(self.graph.nodes[kf], rel);
             let cov = self.edge_cov(&m, rel);
-            self.open_keyframe(pose, &points, cov);
+            self.open_keyframe(pose, &points, weight, cov);
             self.last = Some((input, pose));
             self.anchor(kf + 1, [0.0, 0.0, 0.0]);
         } else {
             self.open
                 .extend(points.iter().map(|&p| isoline_core::geom::to_world(rel, p)));
+            self.open_weight.0 += weight;
+            self.open_weight.1 += 1;
             self.anchor(kf, rel);
         }
         let pose = self.last.expect("set above").1;
@@ -447,7 +485,7 @@ impl Registrar {
         rotate_cov(&m.cov, -self.graph.nodes[kf][2]) + floor
     }
 
-    fn open_keyframe(&mut self, pose: Pose, points: &[Point], cov: Cov3) {
+    fn open_keyframe(&mut self, pose: Pose, points: &[Point], weight: f64, cov: Cov3) {
         let k = self.keyframes.len();
         self.graph.nodes.push(pose);
         self.links.push(Vec::new());
@@ -465,10 +503,12 @@ impl Registrar {
             );
         }
         self.open = points.to_vec();
+        self.open_weight = (weight, 1);
         let surface = Surface::new(points, self.normal_radius());
         self.keyframes.push(Keyframe {
             // Its points are those of all its scans, set when it closes.
             points: Vec::new(),
+            weight,
             surface,
             path: self.path,
         });
@@ -563,6 +603,7 @@ impl Registrar {
         let points = thin(&std::mem::take(&mut self.open), self.params.cell);
         let surface = Surface::new(&points, self.normal_radius());
         self.keyframes[k].points = points;
+        self.keyframes[k].weight = self.open_weight.0 / self.open_weight.1.max(1) as f64;
         self.keyframes[k].surface = surface;
         let closed = if self.params.loops {
             self.close_loops(k)
@@ -769,7 +810,15 @@ impl Registrar {
             .filter(|(q, _)| keep(q))
             .unzip();
         let target = Surface::with_normals(points, normals);
-        let best = register(source, &target, at, None, p.noise, p.reach);
+        let best = register(
+            source,
+            self.keyframes[k].weight,
+            &target,
+            at,
+            None,
+            p.noise,
+            p.reach,
+        );
         let c = diff(best.pose, guess);
         let s = chain + best.cov;
         let m2 = s.try_inverse().map(|inv| (c.transpose() * inv * c)[0]);

@@ -89,7 +89,7 @@ pub fn run(
             let r = if curves.is_empty() {
                 reg.push(&scan, pose)
             } else {
-                reg.push_curves(curves, pose)
+                reg.push_curves(&scan, curves, pose)
             };
             let vertices: usize = curves.iter().map(|c| c.points.len()).sum();
             cache.push(drawn.filter(|_| cached + vertices <= CACHED_VERTICES));
