@@ -129,14 +129,7 @@ pub fn register(
         let round_start = pose;
         for _ in 0..if settled { INNER_STEPS } else { 1 } {
             let (mut h, mut g) = (Matrix3::zeros(), Vector3::zeros());
-            let (s, c) = pose[2].sin_cos();
-            for &(p, m, n) in &pairs {
-                let d = [c * p[0] - s * p[1], s * p[0] + c * p[1]];
-                let r = n[0] * (pose[0] + d[0] - m[0]) + n[1] * (pose[1] + d[1] - m[1]);
-                let u = r / k;
-                let w = 1.0 / (1.0 + u * u).powi(2);
-                // d q / d theta = the rotated point turned a quarter.
-                let j = Vector3::new(n[0], n[1], n[0] * -d[1] + n[1] * d[0]);
+            for (j, r, w) in terms(&pairs, pose, k) {
                 h += w * j * j.transpose();
                 g += w * r * j;
             }
@@ -159,12 +152,8 @@ pub fn register(
         }
         let before = k;
         if !pairs.is_empty() {
-            let (s, c) = pose[2].sin_cos();
             residuals.clear();
-            residuals.extend(pairs.iter().map(|&(p, m, n)| {
-                let d = [c * p[0] - s * p[1], s * p[0] + c * p[1]];
-                (n[0] * (pose[0] + d[0] - m[0]) + n[1] * (pose[1] + d[1] - m[1])).abs()
-            }));
+            residuals.extend(terms(&pairs, pose, k).map(|(_, r, _)| r.abs()));
             let median = median(&mut residuals);
             k = (1.4826 * median).clamp(noise, k);
         }
@@ -176,7 +165,10 @@ pub fn register(
             break;
         }
     }
-    finish(points, weight, target, pose, prior, noise, k.min(reach))
+    pairs.clear();
+    let k = k.min(reach);
+    pair(points, target, pose, 5.0 * k, &mut pairs);
+    finish(&pairs, points.len(), weight, pose, prior, noise, k)
 }
 
 /// Pairs every return with its nearest target within `gate` at `pose`.
@@ -195,27 +187,45 @@ fn pair(
     }));
 }
 
-/// The match at `pose`: pairs, inliers, the scan's information and the covariance.
+/// Each pair's Jacobian, point-to-line residual and robust weight (kernel scale `k`)
+/// at `pose`.
+fn terms(
+    pairs: &[(Point, Point, Point)],
+    pose: Pose,
+    k: f64,
+) -> impl Iterator<Item = (Vector3<f64>, f64, f64)> + '_ {
+    let (s, c) = pose[2].sin_cos();
+    pairs.iter().map(move |&(p, m, n)| {
+        let d = [c * p[0] - s * p[1], s * p[0] + c * p[1]];
+        let r = n[0] * (pose[0] + d[0] - m[0]) + n[1] * (pose[1] + d[1] - m[1]);
+        let u = r / k;
+        let w = 1.0 / (1.0 + u * u).powi(2);
+        // d q / d theta = the rotated point turned a quarter.
+        (Vector3::new(n[0], n[1], n[0] * -d[1] + n[1] * d[0]), r, w)
+    })
+}
+
+/// The match at `pose` from its `pairs` (of `offered` returns): pairs, inliers, the
+/// scan's information and the covariance.
 fn finish(
-    points: &[Point],
+    pairs: &[(Point, Point, Point)],
+    offered: usize,
     weight: f64,
-    target: &Surface,
     pose: Pose,
     prior: Option<&Prior>,
     noise: f64,
     k: f64,
 ) -> Match {
-    let (mut h, mut paired, mut inliers) = (Matrix3::zeros(), 0usize, 0usize);
+    let (mut h, mut inliers) = (Matrix3::zeros(), 0usize);
     let (mut wsum, mut wr2) = (0.0, 0.0);
-    accumulate(points, target, pose, 5.0 * k, k, |j, r, w| {
+    for (j, r, w) in terms(pairs, pose, k) {
         h += w * j * j.transpose();
-        paired += 1;
         wsum += w;
         wr2 += w * r * r;
         if r.abs() <= 3.0 * noise {
             inliers += 1;
         }
-    });
+    }
     // The residuals' variance as they scatter, never below the noise's.
     let s2 = if wsum > 0.0 {
         (wr2 / wsum).max(noise * noise)
@@ -232,36 +242,11 @@ fn finish(
         pose,
         cov,
         info,
-        paired,
+        paired: pairs.len(),
         inliers,
-        offered: points.len(),
+        offered,
         spread: s2.sqrt(),
         degenerate: degenerate(&info, &prior_info),
-    }
-}
-
-/// Calls `f(jacobian, residual, weight)` for every return with a target within `gate`.
-fn accumulate(
-    points: &[Point],
-    target: &Surface,
-    pose: Pose,
-    gate: f64,
-    k: f64,
-    mut f: impl FnMut(Vector3<f64>, f64, f64),
-) {
-    let (s, c) = pose[2].sin_cos();
-    for p in points {
-        let d = [c * p[0] - s * p[1], s * p[0] + c * p[1]];
-        let q = [pose[0] + d[0], pose[1] + d[1]];
-        let Some((m, n)) = target.nearest(q, gate) else {
-            continue;
-        };
-        let r = n[0] * (q[0] - m[0]) + n[1] * (q[1] - m[1]);
-        let u = r / k;
-        let w = 1.0 / (1.0 + u * u).powi(2);
-        // d q / d theta = the rotated point turned a quarter.
-        let j = Vector3::new(n[0], n[1], n[0] * -d[1] + n[1] * d[0]);
-        f(j, r, w);
     }
 }
 

@@ -310,12 +310,7 @@ impl Registrar {
         input: Option<Pose>,
     ) -> Registered {
         let points = sample(curves, self.params.cell, self.params.max_range);
-        let r = self.params.max_range;
-        let returns = scan
-            .returns()
-            .into_iter()
-            .filter(|&p| isoline_core::geom::dist(p, scan.origin) <= r)
-            .count();
+        let returns = self.in_range(scan).len();
         let weight = (returns as f64 / points.len().max(1) as f64).min(1.0);
         self.push_weighted(points, weight, input)
     }
@@ -439,14 +434,15 @@ impl Registrar {
 
     /// The scan's returns within `max_range`, thinned to the lattice.
     fn returns(&self, scan: &Scan) -> Vec<Point> {
+        thin(&self.in_range(scan), self.params.cell)
+    }
+
+    /// The scan's returns within `max_range`.
+    fn in_range(&self, scan: &Scan) -> Vec<Point> {
         let r = self.params.max_range;
-        let o = scan.origin;
-        let pts: Vec<Point> = scan
-            .returns()
-            .into_iter()
-            .filter(|&p| isoline_core::geom::dist(p, o) <= r)
-            .collect();
-        thin(&pts, self.params.cell)
+        let mut pts = scan.returns();
+        pts.retain(|&p| isoline_core::geom::dist(p, scan.origin) <= r);
+        pts
     }
 
     /// The prior on the scan's pose: the input's motion since the previous scan from
