@@ -110,6 +110,9 @@ fn link(dir: &Path, name: &str) {
     std::os::unix::fs::symlink(root().join(name), dir.join(name)).unwrap();
 }
 
+/// Held while a command that listens on a fixed port runs.
+static FIXED_PORTS: std::sync::Mutex<()> = std::sync::Mutex::new(());
+
 fn run(dir: &Path, page: &Path, command: &str) {
     let bin = env!("CARGO_BIN_EXE_isoline");
     let mut w = words(command);
@@ -154,6 +157,13 @@ fn run(dir: &Path, page: &Path, command: &str) {
         }
         _ => panic!("{what}: a command this test does not know how to run"),
     };
+    // A configuration that binds a fixed port (the live view's 8765) is run by one
+    // page at a time: two pages show the same demo, and side by side the second would
+    // find the port taken.
+    let binds = w.iter().any(|a| {
+        std::fs::read_to_string(dir.join(a)).is_ok_and(|t| t.lines().any(|l| l.starts_with("bind")))
+    });
+    let _port = binds.then(|| FIXED_PORTS.lock().unwrap_or_else(|e| e.into_inner()));
     cmd.current_dir(dir)
         .env("QUICK", "1")
         .env("ISOLINE_BIN", bin)
