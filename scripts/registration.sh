@@ -111,3 +111,19 @@ PY
   done
 done
 
+echo
+# How far the references themselves scatter from scan to scan (scripts/reference-noise.py):
+# the reference's, the registered trajectory's (seed 1) and an independent pairwise ICP's
+# step between consecutive scans, split by the three-cornered hat.
+need_numpy
+echo "| recording | steps (median length) | reference's own scatter a step: along cm, sideways cm, deg | registered's | pairwise ICP's |"
+echo "|---|---:|---:|---:|---:|"
+for input in "$dir"/*-s1.ndjson; do
+  [ -e "$input" ] || continue
+  name=$(basename "$input" -s1.ndjson)
+  "$py" scripts/reference-noise.py "$dir/$name.ndjson" "$dir/$name-s1-register.tum" \
+    | python3 -c "
+import json, sys
+e = json.load(sys.stdin); f = lambda v: ', '.join(f'{x:.2f}' for x in v)
+print(f\"| $name | {e['steps']} ({e['step_m']:.2f} m) | {f(e['reference'])} | {f(e['estimate'])} | {f(e['icp'])} |\")"
+done
