@@ -10,8 +10,10 @@ Errors the registration and the ICP share (both read the same returns) move into
 reference's figure, so it is an upper bound where they correlate; a negative variance
 (printed as a negative root) says the three are not independent enough to split.
 Components in the earlier scan's frame: along its heading, sideways (cm) and heading
-(degrees). The RPE over 1 m of a trajectory scored against a reference that scatters by
-s cm a step is at least about s where the scans are about a metre apart.
+(degrees); for consecutive scans, and for stretches of 10 m of path (each estimate's
+steps composed: the pairwise ICP's chain drifts, and the hat counts its drift as its
+own). The RPE over 1 m of a trajectory scored against a reference that scatters by s
+cm a step is at least about s where the scans are about a metre apart.
 
 Usage: reference-noise.py FRAMES.ndjson ESTIMATE.tum   (FRAMES: the recording's scans
 with the reference poses, as `isoline convert` writes them; ESTIMATE: one line a scan)
@@ -91,43 +93,76 @@ def main():
     ]
     if len(est) != len(frames):
         sys.exit(f"{len(frames)} frames but {len(est)} poses")
-    ref, mine, pair = [], [], []
+    # Each step three ways; None where the ICP failed.
+    steps = []
     for a, b, ea, eb in zip(frames, frames[1:], est, est[1:]):
         p, q = returns(b), returns(a)
         if len(p) < 30 or len(q) < 30 or a.get("pose") is None or b.get("pose") is None:
+            steps.append(None)
             continue
         r = between(a["pose"], b["pose"])
         x = icp(p, q, r)
         # An ICP that left the reference by more than its reach found other walls.
         if x is None or np.abs(x[:2] - r[:2]).max() > 0.5:
+            steps.append(None)
             continue
-        ref.append(r)
-        mine.append(between(ea, eb))
-        pair.append(x)
-    ref, mine, pair = map(np.array, (ref, mine, pair))
+        steps.append((r, between(ea, eb), x))
 
     def ms(u, v):
-        d = u - v
+        d = np.array(u) - np.array(v)
         d[:, 2] = np.degrees([wrap(t) for t in d[:, 2]])
         return np.mean(d**2, 0)
-
-    rm, rp, mp = ms(ref, mine), ms(ref, pair), ms(mine, pair)
 
     def root(v):
         scale = np.array([100.0, 100.0, 1.0])
         return [round(float(math.copysign(math.sqrt(abs(x)), x) * k), 2) for x, k in zip(v, scale)]
 
-    print(json.dumps({
-        "steps": len(ref),
-        "step_m": round(float(np.median(np.hypot(ref[:, 0], ref[:, 1]))), 2),
-        "units": "along cm, sideways cm, heading deg",
-        "rms_reference_vs_estimate": root(rm),
-        "rms_reference_vs_icp": root(rp),
-        "rms_estimate_vs_icp": root(mp),
-        "reference": root((rm + rp - mp) / 2),
-        "estimate": root((rm + mp - rp) / 2),
-        "icp": root((rp + mp - rm) / 2),
-    }))
+    def hat(triples):
+        ref, mine, pair = zip(*triples)
+        rm, rp, mp = ms(ref, mine), ms(ref, pair), ms(mine, pair)
+        return {
+            "pairs": len(triples),
+            "rms_reference_vs_estimate": root(rm),
+            "rms_reference_vs_icp": root(rp),
+            "rms_estimate_vs_icp": root(mp),
+            "reference": root((rm + rp - mp) / 2),
+            "estimate": root((rm + mp - rp) / 2),
+            "icp": root((rp + mp - rm) / 2),
+        }
+
+    out = {"units": "along cm, sideways cm, heading deg"}
+    good = [s for s in steps if s is not None]
+    out["step_m"] = round(float(np.median([math.hypot(*s[0][:2]) for s in good])), 2)
+    out["step"] = hat(good)
+    # Over 10 m of the reference's path: each estimate's steps composed (the ICP's chain
+    # of pairwise steps drifts; the hat takes its drift as its own error), every stretch
+    # whose steps all have an ICP.
+    along = np.concatenate([[0.0], np.cumsum([
+        math.hypot(*(np.array(b["pose"][:2]) - a["pose"][:2])) if a.get("pose") and b.get("pose") else 0.0
+        for a, b in zip(frames, frames[1:])
+    ])])
+    far, j = [], 0
+    for i in range(len(steps)):
+        j = max(j, i)
+        while j < len(steps) and along[j] - along[i] < 10.0:
+            j += 1
+        if j >= len(steps):
+            break
+        run = steps[i:j]
+        if any(s is None for s in run):
+            continue
+        total = []
+        for k in range(3):
+            pose = np.zeros(3)
+            for s in run:
+                c, sn = math.cos(pose[2]), math.sin(pose[2])
+                pose = pose + [c * s[k][0] - sn * s[k][1], sn * s[k][0] + c * s[k][1], s[k][2]]
+            pose[2] = wrap(pose[2])
+            total.append(pose)
+        far.append(tuple(total))
+    if far:
+        out["over_10_m"] = hat(far)
+    print(json.dumps(out))
 
 
 if __name__ == "__main__":

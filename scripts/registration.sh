@@ -112,12 +112,13 @@ PY
 done
 
 echo
-# How far the references themselves scatter from scan to scan (scripts/reference-noise.py):
-# the reference's, the registered trajectory's (seed 1) and an independent pairwise ICP's
-# step between consecutive scans, split by the three-cornered hat.
+# How far the references themselves are off (scripts/reference-noise.py): the
+# reference's, the registered trajectory's (seed 1) and an independent pairwise ICP's
+# motion between consecutive scans and over 10 m of path, split by the three-cornered
+# hat.
 need_numpy
-echo "| recording | steps (median length) | reference's own scatter a step: along cm, sideways cm, deg | registered's | pairwise ICP's |"
-echo "|---|---:|---:|---:|---:|"
+echo "| recording | steps (median length) | reference's own error a step: along cm, sideways cm, deg | registered's | pairwise ICP's | over 10 m: reference's | registered's | ICP chain's |"
+echo "|---|---:|---:|---:|---:|---:|---:|---:|"
 for input in "$dir"/*-s1.ndjson; do
   [ -e "$input" ] || continue
   name=$(basename "$input" -s1.ndjson)
@@ -125,5 +126,7 @@ for input in "$dir"/*-s1.ndjson; do
     | python3 -c "
 import json, sys
 e = json.load(sys.stdin); f = lambda v: ', '.join(f'{x:.2f}' for x in v)
-print(f\"| $name | {e['steps']} ({e['step_m']:.2f} m) | {f(e['reference'])} | {f(e['estimate'])} | {f(e['icp'])} |\")"
+s, t = e['step'], e.get('over_10_m', {})
+g = lambda k: f(t[k]) if k in t else ''
+print(f\"| $name | {s['pairs']} ({e['step_m']:.2f} m) | {f(s['reference'])} | {f(s['estimate'])} | {f(s['icp'])} | {g('reference')} | {g('estimate')} | {g('icp')} |\")"
 done
