@@ -91,7 +91,7 @@ pub use index::SegmentIndex;
 pub use levelset::{Init, LinearSolver, Scheme, Settle, SolverParams, Start, StopReason};
 pub use mesh::Mesh;
 pub use reconstruct::{
-    reconstruct, reconstruct_scan, reconstruct_warm, Params, Reconstruction, AREA_SHARE,
+    reconstruct, reconstruct_scan, reconstruct_warm, FrameKind, Params, Reconstruction, AREA_SHARE,
 };
 pub use refine::{RefineFrame, Refiner};
 pub use repair::strokes::Junction;

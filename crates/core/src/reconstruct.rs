@@ -94,20 +94,53 @@ pub struct Reconstruction {
     /// Scan frames: the clusters of returns that no curve explains; point clouds: the
     /// outliers (samples with no curve's neighbourhood, one each). In data coordinates.
     pub features: Vec<Feature>,
-    /// Point clouds: where open strokes meet, and which of `polylines` meet there
-    /// (the strokes of a drawing).
-    pub junctions: Vec<crate::repair::strokes::Junction>,
     /// Whether the data enclosed anything: false for a drawing of open strokes (the
     /// level set then started from the box round them).
     pub enclosed: bool,
-    /// Scan frames: the sensor's position and the boundary of the free space its rays
-    /// swept, in data coordinates.
-    pub free_space: Option<(Point, Polyline)>,
+    /// What only a point cloud's or only a scan's result holds.
+    pub kind: FrameKind,
     /// What is wrong with the result, if anything.
     pub warnings: Vec<Warning>,
 }
 
+/// What a reconstruction holds that depends on the frame it came from: a point cloud's
+/// strokes meet at junctions, a scan's beams swept a free space. One or the other, never
+/// both.
+#[derive(Clone, Debug, PartialEq)]
+pub enum FrameKind {
+    /// A point cloud (a drawing, a contour, a digitized shape).
+    Cloud {
+        /// Where open strokes meet, and which of the polylines meet there (the strokes of
+        /// a drawing).
+        junctions: Vec<crate::repair::strokes::Junction>,
+    },
+    /// A scanner's frame.
+    Scan {
+        /// Where the sensor was, in data coordinates.
+        sensor: Point,
+        /// The boundary of the free space its rays swept, in data coordinates.
+        free_space: Polyline,
+    },
+}
+
 impl Reconstruction {
+    /// A point cloud's junctions (none for a scan).
+    pub fn junctions(&self) -> &[crate::repair::strokes::Junction] {
+        match &self.kind {
+            FrameKind::Cloud { junctions } => junctions,
+            FrameKind::Scan { .. } => &[],
+        }
+    }
+
+    /// A scan's sensor position and the boundary of the free space its rays swept (none
+    /// for a point cloud).
+    pub fn free_space(&self) -> Option<(Point, &Polyline)> {
+        match &self.kind {
+            FrameKind::Scan { sensor, free_space } => Some((*sensor, free_space)),
+            FrameKind::Cloud { .. } => None,
+        }
+    }
+
     /// This frame as the next frame's warm start takes it.
     pub fn as_previous(&self) -> Previous<'_> {
         Previous {
@@ -780,9 +813,14 @@ fn export_with(
         solve: report,
         noise_estimate: at.len_to_data(adapted.noise_estimate),
         features,
-        junctions,
         enclosed: solved.enclosed,
-        free_space: scan_analysis.map(|a| a.free_space_in(&at)),
+        kind: match scan_analysis {
+            Some(a) => {
+                let (sensor, free_space) = a.free_space_in(&at);
+                FrameKind::Scan { sensor, free_space }
+            }
+            None => FrameKind::Cloud { junctions },
+        },
         warnings,
     }
 }
@@ -968,6 +1006,49 @@ fn stage_ms(
 mod tests {
     use super::*;
     use crate::levelset::SolverParams;
+
+    /// A point cloud's result holds junctions and no free space, a scan's a free space
+    /// round its sensor and no junctions: the kinds never mix.
+    #[test]
+    fn a_cloud_and_a_scan_give_their_own_kind() {
+        let strokes = crate::reconstruct::tests::plus(400);
+        let cloud = reconstruct(&strokes, &Params::default()).unwrap();
+        assert!(cloud.free_space().is_none());
+        assert!(matches!(cloud.kind, FrameKind::Cloud { .. }));
+        assert!(!cloud.junctions().is_empty(), "{:?}", cloud.polylines.len());
+        let n = 181;
+        let ranges: Vec<Option<f64>> = (0..n)
+            .map(|i| {
+                let a =
+                    -std::f64::consts::FRAC_PI_4 + i as f64 * (std::f64::consts::FRAC_PI_2 / 180.0);
+                Some(2.0 / a.cos())
+            })
+            .collect();
+        let scan = crate::scan::Scan::from_laser(&crate::scan::LaserScan {
+            origin: [1.0, -3.0],
+            angle_min: -std::f64::consts::FRAC_PI_4,
+            angle_increment: std::f64::consts::FRAC_PI_2 / 180.0,
+            ranges: &ranges,
+            range_min: 0.1,
+            range_max: 10.0,
+        })
+        .unwrap();
+        let seen = reconstruct_scan(&scan, &Params::default()).unwrap();
+        assert!(seen.junctions().is_empty());
+        let (sensor, free) = seen.free_space().expect("a scan's free space");
+        assert!(crate::geom::dist(sensor, [1.0, -3.0]) < 1e-9, "{sensor:?}");
+        assert!(free.closed && free.points.len() >= 3);
+    }
+
+    /// Two strokes crossing at their middles, `n` samples each.
+    pub(crate) fn plus(n: usize) -> Vec<Point> {
+        (0..n)
+            .flat_map(|i| {
+                let t = 0.1 + 0.8 * i as f64 / (n - 1) as f64;
+                [[t, 0.5], [0.5, t]]
+            })
+            .collect()
+    }
 
     /// Points that fill an area get no curve, and say so: every one of them is a
     /// feature and the only warning is [`Warning::Area`]. Strokes hatched closer than

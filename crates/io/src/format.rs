@@ -326,8 +326,8 @@ impl ResultRecord {
                 .stats
                 .unexplained
                 .map(|_| r.features.iter().map(FeatureJson::from).collect()),
-            junctions: (!r.junctions.is_empty())
-                .then(|| r.junctions.iter().map(JunctionJson::from).collect()),
+            junctions: (!r.junctions().is_empty())
+                .then(|| r.junctions().iter().map(JunctionJson::from).collect()),
             stats: Some(r.stats.clone()),
             warnings: (!r.warnings.is_empty())
                 .then(|| r.warnings.iter().map(ToString::to_string).collect()),

@@ -39,7 +39,7 @@ fn strokes_are_not_warm_started_from_the_loop_round_them() {
     let next = reconstruct_warm(&frames[1].points, &params, Some(&first)).unwrap();
     assert!(!next.stats.warm_start);
     assert!(!next.polylines.is_empty() && next.polylines.iter().all(|l| !l.closed));
-    assert_eq!(next.junctions.len(), 3);
+    assert_eq!(next.junctions().len(), 3);
 }
 
 /// Warm frames meet the one-shot bound 3 sigma + 2 hmin, and so does a frame after a

@@ -236,16 +236,16 @@ pub fn of_reconstruction<'a>(
     mesh: bool,
 ) -> Drawing<'a> {
     let mut corners: Vec<Point> = points.to_vec();
-    if let Some((o, _)) = &r.free_space {
-        corners.push(*o);
+    if let Some((o, _)) = r.free_space() {
+        corners.push(o);
     }
     Drawing {
         mesh: mesh.then_some(&r.mesh),
         points,
         polylines: &r.polylines,
         view: BBox::of(&corners).map(|b| b.padded(0.05 * b.diag())),
-        sensor: r.free_space.as_ref().map(|f| f.0),
-        free: r.free_space.as_ref().map(|f| &f.1),
+        sensor: r.free_space().map(|f| f.0),
+        free: r.free_space().map(|f| f.1),
         features,
         truth,
         map: false,
