@@ -4,7 +4,7 @@
 # all, for the measurements run by hand (scripts/cgal-peer.sh, glyphs.sh, map-logs.sh);
 # the test suite needs none of them.
 #
-#   scripts/tools.sh        # CGAL's driver, the glyphs' Python and fonts
+#   scripts/tools.sh        # CGAL's driver, the glyphs' Python and fonts, KISS-ICP
 
 # CGAL's optimal-transport reconstruction as $otr, the driver scripts/cgal/otr2.cpp built
 # into .tools/ (Debian's libcgal-dev installed first when missing, with apt-get, as root
@@ -32,6 +32,17 @@ need_numpy() {
   fi
 }
 
+# KISS-ICP (the `kiss-icp` package, a LiDAR odometry) as $kiss: the Python of the
+# virtual environment .tools/kiss, made when missing.
+need_kiss() {
+  kiss=.tools/kiss/bin/python
+  if ! "$kiss" -c "import kiss_icp" 2> /dev/null; then
+    rm -rf .tools/kiss
+    python3 -m venv .tools/kiss
+    .tools/kiss/bin/pip install --quiet --disable-pip-version-check kiss-icp
+  fi
+}
+
 # The fonts the glyph corpus draws from: Debian's fonts-dejavu-core and
 # hershey-fonts-data (apt-get, as root or through sudo, when missing).
 need_fonts() {
@@ -48,4 +59,5 @@ if [ "${BASH_SOURCE[0]}" = "$0" ]; then
   need_fonts
   need_otr2
   need_numpy
+  need_kiss
 fi

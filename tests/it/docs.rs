@@ -7,6 +7,7 @@
 //! with `QUICK=1` (a small version of their run) and that binary. `cargo test`, `cargo
 //! bench`, `cargo build`, `scripts/test.sh` and `.ci/run` are the suite and its build,
 //! `scripts/cgal-peer.sh` installs a Debian package and builds a C++ peer,
+//! `scripts/kiss-peer.sh` installs a Python peer (KISS-ICP),
 //! `scripts/glyphs.sh` installs Debian's fonts and a Python environment, and `python`,
 //! `pip` and `scripts/python.sh` are the Python package's, which scripts/python.sh tests
 //! (with the `python` blocks of docs/python.md): not run here. Any
@@ -139,7 +140,7 @@ fn run(dir: &Path, page: &Path, command: &str) {
         | ["python" | "pip" | "scripts/python.sh", ..]
         // Install Debian packages (and build a C++ driver, or a Python environment with
         // fontTools): measurements run by hand.
-        | ["scripts/cgal-peer.sh" | "scripts/glyphs.sh", ..] => return,
+        | ["scripts/cgal-peer.sh" | "scripts/glyphs.sh" | "scripts/kiss-peer.sh", ..] => return,
         ["cargo", "run", "--release", "--", rest @ ..] | ["isoline", rest @ ..] => {
             let mut c = Command::new(bin);
             c.args(rest);
