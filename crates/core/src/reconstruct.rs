@@ -1011,7 +1011,7 @@ mod tests {
     /// round its sensor and no junctions: the kinds never mix.
     #[test]
     fn a_cloud_and_a_scan_give_their_own_kind() {
-        let strokes = crate::reconstruct::tests::plus(400);
+        let strokes = plus(400);
         let cloud = reconstruct(&strokes, &Params::default()).unwrap();
         assert!(cloud.free_space().is_none());
         assert!(matches!(cloud.kind, FrameKind::Cloud { .. }));
@@ -1041,7 +1041,7 @@ mod tests {
     }
 
     /// Two strokes crossing at their middles, `n` samples each.
-    pub(crate) fn plus(n: usize) -> Vec<Point> {
+    fn plus(n: usize) -> Vec<Point> {
         (0..n)
             .flat_map(|i| {
                 let t = 0.1 + 0.8 * i as f64 / (n - 1) as f64;
