@@ -5,7 +5,8 @@
 # prediction (scripts/kiss-icp.py), scored against the corrected poses by `isoline eval
 # --reference`, and its map drawn and scored by `isoline map` on its poses. Installs the
 # `kiss-icp` package into .tools/kiss (pip) when missing. Rows as scripts/registration.sh
-# prints them; KISS-ICP closes no loops, so its rows stand beside `register-noloops`.
+# prints them (scripts/pose-rows.py; the CPU column holds KISS-ICP's wall time a scan,
+# Python's start included); KISS-ICP closes no loops, so its rows stand beside `register-noloops`.
 # Usage: ISOLINE_REAL=DIR scripts/kiss-peer.sh
 set -euo pipefail
 . "$(dirname "$0")/lib.sh"
@@ -14,7 +15,7 @@ need_kiss
 dir=target/kiss-peer
 mkdir -p "$dir"
 seeds=${SEEDS:-1 2 3}
-: > "$dir/rows.txt"
+: > "$dir/rows.tsv"
 for input in "$real"/*.log.gz; do
   [ -e "$input" ] || continue
   base=$(basename "$input" .log.gz)
@@ -27,23 +28,8 @@ for input in "$real"/*.log.gz; do
     end=$(date +%s.%N)
     "$bin" eval "$name-kiss.tum" --reference "$name.ref.tum" > "$name-kiss.eval.json"
     "$bin" map "$name-kiss.ndjson" -q -o "$name-kiss.svg" --stats "$name-kiss.json" 2> /dev/null
-    echo "$base $name $(wc -l < "$name.ndjson") $start $end" >> "$dir/rows.txt"
+    ms=$(python3 -c "print(1e3 * ($end - $start) / $(wc -l < "$name.ndjson"))")
+    printf '%s\tKISS-ICP\t%s\t%s\t%s\n' "$base" "$name-kiss.eval.json" "$name-kiss.json" "$ms" >> "$dir/rows.tsv"
   done
 done
-python3 - "$dir/rows.txt" <<'PY'
-import json, statistics, sys
-rows = {}
-for line in open(sys.argv[1]):
-    base, stem, scans, t0, t1 = line.split()
-    e = json.load(open(stem + "-kiss.eval.json")); s = json.load(open(stem + "-kiss.json"))
-    rows.setdefault(base, []).append((e, s, 1e3 * (float(t1) - float(t0)) / int(scans)))
-med = statistics.median
-for base, runs in rows.items():
-    g = lambda fn: med([fn(e, s, ms) for e, s, ms in runs])
-    rpe = lambda k, f: g(lambda e, s, ms: e["rpe"][k][f])
-    print(f"| {base} | KISS-ICP | {len(runs)} | {g(lambda e, s, ms: e['ate_m']):.3f} "
-          f"| {rpe(0, 'translation_m'):.3f}, {rpe(0, 'heading_deg'):.2f} "
-          f"| {rpe(1, 'translation_m'):.3f}, {rpe(1, 'heading_deg'):.2f} "
-          f"| {100 * g(lambda e, s, ms: s['scores']['static_within']):.1f}% "
-          f"| {100 * g(lambda e, s, ms: s['scores']['seen_through']):.2f}% | | {g(lambda e, s, ms: ms):.1f} wall |")
-PY
+python3 scripts/pose-rows.py "$dir/rows.tsv"

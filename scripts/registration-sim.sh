@@ -17,7 +17,7 @@ seeds=${SEEDS:-1 2 3}
 runs="sick-lms1xx:0.7:room:600 sick-lms1xx:0.7:corridor:600 sick-lms1xx:0.7:clutter:600
   sick-lms1xx:0.7:loop:1400 hokuyo-urg04lx:0.05:clutter:1500 hokuyo-urg04lx:0.05:corridor:1500"
 [ "$quick" = 1 ] && { seeds=1; runs="sick-lms1xx:0.7:clutter:60"; }
-: > "$dir/rows.txt"
+: > "$dir/rows.tsv"
 for run in $runs; do
   IFS=: read -r sensor step scene n <<< "$run"
   name=$scene-$sensor
@@ -31,26 +31,11 @@ for run in $runs; do
       "$bin" map "$stem.ndjson" "${args[@]}" -q -o "$stem-$way.svg" --stats "$stem-$way.json" \
         --trajectory "$stem-$way.tum" 2> /dev/null
       "$bin" eval "$stem-$way.tum" --reference "$stem.truth.tum" > "$stem-$way.eval.json"
-      echo "$name $sensor $step $way $stem-$way" >> "$dir/rows.txt"
+      printf '%s\t%s, %s cm\t%s\t%s\t%s\t-\n' "$scene" "$sensor" "$(python3 -c "print(round($step * 100))")" \
+        "$way" "$stem-$way.eval.json" "$stem-$way.json" >> "$dir/rows.tsv"
     done
   done
 done
-python3 - "$dir/rows.txt" <<'PY'
-import json, statistics, sys
-rows = {}
-for line in open(sys.argv[1]):
-    name, sensor, step, way, stem = line.split()
-    e = json.load(open(stem + ".eval.json")); s = json.load(open(stem + ".json"))
-    rows.setdefault((name.split("-")[0], sensor, step, way), []).append((e, s))
-med = lambda v: statistics.median(v)
-print("| scene | sensor, a scan every | poses | runs | path m | ATE m | RPE 1 m: m, deg | RPE 10 m: m, deg | static returns within 5 cm | loops |")
-print("|---|---|---|---:|---:|---:|---:|---:|---:|---:|")
-for (scene, sensor, step, way), runs in rows.items():
-    g = lambda fn: med([fn(e, s) for e, s in runs])
-    rpe = lambda k, f: g(lambda e, s: e["rpe"][k][f])
-    loops = g(lambda e, s: s.get("registration", {}).get("loops", 0)) if way == "register" else None
-    print(f"| {scene} | {sensor}, {float(step)*100:.0f} cm | {way} | {len(runs)} | {g(lambda e, s: e['length_m']):.0f} "
-          f"| {g(lambda e, s: e['ate_m']):.3f} | {rpe(0, 'translation_m'):.3f}, {rpe(0, 'heading_deg'):.2f} "
-          f"| {rpe(1, 'translation_m'):.3f}, {rpe(1, 'heading_deg'):.2f} "
-          f"| {100 * g(lambda e, s: s['scores']['static_within']):.1f}% | {'' if loops is None else f'{loops:.0f}'} |")
-PY
+echo "| scene | sensor, a scan every | poses | runs | ATE m | RPE 1 m: m, deg | RPE 10 m: m, deg | static returns within 5 cm | seen through | loops | CPU ms a scan (registration / all) |"
+echo "|---|---|---|---:|---:|---:|---:|---:|---:|---:|---:|"
+python3 scripts/pose-rows.py "$dir/rows.tsv"

@@ -22,7 +22,7 @@ seeds=${SEEDS:-1 2 3}
 [ "$quick" = 1 ] && seeds=1
 printf '[map]\nalign = true\n' > "$dir/align.toml"
 printf '[register]\nloops = false\n' > "$dir/noloops.toml"
-: > "$dir/rows.txt"
+: > "$dir/rows.tsv"
 run() { # NAME WAY INPUT REF [ARGS...]
   local name=$1 way=$2 input=$3 ref=$4; shift 4
   "$bin" map "$input" "$@" -q -o "$dir/$name-$way.svg" --stats "$dir/$name-$way.json" \
@@ -32,7 +32,7 @@ run() { # NAME WAY INPUT REF [ARGS...]
   else
     echo '{}' > "$dir/$name-$way.eval.json"
   fi
-  echo "$name $way $dir/$name-$way" >> "$dir/rows.txt"
+  printf '%s\t%s\t%s\t%s\t-\n' "${name%-s[0-9]*}" "$way" "$dir/$name-$way.eval.json" "$dir/$name-$way.json" >> "$dir/rows.tsv"
 }
 for input in "$real"/*.log.gz "$real"/*.mcap; do
   [ -e "$input" ] || continue
@@ -56,37 +56,9 @@ for input in "$real"/*.ndjson.gz; do
   run "$base" odometry "$input" ""
   run "$base" register "$input" "" --register
 done
-python3 - "$dir/rows.txt" <<'PY'
-import json, statistics, sys, re
-rows = {}
-for line in open(sys.argv[1]):
-    name, way, stem = line.split()
-    rec = re.sub(r"-s\d+$", "", name)
-    e = json.load(open(stem + ".eval.json")); s = json.load(open(stem + ".json"))
-    r = s.get("registration", {})
-    rows.setdefault((rec, way), []).append((e, s, r))
-def med(v):
-    v = [x for x in v if x is not None]
-    return statistics.median(v) if v else None
-def f(v, fmt):
-    return "" if v is None else fmt.format(v)
-print("| recording | poses | runs | ATE m | RPE 1 m: m, deg | RPE 10 m: m, deg | static returns within 5 cm | seen through | loops | CPU ms a scan (registration / all) |")
-print("|---|---|---:|---:|---:|---:|---:|---:|---:|---:|")
-for (rec, way), runs in rows.items():
-    g = lambda fn: med([fn(e, s, r) for e, s, r in runs])
-    ate = g(lambda e, s, r: e.get("ate_m"))
-    r1 = g(lambda e, s, r: e["rpe"][0]["translation_m"] if "rpe" in e else None)
-    h1 = g(lambda e, s, r: e["rpe"][0]["heading_deg"] if "rpe" in e else None)
-    r10 = g(lambda e, s, r: e["rpe"][1]["translation_m"] if "rpe" in e else None)
-    h10 = g(lambda e, s, r: e["rpe"][1]["heading_deg"] if "rpe" in e else None)
-    st = g(lambda e, s, r: 100 * s["scores"]["static_within"])
-    seen = g(lambda e, s, r: 100 * s["scores"]["seen_through"])
-    loops = g(lambda e, s, r: r.get("loops"))
-    reg = g(lambda e, s, r: r.get("cpu_ms_per_scan"))
-    allc = g(lambda e, s, r: s.get("cpu_ms_per_scan"))
-    print(f"| {rec} | {way} | {len(runs)} | {f(ate,'{:.3f}')} | {f(r1,'{:.3f}')}, {f(h1,'{:.2f}')} | {f(r10,'{:.3f}')}, {f(h10,'{:.2f}')} "
-          f"| {f(st,'{:.1f}%')} | {f(seen,'{:.2f}%')} | {f(loops,'{:.0f}')} | {f(reg,'{:.1f}')} / {f(allc,'{:.1f}')} |")
-PY
+echo "| recording | poses | runs | ATE m | RPE 1 m: m, deg | RPE 10 m: m, deg | static returns within 5 cm | seen through | loops | CPU ms a scan (registration / all) |"
+echo "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|"
+python3 scripts/pose-rows.py "$dir/rows.tsv"
 echo
 echo "| recording | frames | next scan by input poses, cm | by registered poses, cm | nearer | CPU ms a frame |"
 echo "|---|---|---:|---:|---:|---:|"

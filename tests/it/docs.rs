@@ -161,9 +161,13 @@ fn run(dir: &Path, page: &Path, command: &str) {
     // A configuration that binds a fixed port (the live view's 8765) is run by one
     // page at a time: two pages show the same demo, and side by side the second would
     // find the port taken.
-    let binds = w.iter().any(|a| {
-        std::fs::read_to_string(dir.join(a)).is_ok_and(|t| t.lines().any(|l| l.starts_with("bind")))
-    });
+    let binds = w
+        .windows(2)
+        .filter(|p| p[0] == "-c" || p[0] == "--config")
+        .any(|p| {
+            std::fs::read_to_string(dir.join(&p[1]))
+                .is_ok_and(|t| t.lines().any(|l| l.starts_with("bind")))
+        });
     let _port = binds.then(|| FIXED_PORTS.lock().unwrap_or_else(|e| e.into_inner()));
     cmd.current_dir(dir)
         .env("QUICK", "1")
