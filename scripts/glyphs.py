@@ -38,6 +38,10 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 FONT_DIR = "/usr/share/fonts/truetype"
+# The outline families the corpus reads (Debian's fonts-dejavu-core, fonts-dejavu-extra
+# and fonts-liberation, which scripts/tools.sh installs): other fonts a machine happens
+# to have would change the corpus and its split.
+FONT_FAMILIES = ("DejaVu", "Liberation")
 HERSHEY_DIR = "/usr/share/hershey-fonts"
 # Hershey fonts of strokes (the symbol sets hold markers and music, not drawings).
 HERSHEY_FONTS = [
@@ -172,6 +176,8 @@ def shapes():
     out = []
     for path in sorted(glob.glob(os.path.join(FONT_DIR, "**", "*.ttf"), recursive=True)):
         font = os.path.splitext(os.path.basename(path))[0]
+        if not font.startswith(FONT_FAMILIES):
+            continue
         for ch, pls in flatten_font(path).items():
             out.append((f"{font}:{ord(ch):x}", "outline", pls))
     for font in HERSHEY_FONTS:

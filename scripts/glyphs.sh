@@ -3,9 +3,10 @@
 # shapes (spirals, spiral bands, combs with narrow slots, rings with narrow gaps)
 # sampled at several densities, noise levels up to 1% of their size and samplings
 # (uniform, or a density varying 5-fold along the curves), with and without 5%
-# outliers, reconstructed with the defaults and scored against their truth. Installs what it reads: Debian's
-# fonts-dejavu-core and hershey-fonts-data (apt-get, when missing) and fontTools, numpy
-# and scipy in a fresh virtual environment (.tools/glyphs).
+# outliers, reconstructed with the defaults and scored against their truth. Installs what it
+# reads: Debian's fonts-dejavu-core, fonts-dejavu-extra, fonts-liberation and
+# hershey-fonts-data (apt-get, when missing) and fontTools, numpy and scipy in a fresh
+# virtual environment (.tools/glyphs).
 #
 #   scripts/glyphs.sh [dev|test] [CASES] [OUT_DIR]   # default: test 600 target/glyphs-PART
 #   CGAL=N scripts/glyphs.sh ...                     # also CGAL on the first N cases

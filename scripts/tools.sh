@@ -43,13 +43,19 @@ need_kiss() {
   fi
 }
 
-# The fonts the glyph corpus draws from: Debian's fonts-dejavu-core and
-# hershey-fonts-data (apt-get, as root or through sudo, when missing).
+# The fonts the glyph corpus draws from: Debian's fonts-dejavu-core, fonts-dejavu-extra
+# (the condensed and extra-light faces), fonts-liberation and hershey-fonts-data
+# (apt-get, as root or through sudo, when missing). Each package is checked, not only
+# a folder: a machine with the DejaVu core alone made a corpus of other shapes.
 need_fonts() {
-  if [ ! -d /usr/share/hershey-fonts ] || [ ! -d /usr/share/fonts/truetype/dejavu ]; then
+  local pkgs=(fonts-dejavu-core fonts-dejavu-extra fonts-liberation hershey-fonts-data) missing=()
+  for p in "${pkgs[@]}"; do
+    dpkg -s "$p" >/dev/null 2>&1 || missing+=("$p")
+  done
+  if [ "${#missing[@]}" -gt 0 ]; then
     local sudo=""; [ "$(id -u)" = 0 ] || sudo=sudo
     $sudo apt-get update -qq
-    DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq fonts-dejavu-core hershey-fonts-data > /dev/null
+    DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq "${missing[@]}" > /dev/null
   fi
 }
 
