@@ -41,7 +41,9 @@
 //!    qualified early, by chance. Within two such windows: two free ends facing each
 //!    other are joined (a loop's tree misses one edge; a gap the sampling left); then an
 //!    end continues into the nearest curve vertex ahead of it (within 60 degrees of its
-//!    direction: a stroke running into another); then the ends left meet at corners (a
+//!    direction: a stroke running into another), unless its branch from a fork is
+//!    shorter than two windows (below the graph's resolution along a curve, step 6: the
+//!    tip an acute corner leaves, which would run across empty space); then the ends left meet at corners (a
 //!    corner's own samples see two walls, so the tree stops short of it on both sides),
 //!    where a sample lies within the corner's window (its own samples are there).
 //!    Never into its own branch within `2 pi` windows.
@@ -289,7 +291,8 @@ fn prune_spurs(q: &[Point], r: &[f64], adj: &mut [Vec<u32>], windows: f64) {
 
 /// Step 5: each free end continued to the nearest vertex ahead of it within its
 /// window, not of its own branch within [`OWN_BRANCH_WINDOWS`] windows, where the
-/// continuation crosses no edge.
+/// continuation crosses no edge; into a curve's side only from a branch the graph
+/// resolves ([`below_resolution`]).
 fn continue_ends(
     q: &[Point],
     r: &[f64],
@@ -311,6 +314,9 @@ fn continue_ends(
                 continue;
             }
             let ru = end_window(r, adj, u);
+            if matches!(pass, Pass::Ahead) && below_resolution(q, adj, u, ru) {
+                continue;
+            }
             own_branch(q, adj, u, OWN_BRANCH_WINDOWS * ru, &mut stamp, &mut stack);
             let dir = end_direction(q, r, tangents, adj, u);
             q_field.within(q[u as usize], GAP_WINDOWS * ru, &mut near);
@@ -346,6 +352,16 @@ fn continue_ends(
             }
         }
     }
+}
+
+/// Whether the free end `u` (its end window `ru`) is the end of a branch from a fork
+/// shorter than [`GAP_WINDOWS`] windows: below the graph's resolution along a curve
+/// (step 6), such as the tip an acute corner leaves past the corner, which is no stroke
+/// that runs into another.
+fn below_resolution(q: &[Point], adj: &[Vec<u32>], u: u32, ru: f64) -> bool {
+    let (path, len) = branch(q, adj, u);
+    let fork = *path.last().expect("a branch holds its end");
+    adj[fork as usize].len() >= 3 && len < GAP_WINDOWS * ru
 }
 
 /// Marks with `u` in `stamp` the vertices within `limit` of the end `u` along the tree.
@@ -859,6 +875,63 @@ mod tests {
                 (0..m).map(move |i| (pl.points[i], pl.points[(i + 1) % n]))
             })
             .collect()
+    }
+
+    /// A fork's branch pointing at another curve 0.085 ahead (windows 0.05): shorter
+    /// than two windows (0.057, the tip an acute corner leaves) it does not run into
+    /// that curve; at 0.113 it is a stroke and does.
+    #[test]
+    fn a_branch_below_the_resolution_runs_into_no_curve() {
+        for (steps, joins) in [(4, false), (8, true)] {
+            let mut q: Vec<Point> = Vec::new();
+            let mut tangents = Vec::new();
+            let mut adj: Vec<Vec<u32>> = Vec::new();
+            let mut piece = |from: Point, step: Point, n: usize, link: Option<u32>| {
+                let first = q.len() as u32;
+                for i in 0..n {
+                    q.push(add(from, scale(step, i as f64)));
+                    tangents.push(scale(step, 1.0 / dist(step, [0.0, 0.0])));
+                    adj.push(Vec::new());
+                }
+                for k in first..first + n as u32 - 1 {
+                    adj[k as usize].push(k + 1);
+                    adj[k as usize + 1].push(k);
+                }
+                if let Some(v) = link {
+                    adj[v as usize].push(first);
+                    adj[first as usize].push(v);
+                }
+                first
+            };
+            // A line with a fork at (0.3, 0), the branch up and to the right from it,
+            // and a curve along y = 0.1 ahead of the branch's end.
+            piece([0.0, 0.0], [0.01, 0.0], 31, None);
+            piece([0.31, 0.0], [0.01, 0.0], 30, Some(30));
+            let b = piece([0.31, 0.01], [0.01, 0.01], steps, Some(30));
+            piece([0.2, 0.1], [0.01, 0.0], 41, None);
+            // In the order the field keeps (by x, then y), as the graph's vertices are.
+            let mut order: Vec<u32> = (0..q.len() as u32).collect();
+            order.sort_by(|&a, &b| {
+                let (a, b) = (q[a as usize], q[b as usize]);
+                a[0].total_cmp(&b[0]).then(a[1].total_cmp(&b[1]))
+            });
+            let mut at = vec![0u32; q.len()];
+            for (k, &v) in order.iter().enumerate() {
+                at[v as usize] = k as u32;
+            }
+            let q: Vec<Point> = order.iter().map(|&v| q[v as usize]).collect();
+            let tangents: Vec<Point> = order.iter().map(|&v| tangents[v as usize]).collect();
+            let mut adj: Vec<Vec<u32>> = order
+                .iter()
+                .map(|&v| adj[v as usize].iter().map(|&w| at[w as usize]).collect())
+                .collect();
+            let end = at[(b + steps as u32 - 1) as usize] as usize;
+            let r = vec![0.05; q.len()];
+            let q_field = DistanceField::new(&q).unwrap();
+            assert_eq!(q_field.points(), &q[..]);
+            continue_ends(&q, &r, &tangents, &q_field, &mut adj);
+            assert_eq!(adj[end].len() == 2, joins, "{steps}: {:?}", adj[end]);
+        }
     }
 
     /// Two strokes with gaps that cross: a long gap (0.6, its ends' windows 0.31) and,
