@@ -39,13 +39,16 @@
 //! 5. *Ends.* An end's window is the largest of its branch's first ten vertices' (one
 //!    window's samples): an end is often a sample of the band's tail whose own window
 //!    qualified early, by chance. Within two such windows: two free ends facing each
-//!    other are joined (a loop's tree misses one edge; a gap the sampling left); then an
-//!    end continues into the nearest curve vertex ahead of it (within 60 degrees of its
-//!    direction: a stroke running into another), unless its branch from a fork is
-//!    shorter than two windows (below the graph's resolution along a curve, step 6: the
-//!    tip an acute corner leaves, which would run across empty space); then the ends left meet at corners (a
-//!    corner's own samples see two walls, so the tree stops short of it on both sides),
-//!    where a sample lies within the corner's window (its own samples are there).
+//!    other are joined (a loop's tree misses one edge; a gap the sampling left); then the
+//!    ends left meet at corners (a corner's own samples see two walls, so the tree stops
+//!    short of it on both sides), where a sample lies within the corner's window (its
+//!    own samples are there); then an end continues into the nearest curve vertex ahead
+//!    of it (within 60 degrees of its direction: a stroke running into another), unless
+//!    its branch from a fork is shorter than two windows (below the graph's resolution
+//!    along a curve, step 6: the tip an acute corner leaves, which would run across
+//!    empty space). Corners before T's: two free ends that meet are one curve turning,
+//!    and a T makes a fork, which no closed outline has (at a concave corner one wall's
+//!    end ran into the other wall's side before the corner was tried).
 //!    Never into its own branch within `2 pi` windows.
 //! 6. *Curves.* Two chains between the same two forks but the shortest go where they
 //!    are shorter than `2 pi` windows (a bubble). Spurs go again, now those shorter than
@@ -107,8 +110,9 @@ pub fn graph_curves(field: &DistanceField) -> Graphed {
     };
     let mut adj = spanning_tree(&q, &r);
     prune_spurs(&q, &r, &mut adj, 1.0);
-    continue_ends(&q, &r, &tangents, &q_field, &mut adj);
+    continue_ends(&q, &r, &tangents, &q_field, &mut adj, Pass::Facing);
     meet_at_corners(&mut q, &mut r, &tangents, field, &q_field, &mut adj);
+    continue_ends(&q, &r, &tangents, &q_field, &mut adj, Pass::Ahead);
     pop_bubbles(&q, &r, &mut adj);
     // An end continued into its curve's side leaves the stub past it a spur.
     prune_spurs(&q, &r, &mut adj, GAP_WINDOWS);
@@ -289,7 +293,7 @@ fn prune_spurs(q: &[Point], r: &[f64], adj: &mut [Vec<u32>], windows: f64) {
     }
 }
 
-/// Step 5: each free end continued to the nearest vertex ahead of it within its
+/// Step 5, one `pass` of it: each free end continued to the nearest vertex ahead of it within its
 /// window, not of its own branch within [`OWN_BRANCH_WINDOWS`] windows, where the
 /// continuation crosses no edge; into a curve's side only from a branch the graph
 /// resolves ([`below_resolution`]).
@@ -299,6 +303,7 @@ fn continue_ends(
     tangents: &[Point],
     q_field: &DistanceField,
     adj: &mut [Vec<u32>],
+    pass: Pass,
 ) {
     // The crossing check finds an edge by its ends within the longest edge: each join
     // keeps it the longest so far.
@@ -306,50 +311,47 @@ fn continue_ends(
     let mut near = Vec::new();
     let mut stamp = vec![u32::MAX; q.len()];
     let mut stack = Vec::new();
-    // Two free ends that face each other first (a loop's, or a gap's two sides); then
-    // an end into any vertex ahead (a stroke that runs into another).
-    for pass in [Pass::Facing, Pass::Ahead] {
-        for u in 0..q.len() as u32 {
-            if adj[u as usize].len() != 1 {
-                continue;
-            }
-            let ru = end_window(r, adj, u);
-            if matches!(pass, Pass::Ahead) && below_resolution(q, adj, u, ru) {
-                continue;
-            }
-            own_branch(q, adj, u, OWN_BRANCH_WINDOWS * ru, &mut stamp, &mut stack);
-            let dir = end_direction(q, r, tangents, adj, u);
-            q_field.within(q[u as usize], GAP_WINDOWS * ru, &mut near);
-            let best = near
-                .iter()
-                .copied()
-                // A vertex takes a continuation where it is a curve's end or middle, not
-                // at a fork: no vertex is a star.
-                .filter(|&v| stamp[v as usize] != u && (1..=2).contains(&adj[v as usize].len()))
-                .filter(|&v| {
-                    let e = sub(q[v as usize], q[u as usize]);
-                    let ahead = |d: Point, e: Point| dot(e, d) >= AHEAD_COS * dot(e, e).sqrt();
-                    let free = adj[v as usize].len() == 1;
-                    match pass {
-                        Pass::Facing => {
-                            free && ahead(dir, e)
-                                && ahead(end_direction(q, r, tangents, adj, v), scale(e, -1.0))
-                        }
-                        Pass::Ahead => ahead(dir, e),
+    // Facing: two free ends that face each other (a loop's, or a gap's two sides).
+    // Ahead: an end into any vertex ahead (a stroke that runs into another).
+    for u in 0..q.len() as u32 {
+        if adj[u as usize].len() != 1 {
+            continue;
+        }
+        let ru = end_window(r, adj, u);
+        if matches!(pass, Pass::Ahead) && below_resolution(q, adj, u, ru) {
+            continue;
+        }
+        own_branch(q, adj, u, OWN_BRANCH_WINDOWS * ru, &mut stamp, &mut stack);
+        let dir = end_direction(q, r, tangents, adj, u);
+        q_field.within(q[u as usize], GAP_WINDOWS * ru, &mut near);
+        let best = near
+            .iter()
+            .copied()
+            // A vertex takes a continuation where it is a curve's end or middle, not
+            // at a fork: no vertex is a star.
+            .filter(|&v| stamp[v as usize] != u && (1..=2).contains(&adj[v as usize].len()))
+            .filter(|&v| {
+                let e = sub(q[v as usize], q[u as usize]);
+                let ahead = |d: Point, e: Point| dot(e, d) >= AHEAD_COS * dot(e, e).sqrt();
+                let free = adj[v as usize].len() == 1;
+                match pass {
+                    Pass::Facing => {
+                        free && ahead(dir, e)
+                            && ahead(end_direction(q, r, tangents, adj, v), scale(e, -1.0))
                     }
-                })
-                .min_by(|&a, &b| {
-                    dist(q[u as usize], q[a as usize])
-                        .total_cmp(&dist(q[u as usize], q[b as usize]))
-                });
-            let Some(v) = best else { continue };
-            let (a, b) = (q[u as usize], q[v as usize]);
-            let crosses = crosses_an_edge(q, q_field, adj, a, b, [u, v], longest, &mut near);
-            if !crosses {
-                adj[u as usize].push(v);
-                adj[v as usize].push(u);
-                longest = longest.max(dist(a, b));
-            }
+                    Pass::Ahead => ahead(dir, e),
+                }
+            })
+            .min_by(|&a, &b| {
+                dist(q[u as usize], q[a as usize]).total_cmp(&dist(q[u as usize], q[b as usize]))
+            });
+        let Some(v) = best else { continue };
+        let (a, b) = (q[u as usize], q[v as usize]);
+        let crosses = crosses_an_edge(q, q_field, adj, a, b, [u, v], longest, &mut near);
+        if !crosses {
+            adj[u as usize].push(v);
+            adj[v as usize].push(u);
+            longest = longest.max(dist(a, b));
         }
     }
 }
@@ -493,12 +495,13 @@ fn meet_at_corners(
         }
         let Some((_, v, joint)) = best else { continue };
         let (pu, pv) = (q[u as usize], q[v as usize]);
-        let crosses = |a: Point, b: Point, near: &mut Vec<u32>| {
-            crosses_an_edge(q, q_field, adj, a, b, [u, v], longest, near)
+        // A segment from an end meets that end's edges there and crosses no other.
+        let crosses = |a: Point, b: Point, ends: [u32; 2], near: &mut Vec<u32>| {
+            crosses_an_edge(q, q_field, adj, a, b, ends, longest, near)
         };
         match joint {
             Some(c) => {
-                if crosses(pu, c, &mut near) || crosses(c, pv, &mut near) {
+                if crosses(pu, c, [u, u], &mut near) || crosses(c, pv, [v, v], &mut near) {
                     continue;
                 }
                 longest = longest.max(dist(pu, c)).max(dist(c, pv));
@@ -512,7 +515,7 @@ fn meet_at_corners(
                 adj[v as usize].push(k);
             }
             None => {
-                if crosses(pu, pv, &mut near) {
+                if crosses(pu, pv, [u, v], &mut near) {
                     continue;
                 }
                 longest = longest.max(dist(pu, pv));
@@ -929,8 +932,67 @@ mod tests {
             let r = vec![0.05; q.len()];
             let q_field = DistanceField::new(&q).unwrap();
             assert_eq!(q_field.points(), &q[..]);
-            continue_ends(&q, &r, &tangents, &q_field, &mut adj);
+            continue_ends(&q, &r, &tangents, &q_field, &mut adj, Pass::Facing);
+            continue_ends(&q, &r, &tangents, &q_field, &mut adj, Pass::Ahead);
             assert_eq!(adj[end].len() == 2, joins, "{steps}: {:?}", adj[end]);
+        }
+    }
+
+    /// Outlines with concave corners (a notch cut into a box, its sides at 90 and at
+    /// 30 degrees), sampled with noise: round a corner both walls' trees stop short of
+    /// it, and the two ends meet there as one curve turning, not one wall's end running
+    /// into the other's side (a fork no closed outline has). One closed loop, no
+    /// junction.
+    #[test]
+    fn an_outline_turns_at_its_concave_corners() {
+        use rand::{Rng, SeedableRng};
+        let notch = |depth: f64| -> Vec<Point> {
+            vec![
+                [0.1, 0.1],
+                [0.9, 0.1],
+                [0.9, 0.9],
+                [0.6, 0.9],
+                [0.5, 0.9 - depth],
+                [0.4, 0.9],
+                [0.1, 0.9],
+            ]
+        };
+        for (depth, seed) in [(0.1, 1), (0.1, 2), (0.2, 1), (0.2, 2)] {
+            let corners = notch(depth);
+            let mut rng = rand::rngs::StdRng::seed_from_u64(seed);
+            let len: f64 = (0..corners.len())
+                .map(|i| dist(corners[i], corners[(i + 1) % corners.len()]))
+                .sum();
+            let pts: Vec<Point> = (0..3000)
+                .map(|_| {
+                    let mut s = rng.random::<f64>() * len;
+                    let mut i = 0;
+                    loop {
+                        let (a, b) = (corners[i], corners[(i + 1) % corners.len()]);
+                        let l = dist(a, b);
+                        if s <= l {
+                            let p = add(a, scale(sub(b, a), s / l));
+                            break [
+                                p[0] + 0.002 * (rng.random::<f64>() - 0.5),
+                                p[1] + 0.002 * (rng.random::<f64>() - 0.5),
+                            ];
+                        }
+                        s -= l;
+                        i += 1;
+                    }
+                })
+                .collect();
+            let g = graph_curves(&DistanceField::new(&pts).unwrap());
+            let shape: Vec<(usize, bool)> = g
+                .polylines
+                .iter()
+                .map(|p| (p.points.len(), p.closed))
+                .collect();
+            assert!(
+                g.junctions.is_empty() && g.polylines.len() == 1 && g.polylines[0].closed,
+                "depth {depth} seed {seed}: {shape:?}, {} junctions",
+                g.junctions.len()
+            );
         }
     }
 
@@ -966,7 +1028,8 @@ mod tests {
         piece([0.4, -0.1], [0.0, -0.01], 26, 0.11);
         piece([0.4, 0.1], [0.0, 0.01], 26, 0.11);
         let q_field = DistanceField::new(&q).unwrap();
-        continue_ends(&q, &r, &tangents, &q_field, &mut adj);
+        continue_ends(&q, &r, &tangents, &q_field, &mut adj, Pass::Facing);
+        continue_ends(&q, &r, &tangents, &q_field, &mut adj, Pass::Ahead);
         assert!(adj[0].contains(&31), "the long gap closes");
         assert_eq!(
             adj[62].len(),
