@@ -210,7 +210,12 @@ fn spanning_tree(q: &[Point], r: &[f64]) -> Vec<Vec<u32>> {
     use spade::{DelaunayTriangulation, Point2, Triangulation};
     let n = q.len();
     let mut adj = vec![Vec::new(); n];
-    let verts: Vec<Point2<f64>> = q.iter().map(|p| Point2::new(p[0], p[1])).collect();
+    // spade refuses a coordinate nearer zero than 2^-142 (a sample on an axis moved
+    // by a rounding error onto the curve): such a coordinate is zero.
+    let verts: Vec<Point2<f64>> = q
+        .iter()
+        .map(|p| spade::mitigate_underflow(Point2::new(p[0], p[1])))
+        .collect();
     let Ok(dt) = DelaunayTriangulation::<Point2<f64>>::bulk_load_stable(verts) else {
         return adj;
     };

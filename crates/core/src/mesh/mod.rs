@@ -173,7 +173,12 @@ impl Mesh {
     /// spade's tolerance are merged by spade; the result is checked to be a valid mesh.
     pub(crate) fn delaunay(points: &[Point]) -> Mesh {
         use spade::{DelaunayTriangulation, Point2, Triangulation};
-        let verts: Vec<Point2<f64>> = points.iter().map(|p| Point2::new(p[0], p[1])).collect();
+        // spade refuses a coordinate nearer zero than 2^-142 (the whole load, not the
+        // one vertex): such a coordinate is zero.
+        let verts: Vec<Point2<f64>> = points
+            .iter()
+            .map(|p| spade::mitigate_underflow(Point2::new(p[0], p[1])))
+            .collect();
         let dt: DelaunayTriangulation<Point2<f64>> =
             DelaunayTriangulation::bulk_load(verts).unwrap_or_default();
         let coords: Vec<Point> = dt
@@ -594,6 +599,21 @@ mod tests {
         m.sanity_check().unwrap();
         assert_eq!(m.num_vertices(), nv);
         assert_eq!(m.tag.iter().filter(|&&t| t == VertexTag::Corner).count(), 4);
+    }
+
+    /// A coordinate nearer zero than spade accepts (2^-142) is zero, not the end of the
+    /// whole triangulation: spade refuses the load, and the mesh came out empty.
+    #[test]
+    fn a_coordinate_below_spades_range_is_zero() {
+        let m = Mesh::delaunay(&[
+            [0.0, 0.0],
+            [1.0, 0.0],
+            [1.0, 1.0],
+            [0.0, 1.0],
+            [1e-200, 0.5],
+        ]);
+        m.sanity_check().unwrap();
+        assert_eq!((m.num_vertices(), m.num_triangles()), (5, 3));
     }
 
     #[test]
