@@ -12,7 +12,8 @@
 //! - no two edges cross (the tree's edges are Delaunay edges, and every join is added
 //!   only where it crosses none);
 //! - no vertex is a star: a Euclidean minimum spanning tree's vertex has at most six
-//!   edges, and a join goes to a vertex of at most two.
+//!   edges, a join goes to a vertex of at most two, and two forks merge only into one
+//!   of at most six.
 //!
 //! The steps, each with its reason:
 //! 0. *Area.* Where fewer than [`AREA_SHARE`] of the samples' windows see a curve
@@ -39,7 +40,9 @@
 //! 5. *Ends.* An end's window is the largest of its branch's first ten vertices' (one
 //!    window's samples): an end is often a sample of the band's tail whose own window
 //!    qualified early, by chance. Within two such windows: two free ends facing each
-//!    other are joined (a loop's tree misses one edge; a gap the sampling left); then the
+//!    other are joined (a loop's tree misses one edge; a gap the sampling left), each
+//!    with the one nearest both ends' lines (a curve continues along its tangent; at a
+//!    crossing the other stroke's arms are nearer, beside the line); then the
 //!    ends left meet at corners (a corner's own samples see two walls, so the tree stops
 //!    short of it on both sides), where a sample lies within the corner's window (its
 //!    own samples are there); then an end continues into the nearest curve vertex ahead
@@ -55,7 +58,9 @@
 //!    two windows: two windows is the graph's resolution along a curve (a gap that short
 //!    is closed in step 5, so a branch that short cannot be told from the sampling), and
 //!    at an acute corner the two walls' samples, within a window of each other, fall onto
-//!    one line and leave such a spur at the tip. Connected pieces of fewer than ten
+//!    one line and leave such a spur at the tip. Two forks joined by a chain shorter than
+//!    two windows are one junction (below that resolution the tree cannot tell where
+//!    strokes meet; at a crossing it makes two T's). Connected pieces of fewer than ten
 //!    vertices (one window's samples) go; the rest are chains between vertices of degree
 //!    other than two, the forks junctions. A chain from a free end shorter than its window
 //!    holds no curve.
@@ -71,6 +76,9 @@ use crate::repair::strokes::Junction;
 /// A sample farther than this many residuals from the curve its window sees is an
 /// outlier of it (three standard deviations of Gaussian noise hold 99.7% of a band).
 const OUTLYING: f64 = 3.0;
+/// Edges at a merged fork, at most: as many as a Euclidean minimum spanning tree's
+/// vertex has (three strokes through one point), far from a star.
+const MAX_FORK: usize = 6;
 /// An end continues across at most this many of its windows: the longest gap of a
 /// random sampling of `n` samples is about `ln n` mean spacings (under 10 below 20,000
 /// samples), and a window holds ten samples, about five spacings either side.
@@ -116,6 +124,7 @@ pub fn graph_curves(field: &DistanceField) -> Graphed {
     pop_bubbles(&q, &r, &mut adj);
     // An end continued into its curve's side leaves the stub past it a spur.
     prune_spurs(&q, &r, &mut adj, GAP_WINDOWS);
+    merge_close_forks(&mut q, &r, &q_field, &mut adj);
     drop_small_components(&mut adj);
     chains(&q, &r, &adj)
 }
@@ -298,10 +307,11 @@ fn prune_spurs(q: &[Point], r: &[f64], adj: &mut [Vec<u32>], windows: f64) {
     }
 }
 
-/// Step 5, one `pass` of it: each free end continued to the nearest vertex ahead of it within its
-/// window, not of its own branch within [`OWN_BRANCH_WINDOWS`] windows, where the
-/// continuation crosses no edge; into a curve's side only from a branch the graph
-/// resolves ([`below_resolution`]).
+/// Step 5, one `pass` of it: each free end continued to a vertex ahead of it within
+/// [`GAP_WINDOWS`] windows (a facing end the one nearest both ends' lines, a curve's
+/// side the nearest), not of its own branch within [`OWN_BRANCH_WINDOWS`] windows,
+/// where the continuation crosses no edge; into a curve's side only from a branch the
+/// graph resolves ([`below_resolution`]).
 fn continue_ends(
     q: &[Point],
     r: &[f64],
@@ -348,7 +358,20 @@ fn continue_ends(
                 }
             })
             .min_by(|&a, &b| {
-                dist(q[u as usize], q[a as usize]).total_cmp(&dist(q[u as usize], q[b as usize]))
+                let cost = |v: u32| match pass {
+                    // A curve continues across a gap along its tangent: the other end
+                    // lies on the end's line, where at a crossing the other stroke's
+                    // arms lie beside it, nearer but off the line.
+                    Pass::Facing => {
+                        let e = sub(q[v as usize], q[u as usize]);
+                        let dv = end_direction(q, r, tangents, adj, v);
+                        crate::geom::cross(dir, e)
+                            .abs()
+                            .max(crate::geom::cross(dv, e).abs())
+                    }
+                    Pass::Ahead => dist(q[u as usize], q[v as usize]),
+                };
+                cost(a).total_cmp(&cost(b))
             });
         let Some(v) = best else { continue };
         let (a, b) = (q[u as usize], q[v as usize]);
@@ -531,6 +554,24 @@ fn meet_at_corners(
     }
 }
 
+/// The window of the curves at the fork `v`: the largest of its arms' first
+/// [`SHEET_SAMPLES`] vertices' windows, as for an end ([`end_window`]).
+fn fork_window(r: &[f64], adj: &[Vec<u32>], v: u32) -> f64 {
+    let mut most = r[v as usize];
+    for &w in &adj[v as usize] {
+        let (mut prev, mut cur) = (v, w);
+        for _ in 0..SHEET_SAMPLES {
+            most = most.max(r[cur as usize]);
+            if adj[cur as usize].len() != 2 {
+                break;
+            }
+            let next = adj[cur as usize][usize::from(adj[cur as usize][0] == prev)];
+            (prev, cur) = (cur, next);
+        }
+    }
+    most
+}
+
 /// The window of the curve at the free end `u`: the largest of its branch's first
 /// [`SHEET_SAMPLES`] vertices' windows (one window's samples). An end is often a sample
 /// of the band's tail whose own window qualified early, by chance, at a fraction of the
@@ -627,6 +668,106 @@ fn pop_bubbles(q: &[Point], r: &[f64], adj: &mut [Vec<u32>]) {
                 }
             }
         }
+    }
+}
+
+/// Two forks joined by a chain shorter than [`GAP_WINDOWS`] windows are one junction:
+/// below the graph's resolution along a curve (step 6) the tree cannot tell where the
+/// strokes meet, and where two strokes cross it links their samples as two T's a few
+/// samples apart. The shortest first, each chain goes and its forks become one vertex
+/// at the chain's middle, where the merged fork's edges cross no other edge.
+fn merge_close_forks(q: &mut [Point], r: &[f64], q_field: &DistanceField, adj: &mut [Vec<u32>]) {
+    let mut chains: Vec<(f64, Vec<u32>)> = Vec::new();
+    for a in 0..q.len() as u32 {
+        if adj[a as usize].len() < 3 {
+            continue;
+        }
+        for &w in &adj[a as usize] {
+            let mut path = vec![a, w];
+            let (mut prev, mut cur, mut len) = (a, w, dist(q[a as usize], q[w as usize]));
+            while adj[cur as usize].len() == 2 {
+                let next = adj[cur as usize][usize::from(adj[cur as usize][0] == prev)];
+                len += dist(q[cur as usize], q[next as usize]);
+                path.push(next);
+                (prev, cur) = (cur, next);
+            }
+            let window = 0.5 * (fork_window(r, adj, a) + fork_window(r, adj, cur));
+            if cur > a && adj[cur as usize].len() >= 3 && len < GAP_WINDOWS * window {
+                chains.push((len, path));
+            }
+        }
+    }
+    chains.sort_by(|x, y| x.0.total_cmp(&y.0));
+    // `q_field` finds vertices where they were: a merged fork has moved by at most
+    // `slack`, and an edge is found by an end within the longest edge.
+    let mut longest = longest_edge(q, adj);
+    let mut slack = 0.0f64;
+    let mut near = Vec::new();
+    for (_, path) in chains {
+        let (a, b) = (path[0], *path.last().expect("a chain has two ends"));
+        let intact = path.windows(2).all(|e| adj[e[0] as usize].contains(&e[1]))
+            && path[1..path.len() - 1]
+                .iter()
+                .all(|&v| adj[v as usize].len() == 2)
+            && adj[a as usize].len() >= 3
+            && adj[b as usize].len() >= 3;
+        if !intact {
+            continue;
+        }
+        let mid = scale(
+            path.iter().fold([0.0, 0.0], |s, &v| add(s, q[v as usize])),
+            1.0 / path.len() as f64,
+        );
+        let mut ends: Vec<u32> = adj[a as usize]
+            .iter()
+            .chain(&adj[b as usize])
+            .copied()
+            .filter(|x| !path.contains(x))
+            .collect();
+        ends.sort_unstable();
+        ends.dedup();
+        // No more edges than a spanning tree's vertex has: no star.
+        if ends.len() > MAX_FORK {
+            continue;
+        }
+        let crosses = ends.iter().any(|&x| {
+            let (p, e) = (q[x as usize], dist(mid, q[x as usize]));
+            q_field.within(
+                scale(add(mid, p), 0.5),
+                0.5 * e + longest + slack,
+                &mut near,
+            );
+            near.iter().any(|&y| {
+                !path.contains(&y)
+                    && y != x
+                    && adj[y as usize].iter().any(|&z| {
+                        !path.contains(&z)
+                            && z != x
+                            && crossing(mid, p, q[y as usize], q[z as usize]).is_some()
+                    })
+            })
+        });
+        if crosses {
+            continue;
+        }
+        for e in path.windows(2) {
+            unlink(adj, e[0], e[1]);
+        }
+        for &x in &ends {
+            unlink(adj, b, x);
+            if !adj[a as usize].contains(&x) {
+                adj[a as usize].push(x);
+                adj[x as usize].push(a);
+            }
+        }
+        slack = slack
+            .max(dist(mid, q[a as usize]))
+            .max(dist(mid, q[b as usize]));
+        q[a as usize] = mid;
+        longest = ends
+            .iter()
+            .map(|&x| dist(mid, q[x as usize]))
+            .fold(longest, f64::max);
     }
 }
 
@@ -1140,6 +1281,42 @@ mod tests {
             }
             for j in &g.junctions {
                 proptest::prop_assert!(j.polylines.iter().all(|&k| k < g.polylines.len()));
+            }
+        }
+    }
+
+    /// Two clean strokes crossing at 90, 60 and 40 degrees, each sampled evenly and
+    /// shifted along itself by sixths of its spacing: one junction where four curves
+    /// meet. Without the rules for crossings the tree links the samples as two T's a
+    /// few samples apart, or the arms' ends as two corners (two L's).
+    #[test]
+    fn crossing_strokes_meet_at_one_junction() {
+        for angle in [90f64, 40.0] {
+            for shift in 0..6 {
+                let (s, c) = angle.to_radians().sin_cos();
+                let t = |i: usize| (i as f64 + shift as f64 / 6.0) / 1000.0 - 0.5;
+                let pts: Vec<Point> = (0..1000)
+                    .map(|i| [0.5 + t(i), 0.5])
+                    .chain((0..1000).map(|i| [0.5 + t(i) * c, 0.5 + t(i) * s]))
+                    .collect();
+                let g = graph_curves(&DistanceField::new(&pts).unwrap());
+                let degrees: Vec<usize> = g.junctions.iter().map(|j| j.polylines.len()).collect();
+                let ends: Vec<_> = g
+                    .polylines
+                    .iter()
+                    .map(|p| {
+                        (
+                            p.points.len(),
+                            p.points[0],
+                            *p.points.last().unwrap(),
+                            p.closed,
+                        )
+                    })
+                    .collect();
+                assert_eq!(degrees, [4], "{angle} degrees, shift {shift}: {ends:?}");
+                assert_eq!(g.polylines.len(), 4, "{angle} degrees, shift {shift}");
+                let at = g.junctions[0].at;
+                assert!(dist(at, [0.5, 0.5]) < 0.005, "{angle} degrees: {at:?}");
             }
         }
     }
