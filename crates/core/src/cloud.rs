@@ -375,7 +375,7 @@ fn continue_ends(
             });
         let Some(v) = best else { continue };
         let (a, b) = (q[u as usize], q[v as usize]);
-        let crosses = crosses_an_edge(q, q_field, adj, a, b, [u, v], longest, &mut near);
+        let crosses = crosses_an_edge(q, q_field, adj, a, b, &[u, v], longest, &mut near);
         if !crosses {
             adj[u as usize].push(v);
             adj[v as usize].push(u);
@@ -425,7 +425,7 @@ fn longest_edge(q: &[Point], adj: &[Vec<u32>]) -> f64 {
         .fold(0.0, f64::max)
 }
 
-/// Whether the segment `a b` crosses an edge of `adj` but at the vertices `ends`:
+/// Whether the segment `a b` crosses an edge of `adj` but those at the vertices `ends`:
 /// such an edge has an end within half its length and the `longest` edge of its
 /// middle.
 #[allow(clippy::too_many_arguments)]
@@ -435,7 +435,7 @@ fn crosses_an_edge(
     adj: &[Vec<u32>],
     a: Point,
     b: Point,
-    ends: [u32; 2],
+    ends: &[u32],
     longest: f64,
     near: &mut Vec<u32>,
 ) -> bool {
@@ -524,12 +524,12 @@ fn meet_at_corners(
         let Some((_, v, joint)) = best else { continue };
         let (pu, pv) = (q[u as usize], q[v as usize]);
         // A segment from an end meets that end's edges there and crosses no other.
-        let crosses = |a: Point, b: Point, ends: [u32; 2], near: &mut Vec<u32>| {
+        let crosses = |a: Point, b: Point, ends: &[u32], near: &mut Vec<u32>| {
             crosses_an_edge(q, q_field, adj, a, b, ends, longest, near)
         };
         match joint {
             Some(c) => {
-                if crosses(pu, c, [u, u], &mut near) || crosses(c, pv, [v, v], &mut near) {
+                if crosses(pu, c, &[u], &mut near) || crosses(c, pv, &[v], &mut near) {
                     continue;
                 }
                 longest = longest.max(dist(pu, c)).max(dist(c, pv));
@@ -543,7 +543,7 @@ fn meet_at_corners(
                 adj[v as usize].push(k);
             }
             None => {
-                if crosses(pu, pv, [u, v], &mut near) {
+                if crosses(pu, pv, &[u, v], &mut near) {
                     continue;
                 }
                 longest = longest.max(dist(pu, pv));
@@ -623,13 +623,11 @@ fn end_direction(q: &[Point], r: &[f64], tangents: &[Point], adj: &[Vec<u32>], u
     }
 }
 
-/// Two or more chains between the same two forks, but for the shortest, that are
-/// shorter than [`OWN_BRANCH_WINDOWS`] windows go: they are one stretch of curve drawn
-/// twice round the band's samples (a bubble), no loop a window could see.
-fn pop_bubbles(q: &[Point], r: &[f64], adj: &mut [Vec<u32>]) {
-    // Chains by their two forks: (length, vertices).
-    type Chains = Vec<(f64, Vec<u32>)>;
-    let mut by_ends: std::collections::HashMap<(u32, u32), Chains> = Default::default();
+/// Every chain of vertices of degree two between two forks (vertices of three or more
+/// edges), once, from its lower fork, with its length; a loop from a fork back to itself
+/// is none.
+fn chains_between_forks(q: &[Point], adj: &[Vec<u32>]) -> Vec<(f64, Vec<u32>)> {
+    let mut out = Vec::new();
     for v in 0..q.len() as u32 {
         if adj[v as usize].len() < 3 {
             continue;
@@ -641,19 +639,29 @@ fn pop_bubbles(q: &[Point], r: &[f64], adj: &mut [Vec<u32>]) {
                 let next = adj[cur as usize][usize::from(adj[cur as usize][0] == prev)];
                 path.push(next);
                 (prev, cur) = (cur, next);
-                if cur == v {
-                    break;
-                }
             }
-            // Each chain once, from its lower fork.
             if adj[cur as usize].len() >= 3 && v < cur {
                 let len = path
                     .windows(2)
                     .map(|e| dist(q[e[0] as usize], q[e[1] as usize]))
                     .sum();
-                by_ends.entry((v, cur)).or_default().push((len, path));
+                out.push((len, path));
             }
         }
+    }
+    out
+}
+
+/// Two or more chains between the same two forks, but for the shortest, that are
+/// shorter than [`OWN_BRANCH_WINDOWS`] windows go: they are one stretch of curve drawn
+/// twice round the band's samples (a bubble), no loop a window could see.
+fn pop_bubbles(q: &[Point], r: &[f64], adj: &mut [Vec<u32>]) {
+    // Chains by their two forks: (length, vertices).
+    type Chains = Vec<(f64, Vec<u32>)>;
+    let mut by_ends: std::collections::HashMap<(u32, u32), Chains> = Default::default();
+    for (len, path) in chains_between_forks(q, adj) {
+        let ends = (path[0], *path.last().expect("a chain has two ends"));
+        by_ends.entry(ends).or_default().push((len, path));
     }
     for ((a, b), mut paths) in by_ends {
         if paths.len() < 2 {
@@ -677,26 +685,13 @@ fn pop_bubbles(q: &[Point], r: &[f64], adj: &mut [Vec<u32>]) {
 /// samples apart. The shortest first, each chain goes and its forks become one vertex
 /// at the chain's middle, where the merged fork's edges cross no other edge.
 fn merge_close_forks(q: &mut [Point], r: &[f64], q_field: &DistanceField, adj: &mut [Vec<u32>]) {
-    let mut chains: Vec<(f64, Vec<u32>)> = Vec::new();
-    for a in 0..q.len() as u32 {
-        if adj[a as usize].len() < 3 {
-            continue;
-        }
-        for &w in &adj[a as usize] {
-            let mut path = vec![a, w];
-            let (mut prev, mut cur, mut len) = (a, w, dist(q[a as usize], q[w as usize]));
-            while adj[cur as usize].len() == 2 {
-                let next = adj[cur as usize][usize::from(adj[cur as usize][0] == prev)];
-                len += dist(q[cur as usize], q[next as usize]);
-                path.push(next);
-                (prev, cur) = (cur, next);
-            }
-            let window = 0.5 * (fork_window(r, adj, a) + fork_window(r, adj, cur));
-            if cur > a && adj[cur as usize].len() >= 3 && len < GAP_WINDOWS * window {
-                chains.push((len, path));
-            }
-        }
-    }
+    let mut chains: Vec<(f64, Vec<u32>)> = chains_between_forks(q, adj)
+        .into_iter()
+        .filter(|(len, path)| {
+            let (a, b) = (path[0], *path.last().expect("a chain has two ends"));
+            *len < GAP_WINDOWS * 0.5 * (fork_window(r, adj, a) + fork_window(r, adj, b))
+        })
+        .collect();
     chains.sort_by(|x, y| x.0.total_cmp(&y.0));
     // `q_field` finds vertices where they were: a merged fork has moved by at most
     // `slack`, and an edge is found by an end within the longest edge.
@@ -730,22 +725,12 @@ fn merge_close_forks(q: &mut [Point], r: &[f64], q_field: &DistanceField, adj: &
         if ends.len() > MAX_FORK {
             continue;
         }
+        // Each new edge meets the chain's edges (which go) and its far end's edges
+        // there, and crosses no other.
         let crosses = ends.iter().any(|&x| {
-            let (p, e) = (q[x as usize], dist(mid, q[x as usize]));
-            q_field.within(
-                scale(add(mid, p), 0.5),
-                0.5 * e + longest + slack,
-                &mut near,
-            );
-            near.iter().any(|&y| {
-                !path.contains(&y)
-                    && y != x
-                    && adj[y as usize].iter().any(|&z| {
-                        !path.contains(&z)
-                            && z != x
-                            && crossing(mid, p, q[y as usize], q[z as usize]).is_some()
-                    })
-            })
+            let at: Vec<u32> = path.iter().copied().chain([x]).collect();
+            let p = q[x as usize];
+            crosses_an_edge(q, q_field, adj, mid, p, &at, longest + slack, &mut near)
         });
         if crosses {
             continue;
