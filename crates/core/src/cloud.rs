@@ -47,9 +47,10 @@
 //!    short of it on both sides), where a sample lies within the corner's window (its
 //!    own samples are there); then an end continues into the nearest curve vertex ahead
 //!    of it (within 60 degrees of its direction: a stroke running into another), unless
-//!    its branch from a fork is shorter than two windows (below the graph's resolution
-//!    along a curve, step 6: the tip an acute corner leaves, which would run across
-//!    empty space). Corners before T's: two free ends that meet are one curve turning,
+//!    its branch, from a fork or to its chain's other end, is shorter than two windows
+//!    (below the graph's resolution along a curve, step 6: the tip an acute corner
+//!    leaves, or a few samples whose windows saw a curve by chance, which would run
+//!    across empty space as a whisker). Corners before T's: two free ends that meet are one curve turning,
 //!    and a T makes a fork, which no closed outline has (at a concave corner one wall's
 //!    end ran into the other wall's side before the corner was tried).
 //!    Never into its own branch within `2 pi` windows.
@@ -61,7 +62,8 @@
 //!    one line and leave such a spur at the tip. Two forks joined by a chain shorter than
 //!    two windows are one junction (below that resolution the tree cannot tell where
 //!    strokes meet; at a crossing it makes two T's). Connected pieces of fewer than ten
-//!    vertices (one window's samples) go; the rest are chains between vertices of degree
+//!    vertices (one window's samples) or shorter than two of their windows go; the rest
+//!    are chains between vertices of degree
 //!    other than two, the forks junctions. A chain from a free end shorter than its window
 //!    holds no curve.
 
@@ -125,7 +127,7 @@ pub fn graph_curves(field: &DistanceField) -> Graphed {
     // An end continued into its curve's side leaves the stub past it a spur.
     prune_spurs(&q, &r, &mut adj, GAP_WINDOWS);
     merge_close_forks(&mut q, &r, &q_field, &mut adj);
-    drop_small_components(&mut adj);
+    drop_small_components(&q, &r, &mut adj);
     chains(&q, &r, &adj)
 }
 
@@ -384,14 +386,14 @@ fn continue_ends(
     }
 }
 
-/// Whether the free end `u` (its end window `ru`) is the end of a branch from a fork
-/// shorter than [`GAP_WINDOWS`] windows: below the graph's resolution along a curve
-/// (step 6), such as the tip an acute corner leaves past the corner, which is no stroke
-/// that runs into another.
+/// Whether the free end `u` (its end window `ru`) is the end of a branch shorter than
+/// [`GAP_WINDOWS`] windows, from a fork or to the chain's other end: below the graph's
+/// resolution along a curve (step 6), it is no stroke that runs into another. From a
+/// fork it is the tip an acute corner leaves past the corner; alone, a few samples
+/// whose windows saw a curve by chance (outliers near each other, or beside a band),
+/// which as a T would draw a whisker from a curve into empty space.
 fn below_resolution(q: &[Point], adj: &[Vec<u32>], u: u32, ru: f64) -> bool {
-    let (path, len) = branch(q, adj, u);
-    let fork = *path.last().expect("a branch holds its end");
-    adj[fork as usize].len() >= 3 && len < GAP_WINDOWS * ru
+    branch(q, adj, u).1 < GAP_WINDOWS * ru
 }
 
 /// Marks with `u` in `stamp` the vertices within `limit` of the end `u` along the tree.
@@ -756,10 +758,13 @@ fn merge_close_forks(q: &mut [Point], r: &[f64], q_field: &DistanceField, adj: &
     }
 }
 
-/// Connected pieces of fewer than [`SHEET_SAMPLES`] vertices go: a curve holds at
-/// least the samples one window needs to see it, and windows that pass by chance in
-/// scattered points (a few in a hundred) link into such crumbs.
-fn drop_small_components(adj: &mut [Vec<u32>]) {
+/// Connected pieces of fewer than [`SHEET_SAMPLES`] vertices, or shorter than
+/// [`GAP_WINDOWS`] of their largest window, go: a curve holds at least the samples one
+/// window needs to see it and is no shorter than the graph's resolution along a curve
+/// (step 6); windows that pass by chance in scattered points (a few in a hundred) link
+/// into such crumbs, and samples piled onto one spot by their moves make a crumb of ten
+/// vertices a fraction of a window long.
+fn drop_small_components(q: &[Point], r: &[f64], adj: &mut [Vec<u32>]) {
     let n = adj.len();
     let mut parent: Vec<u32> = (0..n as u32).collect();
     for (a, links) in adj.iter().enumerate() {
@@ -771,11 +776,22 @@ fn drop_small_components(adj: &mut [Vec<u32>]) {
         }
     }
     let mut size = vec![0usize; n];
+    let mut length = vec![0.0f64; n];
+    let mut window = vec![0.0f64; n];
     for a in 0..n as u32 {
-        size[root(&mut parent, a) as usize] += 1;
+        let ra = root(&mut parent, a) as usize;
+        size[ra] += 1;
+        window[ra] = window[ra].max(r[a as usize]);
+        // Each edge is counted from both its ends.
+        length[ra] += 0.5
+            * adj[a as usize]
+                .iter()
+                .map(|&b| dist(q[a as usize], q[b as usize]))
+                .sum::<f64>();
     }
     for a in 0..n as u32 {
-        if size[root(&mut parent, a) as usize] < SHEET_SAMPLES {
+        let ra = root(&mut parent, a) as usize;
+        if size[ra] < SHEET_SAMPLES || length[ra] < GAP_WINDOWS * window[ra] {
             adj[a as usize].clear();
         }
     }
@@ -965,6 +981,28 @@ mod tests {
     }
 
     /// A noisy circle closes: its tree misses one edge, and the ends face each other.
+    /// A few samples near a curve whose windows see a curve of their own (outliers near
+    /// each other, or the tail of a band) are below the graph's resolution when their
+    /// chain is shorter than two of its windows: they run into the curve as no T (a
+    /// whisker into empty space), and are drawn as no piece of their own. Here a dash
+    /// of twelve clean samples 3 mm apart, pointing at a clean line of samples 2 mm
+    /// apart from 2 cm away: every vertex drawn lies on the line.
+    #[test]
+    fn a_dash_below_the_resolution_is_no_whisker() {
+        let mut pts: Vec<Point> = (0..=400).map(|i| [0.1 + 0.002 * i as f64, 0.5]).collect();
+        pts.extend((0..12).map(|i| [0.5, 0.52 + 0.003 * i as f64]));
+        let field = DistanceField::new(&pts).unwrap();
+        let g = graph_curves(&field);
+        let off: Vec<Point> = g
+            .polylines
+            .iter()
+            .flat_map(|pl| pl.points.iter().copied())
+            .filter(|p| (p[1] - 0.5).abs() > 1e-9)
+            .collect();
+        assert!(off.is_empty(), "{off:?}");
+        assert_eq!(g.polylines.len(), 1, "{:?}", g.polylines.len());
+    }
+
     #[test]
     fn a_noisy_circle_is_one_loop() {
         let mut seed = 11;
