@@ -28,7 +28,12 @@
 //! 2. *Onto the curve.* The sample moves to the fitted parabola's foot (moving least
 //!    squares, Lee 2000), then once more with the window centred on where it moved, so a
 //!    sample in the band's tail fits the same stretch as those in its middle. A sample
-//!    farther than three residuals from the parabola is an outlier of it.
+//!    farther than three residuals from the parabola is an outlier of it, and so is one
+//!    whose window holds samples more than three times more sparsely (per unit of its
+//!    radius) than the windows of the samples it holds ([`SPARSER`]): beside a noisy
+//!    band an outlier's window holds ten samples of the band's tail and sees a curve
+//!    there, where the band's own windows hold tens; along a curve an end's window is
+//!    the sparsest, at half its neighbours'.
 //! 3. *Tree.* The moved samples' Euclidean minimum spanning tree over their Delaunay
 //!    edges, each edge within both ends' windows: along a curve the nearest moved
 //!    samples are its neighbours, across a channel the other wall is farther.
@@ -78,6 +83,13 @@ use crate::repair::strokes::Junction;
 /// A sample farther than this many residuals from the curve its window sees is an
 /// outlier of it (three standard deviations of Gaussian noise hold 99.7% of a band).
 const OUTLYING: f64 = 3.0;
+/// A sample whose window holds samples along its curve this many times more sparsely
+/// than the windows of the samples it holds (the median of theirs) is an outlier
+/// beside a curve, not on it: an end's window holds its ten on one side, half its
+/// neighbours' density, and a count of about ten varies by a third (`1 / sqrt 10`), so
+/// along a curve the ratio stays below `2 * 4 / 3`; an outlier beside a band holds ten
+/// samples of the band's tail in a window where the band's own hold tens.
+const SPARSER: f64 = 3.0;
 /// Edges at a merged fork, at most: as many as a Euclidean minimum spanning tree's
 /// vertex has (three strokes through one point), far from a star.
 const MAX_FORK: usize = 6;
@@ -134,7 +146,7 @@ pub fn graph_curves(field: &DistanceField) -> Graphed {
 /// Step 1 and 2: each sample that sees a curve, moved onto it, with its window's
 /// radius; sorted and without duplicates (the order [`DistanceField::new`] keeps).
 fn settled(field: &DistanceField, r_max: f64) -> Vec<Node> {
-    let mut out: Vec<Node> = field
+    let each: Vec<Option<Node>> = field
         .points()
         .par_iter()
         .map_init(
@@ -158,6 +170,7 @@ fn settled(field: &DistanceField, r_max: f64) -> Vec<Node> {
                         };
                         return Some(Node {
                             at: p,
+                            held: idx.len() as f64,
                             window: r,
                             tangent: [normal[1], -normal[0]],
                         });
@@ -167,6 +180,27 @@ fn settled(field: &DistanceField, r_max: f64) -> Vec<Node> {
                 None
             },
         )
+        .collect();
+    // Step 2's density test: a sample's window holds samples along its curve as
+    // densely as theirs do.
+    let pts = field.points();
+    let mut out: Vec<Node> = (0..pts.len())
+        .into_par_iter()
+        .map_init(Vec::new, |idx: &mut Vec<u32>, i| {
+            let n = each[i]?;
+            field.within(pts[i], n.window, idx);
+            let mut density: Vec<f64> = idx
+                .iter()
+                .filter(|&&j| j as usize != i)
+                .filter_map(|&j| each[j as usize].map(|m| m.density()))
+                .collect();
+            if density.is_empty() {
+                return None;
+            }
+            let mid = density.len() / 2;
+            let median = *density.select_nth_unstable_by(mid, f64::total_cmp).1;
+            (SPARSER * n.density() >= median).then_some(n)
+        })
         .flatten()
         .collect();
     out.sort_unstable_by(|a, b| {
@@ -185,8 +219,18 @@ struct Node {
     at: Point,
     /// Its window's radius.
     window: f64,
+    /// The samples its window held.
+    held: f64,
     /// The curve's unit tangent there (either way).
     tangent: Point,
+}
+
+impl Node {
+    /// The samples its window held per unit of its radius: along a curve, its linear
+    /// density.
+    fn density(&self) -> f64 {
+        self.held / self.window
+    }
 }
 
 /// How far from its window's fit (residual `residual`, radius `r`) a sample may lie
@@ -981,6 +1025,38 @@ mod tests {
     }
 
     /// A noisy circle closes: its tree misses one edge, and the ends face each other.
+    /// Outliers are drawn into no curve: a noisy circle with 5% of its samples replaced
+    /// by points uniform over the unit square has every vertex within the accuracy
+    /// bound of the circle (3 sigma and a sampling spacing), on 64 random samplings.
+    /// Without the density test, 4 of them keep outliers beside the band whose windows
+    /// held only the band's tail.
+    #[test]
+    fn outliers_beside_a_noisy_loop_are_in_no_curve() {
+        let sigma = 0.008;
+        for case in 0..64u64 {
+            let mut seed = 1000 + case;
+            let mut pts: Vec<Point> = (0..1900)
+                .map(|_| {
+                    let a = std::f64::consts::TAU * lcg(&mut seed);
+                    [
+                        0.5 + 0.3 * a.cos() + sigma * gauss(&mut seed),
+                        0.5 + 0.3 * a.sin() + sigma * gauss(&mut seed),
+                    ]
+                })
+                .collect();
+            pts.extend((0..100).map(|_| [lcg(&mut seed), lcg(&mut seed)]));
+            let field = DistanceField::new(&pts).unwrap();
+            let g = graph_curves(&field);
+            let worst = g
+                .polylines
+                .iter()
+                .flat_map(|pl| &pl.points)
+                .map(|&p| (dist(p, [0.5, 0.5]) - 0.3).abs())
+                .fold(0.0, f64::max);
+            assert!(worst <= 3.0 * sigma + 0.005, "case {case}: {worst}");
+        }
+    }
+
     /// A few samples near a curve whose windows see a curve of their own (outliers near
     /// each other, or the tail of a band) are below the graph's resolution when their
     /// chain is shorter than two of its windows: they run into the curve as no T (a
