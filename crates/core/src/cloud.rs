@@ -55,7 +55,8 @@
 //!    its branch, from a fork or to its chain's other end, is shorter than two windows
 //!    (below the graph's resolution along a curve, step 6: the tip an acute corner
 //!    leaves, or a few samples whose windows saw a curve by chance, which would run
-//!    across empty space as a whisker). Corners before T's: two free ends that meet are one curve turning,
+//!    across empty space as a whisker). Corners before T's: two free ends that meet
+//!    are one curve turning,
 //!    and a T makes a fork, which no closed outline has (at a concave corner one wall's
 //!    end ran into the other wall's side before the corner was tried).
 //!    Never into its own branch within `2 pi` windows.
@@ -219,7 +220,7 @@ struct Node {
     at: Point,
     /// Its window's radius.
     window: f64,
-    /// The samples its window held.
+    /// The samples its window held (centred where the sample moved).
     held: f64,
     /// The curve's unit tangent there (either way).
     tangent: Point,
@@ -966,6 +967,20 @@ mod tests {
         (pts, d)
     }
 
+    /// `n` samples uniform on the circle of radius 0.3 about (0.5, 0.5), with Gaussian
+    /// noise `sigma` per coordinate.
+    fn noisy_circle(n: usize, sigma: f64, seed: &mut u64) -> Vec<Point> {
+        (0..n)
+            .map(|_| {
+                let a = std::f64::consts::TAU * lcg(seed);
+                [
+                    0.5 + 0.3 * a.cos() + sigma * gauss(seed),
+                    0.5 + 0.3 * a.sin() + sigma * gauss(seed),
+                ]
+            })
+            .collect()
+    }
+
     /// A noisy spiral whose turns lie 0.093 apart at sigma = 0.008 (its band's edges
     /// 0.06 apart) is one open curve, every vertex within the accuracy bound of the
     /// truth (3 sigma plus the sampling's spacing) and the truth within it of a
@@ -1035,15 +1050,7 @@ mod tests {
         let sigma = 0.008;
         for case in 0..64u64 {
             let mut seed = 1000 + case;
-            let mut pts: Vec<Point> = (0..1900)
-                .map(|_| {
-                    let a = std::f64::consts::TAU * lcg(&mut seed);
-                    [
-                        0.5 + 0.3 * a.cos() + sigma * gauss(&mut seed),
-                        0.5 + 0.3 * a.sin() + sigma * gauss(&mut seed),
-                    ]
-                })
-                .collect();
+            let mut pts = noisy_circle(1900, sigma, &mut seed);
             pts.extend((0..100).map(|_| [lcg(&mut seed), lcg(&mut seed)]));
             let field = DistanceField::new(&pts).unwrap();
             let g = graph_curves(&field);
@@ -1082,15 +1089,7 @@ mod tests {
     #[test]
     fn a_noisy_circle_is_one_loop() {
         let mut seed = 11;
-        let pts: Vec<Point> = (0..1500)
-            .map(|_| {
-                let a = std::f64::consts::TAU * lcg(&mut seed);
-                [
-                    0.5 + 0.3 * a.cos() + 0.005 * gauss(&mut seed),
-                    0.5 + 0.3 * a.sin() + 0.005 * gauss(&mut seed),
-                ]
-            })
-            .collect();
+        let pts = noisy_circle(1500, 0.005, &mut seed);
         let field = DistanceField::new(&pts).unwrap();
         let g = graph_curves(&field);
         let shape: Vec<(bool, usize, Point, Point)> = g
