@@ -187,21 +187,25 @@ fn settled(field: &DistanceField, r_max: f64) -> Vec<Node> {
     let pts = field.points();
     let mut out: Vec<Node> = (0..pts.len())
         .into_par_iter()
-        .map_init(Vec::new, |idx: &mut Vec<u32>, i| {
-            let n = each[i]?;
-            field.within(pts[i], n.window, idx);
-            let mut density: Vec<f64> = idx
-                .iter()
-                .filter(|&&j| j as usize != i)
-                .filter_map(|&j| each[j as usize].map(|m| m.density()))
-                .collect();
-            if density.is_empty() {
-                return None;
-            }
-            let mid = density.len() / 2;
-            let median = *density.select_nth_unstable_by(mid, f64::total_cmp).1;
-            (SPARSER * n.density() >= median).then_some(n)
-        })
+        .map_init(
+            || (Vec::new(), Vec::new()),
+            |(idx, density): &mut (Vec<u32>, Vec<f64>), i| {
+                let n = each[i]?;
+                field.within(pts[i], n.window, idx);
+                density.clear();
+                density.extend(
+                    idx.iter()
+                        .filter(|&&j| j as usize != i)
+                        .filter_map(|&j| each[j as usize].map(|m| m.density())),
+                );
+                if density.is_empty() {
+                    return None;
+                }
+                let mid = density.len() / 2;
+                let median = *density.select_nth_unstable_by(mid, f64::total_cmp).1;
+                (SPARSER * n.density() >= median).then_some(n)
+            },
+        )
         .flatten()
         .collect();
     out.sort_unstable_by(|a, b| {
