@@ -60,8 +60,8 @@ echo "| recording | poses | runs | ATE m | RPE 1 m: m, deg | RPE 10 m: m, deg | 
 echo "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|"
 python3 scripts/pose-rows.py "$dir/rows.tsv"
 echo
-echo "| recording | frames | next scan by input poses, cm | by registered poses, cm | nearer | CPU ms a frame |"
-echo "|---|---|---:|---:|---:|---:|"
+echo "| recording | frames | next scan by input poses, cm | by registered poses, cm | nearer | nearer than a registered single frame | CPU ms a frame |"
+echo "|---|---|---:|---:|---:|---:|---:|"
 for input in "$dir"/*-s1.ndjson; do
   [ -e "$input" ] || continue
   name=$(basename "$input" -s1.ndjson)
@@ -72,13 +72,16 @@ for input in "$dir"/*-s1.ndjson; do
     rm -f "$out"
     cpu=$("$bin" run -c "$dir/daemon-$acc.toml" 2>&1 | sed -n 's/.*CPU \([0-9.]*\) ms a frame.*/\1/p')
     "$bin" eval "$out" --frames "$input" > "$out.eval.json"
-    python3 - "$name" "$acc" "$out.eval.json" "$cpu" <<'PY'
+    python3 - "$name" "$acc" "$out.eval.json" "$cpu" "$dir/$name-daemon-0.ndjson.eval.json" <<'PY'
 import json, sys
-name, acc, path, cpu = sys.argv[1:]
+name, acc, path, cpu, single = sys.argv[1:]
 e = json.load(open(path))
 a, b = e["next_scan_by_input_pose"], e["next_scan_by_registered_pose"]
 kind = "single" if acc == "0" else f"refined over {acc}"
-print(f"| {name} | {kind} | {100*a:.2f} | {100*b:.2f} | {100*(1-b/a):.0f}% | {cpu} |")
+# Refinement against the registered single frame of the same run.
+s = json.load(open(single))["next_scan_by_registered_pose"]
+gain = "" if acc == "0" else f"{100*(1-b/s):.1f}%"
+print(f"| {name} | {kind} | {100*a:.2f} | {100*b:.3f} | {100*(1-b/a):.0f}% | {gain} | {cpu} |")
 PY
   done
 done

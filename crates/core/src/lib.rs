@@ -93,7 +93,7 @@ pub use mesh::Mesh;
 pub use reconstruct::{
     reconstruct, reconstruct_scan, reconstruct_warm, FrameKind, Params, Reconstruction, AREA_SHARE,
 };
-pub use refine::{RefineFrame, Refiner};
+pub use refine::{RefineFrame, Refined, Refiner};
 pub use repair::strokes::Junction;
 pub use repair::Tolerances as RepairTolerances;
 pub use scan::{FreeSpace, LaserScan, RunReturns, Scan, ScanParams, MAX_BEAMS, SMOOTHING};

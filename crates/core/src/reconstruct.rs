@@ -553,16 +553,33 @@ pub fn export_refined(
                 points: c.points.iter().map(|&p| world(p)).collect(),
             })
             .collect();
+        // The returns its curves leave unexplained: where it saw a surface too sparsely
+        // to draw, and an older frame's curve may fill in (`Refined::filled`).
+        let own_index = crate::index::SegmentIndex::new(&r.polylines);
+        let unexplained: Vec<Point> = scan
+            .scan
+            .returns()
+            .into_iter()
+            .map(|p| at.to_data(p))
+            .filter(|&p| own_index.nearest(p).is_none_or(|(d, _, _)| d > bound))
+            .map(world)
+            .collect();
         let refined = refiner.refine(crate::refine::RefineFrame {
             frame,
             t,
             curves: curves_world,
             returns: own_returns.iter().map(|&p| world(p)).collect(),
+            unexplained,
             sigma,
             tol,
         });
         // A window of the frame alone has nothing to fuse: the frame is as it was.
-        if let Some((moved, evidence)) = refined {
+        if let Some(crate::refine::Refined {
+            curves: moved,
+            filled,
+            evidence,
+        }) = refined
+        {
             let local = |c: Polyline| Polyline {
                 closed: c.closed,
                 points: c.points.into_iter().map(|p| to_sensor(pose, p)).collect(),
@@ -570,7 +587,7 @@ pub fn export_refined(
             let moved: Vec<Polyline> = moved.into_iter().map(local).collect();
             let evidence: Vec<Point> = evidence.into_iter().map(|p| to_sensor(pose, p)).collect();
             let keep = refined_curves_kept(&r.polylines, &moved, &own_returns, &evidence, bound);
-            let fused = keep.iter().any(|&k| k);
+            let refined_any = keep.iter().any(|&k| k);
             let eps = 1e-9 * at.len_to_data(prepared.diag);
             let moved = crate::repair::invariants::well_formed(
                 moved
@@ -581,23 +598,16 @@ pub fn export_refined(
                     .collect(),
                 eps,
             );
-            r.stats.start = if fused {
-                crate::levelset::Start::Fused
-            } else {
-                crate::levelset::Start::Fallback
-            };
-            r.stats.warm_start = fused;
-            r.stats.cold_fallback = !fused;
-            if fused {
-                // The window's average holds to the frame's beams as the frame's own
-                // curves do: the seen space is in the frame's local coordinates.
+            // The window's curves hold to the frame's beams as the frame's own curves
+            // do: the seen space is in the frame's local coordinates, and `bound` is
+            // its margin, in data units.
+            let outside_seen = |curves: Vec<Polyline>| -> Vec<Polyline> {
                 let in_local = |c: Polyline, f: &dyn Fn(Point) -> Point| Polyline {
                     closed: c.closed,
                     points: c.points.into_iter().map(f).collect(),
                 };
-                // `bound` is the seen margin, in data units.
-                let moved = crate::export::support::outside_seen(
-                    moved
+                crate::export::support::outside_seen(
+                    curves
                         .into_iter()
                         .map(|c| in_local(c, &|p| at.to_local(p)))
                         .collect(),
@@ -607,8 +617,32 @@ pub fn export_refined(
                 )
                 .into_iter()
                 .map(|c| in_local(c, &|p| at.to_data(p)))
-                .collect();
-                adopt_refined(&mut r, prepared, &runs, moved, bound);
+                .collect()
+            };
+            let filled = if filled.is_empty() {
+                Vec::new()
+            } else {
+                crate::repair::invariants::well_formed(
+                    outside_seen(filled.into_iter().map(local).collect()),
+                    eps,
+                )
+            };
+            let fused = refined_any || !filled.is_empty();
+            r.stats.start = if fused {
+                crate::levelset::Start::Fused
+            } else {
+                crate::levelset::Start::Fallback
+            };
+            r.stats.warm_start = fused;
+            r.stats.cold_fallback = !fused;
+            if fused {
+                let mut curves = if refined_any {
+                    outside_seen(moved)
+                } else {
+                    moved
+                };
+                curves.extend(filled);
+                adopt_refined(&mut r, prepared, &runs, curves, bound);
             }
         }
         r.stats.window = Some(refiner.stats());
@@ -1038,6 +1072,115 @@ mod tests {
         let (sensor, free) = seen.free_space().expect("a scan's free space");
         assert!(crate::geom::dist(sensor, [1.0, -3.0]) < 1e-9, "{sensor:?}");
         assert!(free.closed && free.points.len() >= 3);
+    }
+
+    /// A window that hands back the frame's own curves and two older pieces: one
+    /// along a far wall through the frame's two lone returns on it and 5 cm beyond,
+    /// one across the space its beams saw through to a nearer wall.
+    #[derive(Debug, Default)]
+    struct Filling {
+        unexplained: std::sync::Arc<std::sync::Mutex<Vec<Point>>>,
+    }
+
+    /// The far wall `y = 2.5` where the beam at `deg` degrees meets it.
+    fn far_wall(deg: f64) -> Point {
+        [2.5 / deg.to_radians().tan(), 2.5]
+    }
+
+    /// A point of the space the beams at 90 degrees saw through.
+    const THROUGH: Point = [0.0, 1.0];
+
+    impl crate::refine::Refiner for Filling {
+        fn refine(&mut self, f: crate::refine::RefineFrame) -> Option<crate::refine::Refined> {
+            *self.unexplained.lock().unwrap() = f.unexplained;
+            let beyond = [far_wall(30.0)[0] + 0.05, 2.5];
+            Some(crate::refine::Refined {
+                curves: f.curves,
+                filled: vec![
+                    Polyline {
+                        closed: false,
+                        points: vec![far_wall(31.0), beyond],
+                    },
+                    Polyline {
+                        closed: false,
+                        points: vec![[-0.1, THROUGH[1]], [0.1, THROUGH[1]]],
+                    },
+                ],
+                evidence: Vec::new(),
+            })
+        }
+
+        fn stats(&self) -> crate::stats::WindowStats {
+            crate::stats::WindowStats {
+                frames: 2,
+                points: 0,
+                bytes: 0,
+            }
+        }
+    }
+
+    /// The window is told which returns the frame's own curves leave unexplained, and
+    /// what it draws there is drawn; what of it lies in the space the frame's beams saw
+    /// through is cut, as the frame's own curves are.
+    #[test]
+    fn older_pieces_are_drawn_about_lone_returns_and_never_where_the_beams_saw_through() {
+        use std::f64::consts::PI;
+        let deg = PI / 180.0;
+        // A wall y = 2 from 45 to 135 degrees; of the far wall y = 2.5 two returns, at
+        // 30 and 31 degrees, too few for a run; no return on the other beams.
+        let ranges: Vec<Option<f64>> = (0..=140)
+            .map(|i| {
+                let a = (20.0 + i as f64) * deg;
+                match i {
+                    10 | 11 => Some(2.5 / a.sin()),
+                    25..=115 => Some(2.0 / a.sin()),
+                    _ => None,
+                }
+            })
+            .collect();
+        let scan = crate::scan::Scan::from_laser(&crate::scan::LaserScan {
+            origin: [0.0, 0.0],
+            angle_min: 20.0 * deg,
+            angle_increment: deg,
+            ranges: &ranges,
+            range_min: 0.1,
+            range_max: 10.0,
+        })
+        .unwrap();
+        let points = scan.returns();
+        let window = Filling::default();
+        let told = window.unexplained.clone();
+        let mut stream = crate::Stream::new(Params::default(), false).refining(Box::new(window));
+        let r = stream
+            .push(&crate::StreamFrame {
+                frame: 0,
+                points: &points,
+                scan: Some(&scan),
+                t: None,
+                pose: Some([0.0, 0.0, 0.0]),
+            })
+            .unwrap();
+        let told = told.lock().unwrap().clone();
+        assert_eq!(told.len(), 2, "{told:?}");
+        for p in [far_wall(30.0), far_wall(31.0)] {
+            assert!(
+                told.iter().any(|&q| crate::geom::dist(p, q) < 1e-9),
+                "{told:?}"
+            );
+        }
+        assert_eq!(r.stats.start, crate::levelset::Start::Fused);
+        let index = crate::index::SegmentIndex::new(&r.polylines);
+        // Between the two returns, on the edge of what the beams saw: drawn.
+        let mid = crate::geom::scale(crate::geom::add(far_wall(30.0), far_wall(31.0)), 0.5);
+        assert!(index.distance(mid) < 1e-9, "{:?}", r.polylines);
+        // Beyond the return at 30 degrees, where the beam at 29 saw through: cut.
+        assert!(
+            index.distance([far_wall(30.0)[0] + 0.05, 2.5]) > 0.02,
+            "{:?}",
+            r.polylines
+        );
+        // Nothing where the beams at 90 degrees saw through to the wall 2 m off.
+        assert!(index.distance(THROUGH) > 0.5, "{:?}", r.polylines);
     }
 
     /// Two strokes crossing at their middles, `n` samples each.

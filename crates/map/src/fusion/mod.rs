@@ -12,10 +12,11 @@
 //! twice the newest frame's range noise, on a curve facing the same way (`Window::refined`):
 //! two curves each within the noise of one wall differ by less than that, and a curve
 //! farther off saw something else there (a door since opened, a person since gone, a
-//! pose error the alignment did not catch). The newest frame's curves are the only ones
-//! drawn, so a wall it does not see is not drawn, and no older evidence can remove a
-//! wall it does see. The window is what the sensor sees now, sharpened by what it saw a
-//! moment ago, not a map.
+//! pose error the alignment did not catch). Besides the newest frame's curves, only
+//! stretches of older curves within its support tolerance of the returns it drew no
+//! curve through are drawn ([`filled`]), so a wall it has no return of is not drawn,
+//! and no older evidence can remove a wall it does see. The window is what the sensor
+//! sees now, sharpened by what it saw a moment ago, not a map.
 
 use std::collections::VecDeque;
 
@@ -26,7 +27,7 @@ mod align;
 use align::{Rigid, Surface};
 
 use isoline_core::geom::{Point, Polyline};
-use isoline_core::{RefineFrame, Refiner, SegmentIndex, WindowStats, SMOOTHING};
+use isoline_core::{RefineFrame, Refined, Refiner, SegmentIndex, WindowStats, SMOOTHING};
 
 /// Deviations of the newest frame's range noise a curve point must stand off its
 /// chord before the window looks for older curves between the two: the refinement
@@ -64,6 +65,8 @@ pub(crate) struct View {
     ends: Vec<u8>,
     /// Its runs' returns, the evidence the refined curves are checked against.
     returns: Vec<Point>,
+    /// Its returns its own curves leave unexplained: where older curves may fill in.
+    unexplained: Vec<Point>,
     /// Its range noise.
     sigma: f64,
     /// Its support's tolerance, `2 sigma + hmin`.
@@ -101,10 +104,18 @@ impl View {
             index,
             ends,
             returns,
+            unexplained: Vec::new(),
             sigma,
             tol,
             to_newest: Rigid::IDENTITY,
         }
+    }
+
+    /// The view with `returns` (world coordinates) that its own curves leave
+    /// unexplained.
+    pub(crate) fn with_unexplained(mut self, returns: Vec<Point>) -> View {
+        self.unexplained = returns;
+        self
     }
 
     /// Its curves' points, run after run: the source of its alignment.
@@ -155,7 +166,7 @@ impl View {
             .iter()
             .map(|c| c.points.len() * point)
             .sum::<usize>()
-            + self.returns.len() * point
+            + (self.returns.len() + self.unexplained.len()) * point
             + self.ends.len()
             + self.index.bytes()
     }
@@ -291,11 +302,12 @@ impl Window {
     /// places the wall, its curve's noise and what the alignment left of its pose error
     /// (`view_weights`). Returns the curves and the
     /// older views' returns as the alignment placed them (the evidence the refined
-    /// curves are checked against), all in the world's coordinates. Empty when the
-    /// window is.
-    pub(crate) fn refined(&self) -> (Vec<Polyline>, Vec<Point>) {
+    /// curves are checked against), and the pieces of older curves that fill where the
+    /// newest frame sees a surface it drew no curve of ([`filled`]), all in the world's
+    /// coordinates. Empty when the window is.
+    pub(crate) fn refined(&self) -> Refined {
         let Some(newest) = self.views.back() else {
-            return (Vec::new(), Vec::new());
+            return Refined::default();
         };
         let older: Vec<&View> = self.views.iter().take(self.views.len() - 1).collect();
         let found = found(newest, &older);
@@ -305,8 +317,71 @@ impl Window {
             .iter()
             .flat_map(|v| v.returns.iter().map(|&q| v.to_newest.apply(q)))
             .collect();
-        (curves, evidence)
+        Refined {
+            curves,
+            filled: filled(newest, &older),
+            evidence,
+        }
     }
+}
+
+/// Pieces of the `older` views' curves, laid onto the `newest`, where the newest frame
+/// has returns its own curves leave unexplained: each point of a piece lies within the
+/// newest frame's support tolerance of such a return and farther than that from the
+/// newest frame's curves and from the pieces already taken, and a piece has at least two
+/// points. The most recent views are asked first.
+///
+/// A return no curve of its frame explains is a surface the frame saw too sparsely to
+/// draw (a wall far off or at grazing incidence, where its returns are fewer than a
+/// run): a single frame says nothing about its shape, and an older frame that saw it
+/// from nearer did. Every point drawn is one the newest frame vouches for with a return
+/// within its noise, so an older curve where the newest sees nothing, or where the
+/// scene has changed (a door since opened, a person since gone), is not drawn; the
+/// export cuts whatever of it the newest frame's beams saw through, as it cuts the
+/// frame's own curves.
+fn filled(newest: &View, older: &[&View]) -> Vec<Polyline> {
+    let tol = newest.tol;
+    let Ok(support) = kiddo::ImmutableKdTree::<f64, 2>::new_from_slice(&newest.unexplained) else {
+        return Vec::new();
+    };
+    if newest.unexplained.is_empty() {
+        return Vec::new();
+    }
+    let supported = |p: Point| {
+        support
+            .query(&p)
+            .nearest_one::<kiddo::SquaredEuclidean<f64>>()
+            .execute()
+            .distance
+            <= tol * tol
+    };
+    let far = |index: &SegmentIndex, p: Point| index.nearest(p).is_none_or(|(d, _, _)| d > tol);
+    let mut pieces: Vec<Polyline> = Vec::new();
+    for v in older.iter().rev() {
+        let taken = SegmentIndex::new(&pieces);
+        let mut found = Vec::new();
+        for c in &v.curves {
+            let mut piece: Vec<Point> = Vec::new();
+            for &q in &c.points {
+                let p = v.to_newest.apply(q);
+                if supported(p) && far(&newest.index, p) && far(&taken, p) {
+                    piece.push(p);
+                } else if piece.len() >= 2 {
+                    found.push(std::mem::take(&mut piece));
+                } else {
+                    piece.clear();
+                }
+            }
+            if piece.len() >= 2 {
+                found.push(piece);
+            }
+        }
+        pieces.extend(found.into_iter().map(|points| Polyline {
+            closed: false,
+            points,
+        }));
+    }
+    pieces
 }
 
 /// What the `older` views say at each point of the `newest` view's curves (see
@@ -576,10 +651,11 @@ fn rotate_back(m: &Rigid, d: Point) -> Point {
 }
 
 impl Refiner for Window {
-    fn refine(&mut self, f: RefineFrame) -> Option<(Vec<Polyline>, Vec<Point>)> {
-        self.push(View::new(
-            f.frame, f.t, &f.curves, f.returns, f.sigma, f.tol,
-        ));
+    fn refine(&mut self, f: RefineFrame) -> Option<Refined> {
+        self.push(
+            View::new(f.frame, f.t, &f.curves, f.returns, f.sigma, f.tol)
+                .with_unexplained(f.unexplained),
+        );
         (self.len() > 1).then(|| self.refined())
     }
 
@@ -646,6 +722,49 @@ mod tests {
         View::new(frame, Some(t), &[curve], returns, SIGMA, 3.0 * SIGMA)
     }
 
+    /// A far wall the older frames drew and the newest saw with a few lone returns,
+    /// beside a nearer wall of its own: the older curve is drawn about each lone return,
+    /// once however many frames drew it, and nowhere else.
+    #[test]
+    fn older_curves_fill_where_the_newest_frame_saw_too_sparsely_to_draw() {
+        let mut w = Window::new(limits(10));
+        w.push(wall(0, 0.0, 1.0));
+        w.push(wall(1, 1.0, 1.0));
+        // The newest frame draws the wall y = 0 and has lone returns on y = 1 (and one
+        // where no frame drew anything, and one beside its own curve).
+        let lone: Vec<Point> = vec![
+            [-0.8, 1.0],
+            [-0.2, 1.004],
+            [0.5, 0.995],
+            [0.0, 3.0],
+            [0.3, 0.01],
+        ];
+        let newest = wall(2, 2.0, 0.0).with_unexplained(lone.clone());
+        let tol = newest.tol;
+        w.push(newest);
+        w.views
+            .iter_mut()
+            .for_each(|v| v.to_newest = Rigid::IDENTITY);
+        let filled = w.refined().filled;
+        // One piece about each lone return on the far wall, from one older frame only
+        // (the older curve runs from x = 1 to x = -1).
+        assert_eq!(filled.len(), 3, "{filled:?}");
+        for (piece, at) in filled
+            .iter()
+            .zip([[0.5, 0.995], [-0.2, 1.004], [-0.8, 1.0]])
+        {
+            assert!(piece.points.len() >= 2);
+            for p in &piece.points {
+                // On the older curve, and within the support's tolerance of its return.
+                assert!((p[1] - 1.0).abs() < 1e-12, "{p:?}");
+                assert!(
+                    isoline_core::geom::dist(*p, at) <= tol + 1e-12,
+                    "{p:?} {at:?}"
+                );
+            }
+        }
+    }
+
     fn limits(frames: usize) -> WindowLimits {
         WindowLimits {
             max_bytes: None,
@@ -671,7 +790,9 @@ mod tests {
         w.views
             .iter_mut()
             .for_each(|v| v.to_newest = Rigid::IDENTITY);
-        let (curves, evidence) = w.refined();
+        let Refined {
+            curves, evidence, ..
+        } = w.refined();
         assert_eq!(evidence.len(), 3 * 101);
         let c = &curves[0];
         // Equal noise: the newest and the one agreeing view weigh alike.
@@ -705,7 +826,7 @@ mod tests {
         let mut w = Window::new(limits(10));
         w.push(corner(0, error));
         w.push(corner(1, Rigid::IDENTITY));
-        let (curves, _) = w.refined();
+        let curves = w.refined().curves;
         let own = subdivided(
             &Polyline {
                 closed: false,
@@ -771,7 +892,7 @@ mod tests {
             w.views
                 .iter_mut()
                 .for_each(|v| v.to_newest = Rigid::IDENTITY);
-            w.refined().0
+            w.refined().curves
         };
         let own = &spiked(3, HEIGHT).curves[0];
         let averaged = refined(|i| wall(i, i as f64, 1.0));
