@@ -71,7 +71,8 @@
 //!    vertices (one window's samples) or shorter than two of their windows go; the rest
 //!    are chains between vertices of degree
 //!    other than two, the forks junctions. A chain from a free end shorter than its window
-//!    holds no curve.
+//!    holds no curve. A closed chain turns counter-clockwise, clockwise inside an odd
+//!    number of the others (a hole).
 
 use rayon::prelude::*;
 
@@ -926,7 +927,32 @@ fn chains(q: &[Point], r: &[f64], adj: &[Vec<u32>]) -> Graphed {
             polylines,
         })
         .collect();
+    orient_loops(&mut out.polylines);
     out
+}
+
+/// Turns each closed curve counter-clockwise, or clockwise where it lies inside an odd
+/// number of the others (a hole), as the level set's loops turn (the inside on the
+/// left): a tree's cycles run whichever way its walk found them. Loops do not cross
+/// (no two edges do), so one vertex tells whether a loop lies inside another.
+fn orient_loops(polylines: &mut [Polyline]) {
+    let depth: Vec<usize> = polylines
+        .iter()
+        .enumerate()
+        .map(|(i, c)| match (c.closed, c.points.first()) {
+            (true, Some(&p)) => polylines
+                .iter()
+                .enumerate()
+                .filter(|&(j, o)| j != i && o.encloses(p))
+                .count(),
+            _ => 0,
+        })
+        .collect();
+    for (c, d) in polylines.iter_mut().zip(depth) {
+        if c.closed && (c.signed_area() > 0.0) != (d % 2 == 0) {
+            c.points.reverse();
+        }
+    }
 }
 
 #[cfg(test)]
@@ -1088,6 +1114,31 @@ mod tests {
             .collect();
         assert!(off.is_empty(), "{off:?}");
         assert_eq!(g.polylines.len(), 1, "{:?}", g.polylines.len());
+    }
+
+    /// An annulus's two loops: the outer counter-clockwise, the hole clockwise, on
+    /// every sampling (a tree's walk finds its cycles either way round).
+    #[test]
+    fn an_outline_turns_counter_clockwise_and_its_hole_clockwise() {
+        let mut seed = 7;
+        for case in 0..16 {
+            let mut pts = noisy_circle(600, 0.003, &mut seed);
+            let inner: Vec<Point> = noisy_circle(300, 0.003, &mut seed)
+                .into_iter()
+                .map(|p| add(scale(sub(p, [0.5, 0.5]), 0.5), [0.5, 0.5]))
+                .collect();
+            pts.extend(inner);
+            let g = graph_curves(&DistanceField::new(&pts).unwrap());
+            let loops: Vec<&Polyline> = g.polylines.iter().filter(|c| c.closed).collect();
+            assert_eq!(loops.len(), 2, "case {case}: {:?}", g.polylines.len());
+            let (outer, hole) = if loops[0].signed_area().abs() > loops[1].signed_area().abs() {
+                (loops[0], loops[1])
+            } else {
+                (loops[1], loops[0])
+            };
+            assert!(outer.signed_area() > 0.0, "case {case}");
+            assert!(hole.signed_area() < 0.0, "case {case}");
+        }
     }
 
     #[test]
