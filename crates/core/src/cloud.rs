@@ -23,8 +23,9 @@
 //!    by a quarter at a time until the fit of its own sheet within it holds ten samples
 //!    and spans four times its residual (the noise measurement's rule,
 //!    [`crate::mesh::metric`]): the smallest window in which the samples look like a
-//!    curve rather than a blob. Up to [`largest_window`]; a sample whose window never
-//!    qualifies lies in an area, not on a curve.
+//!    curve rather than a blob. Up to [`largest_window`], or [`SPARSER`] times a typical
+//!    sample's ten-sample radius where the sampling is sparser ([`window_cap`]); a sample
+//!    whose window never qualifies lies in an area, not on a curve.
 //! 2. *Onto the curve.* The sample moves to the fitted parabola's foot (moving least
 //!    squares, Lee 2000), then once more with the window centred on where it moved, so a
 //!    sample in the band's tail fits the same stretch as those in its middle. A sample
@@ -118,10 +119,9 @@ pub struct Graphed {
 }
 
 /// The curves through the samples of `field`, by the steps of the module's doc: each
-/// sample's window from the radius that holds ten samples up to
-/// [`largest_window`].
+/// sample's window from the radius that holds ten samples up to [`window_cap`].
 pub fn graph_curves(field: &DistanceField) -> Graphed {
-    let nodes = settled(field, largest_window(field));
+    let nodes = settled(field, window_cap(field));
     // Windows pass by chance in scattered points, at the edges of the area they fill.
     if nodes.len() < 2 || (nodes.len() as f64) < AREA_SHARE * field.points().len() as f64 {
         return Graphed::default();
@@ -143,6 +143,31 @@ pub fn graph_curves(field: &DistanceField) -> Graphed {
     merge_close_forks(&mut q, &r, &q_field, &mut adj);
     drop_small_components(&q, &r, &mut adj);
     chains(&q, &r, &adj)
+}
+
+/// The largest window (step 1): the noise measurement's ([`largest_window`]), or
+/// [`SPARSER`] times the radius that holds a typical sample's ten nearest (the median
+/// over the samples) where that is wider. No window smaller than ten samples' holds a
+/// fit, so where the sampling is sparser than the noise measurement's largest window
+/// allows ten samples, every sample would be lost; a sample that needs a window more
+/// than [`SPARSER`] times a typical one's to hold ten is an outlier by the density test
+/// of step 2 anyway.
+fn window_cap(field: &DistanceField) -> f64 {
+    let pts = field.points();
+    let mut radii: Vec<f64> = pts
+        .par_iter()
+        .map_init(Vec::new, |idx: &mut Vec<u32>, &c| {
+            field.nearest_k(c, SHEET_SAMPLES, idx);
+            idx.last().map_or(0.0, |&j| dist(c, pts[j as usize]))
+        })
+        .collect();
+    let typical = if radii.is_empty() {
+        0.0
+    } else {
+        let mid = radii.len() / 2;
+        *radii.select_nth_unstable_by(mid, f64::total_cmp).1
+    };
+    largest_window(field).max(SPARSER * typical)
 }
 
 /// Step 1 and 2: each sample that sees a curve, moved onto it, with its window's
@@ -1138,6 +1163,33 @@ mod tests {
             };
             assert!(outer.signed_area() > 0.0, "case {case}");
             assert!(hole.signed_area() < 0.0, "case {case}");
+        }
+    }
+
+    /// A loop sampled so sparsely that ten samples span more than the noise
+    /// measurement's largest window (150 samples round a circle of radius 0.3: ten span
+    /// about 0.06, the largest window a sixteenth of 0.6) is still one loop near its
+    /// truth: the windows may grow to hold ten samples.
+    #[test]
+    fn a_sparsely_sampled_noisy_loop_is_one_loop() {
+        let mut seed = 11;
+        let sigma = 0.004;
+        for case in 0..16 {
+            let pts = noisy_circle(150, sigma, &mut seed);
+            let field = DistanceField::new(&pts).unwrap();
+            assert!(
+                window_cap(&field) > largest_window(&field),
+                "case {case}: not sparse"
+            );
+            let g = graph_curves(&field);
+            assert_eq!(g.polylines.len(), 1, "case {case}");
+            assert!(g.polylines[0].closed, "case {case}");
+            // Within the accuracy bound of the truth: three deviations and a spacing.
+            let bound = 3.0 * sigma + std::f64::consts::TAU * 0.3 / 150.0;
+            for &p in &g.polylines[0].points {
+                let off = (dist(p, [0.5, 0.5]) - 0.3).abs();
+                assert!(off <= bound, "case {case}: {p:?} {off} > {bound}");
+            }
         }
     }
 
