@@ -121,7 +121,8 @@ pub struct Graphed {
 /// The curves through the samples of `field`, by the steps of the module's doc: each
 /// sample's window from the radius that holds ten samples up to [`window_cap`].
 pub fn graph_curves(field: &DistanceField) -> Graphed {
-    let nodes = settled(field, window_cap(field));
+    let radii = ten_sample_radii(field);
+    let nodes = settled(field, &radii, window_cap(field, &radii));
     // Windows pass by chance in scattered points, at the edges of the area they fill.
     if nodes.len() < 2 || (nodes.len() as f64) < AREA_SHARE * field.points().len() as f64 {
         return Graphed::default();
@@ -152,15 +153,9 @@ pub fn graph_curves(field: &DistanceField) -> Graphed {
 /// allows ten samples, every sample would be lost; a sample that needs a window more
 /// than [`SPARSER`] times a typical one's to hold ten is an outlier by the density test
 /// of step 2 anyway.
-fn window_cap(field: &DistanceField) -> f64 {
-    let pts = field.points();
-    let mut radii: Vec<f64> = pts
-        .par_iter()
-        .map_init(Vec::new, |idx: &mut Vec<u32>, &c| {
-            field.nearest_k(c, SHEET_SAMPLES, idx);
-            idx.last().map_or(0.0, |&j| dist(c, pts[j as usize]))
-        })
-        .collect();
+/// `radii` are the samples' [`ten_sample_radii`].
+fn window_cap(field: &DistanceField, radii: &[f64]) -> f64 {
+    let mut radii = radii.to_vec();
     let typical = if radii.is_empty() {
         0.0
     } else {
@@ -170,19 +165,30 @@ fn window_cap(field: &DistanceField) -> f64 {
     largest_window(field).max(SPARSER * typical)
 }
 
+/// Per sample, the radius that holds its [`SHEET_SAMPLES`] nearest: where its window
+/// starts.
+fn ten_sample_radii(field: &DistanceField) -> Vec<f64> {
+    let pts = field.points();
+    pts.par_iter()
+        .map_init(Vec::new, |idx: &mut Vec<u32>, &c| {
+            field.nearest_k(c, SHEET_SAMPLES, idx);
+            idx.last().map_or(0.0, |&j| dist(c, pts[j as usize]))
+        })
+        .collect()
+}
+
 /// Step 1 and 2: each sample that sees a curve, moved onto it, with its window's
 /// radius; sorted and without duplicates (the order [`DistanceField::new`] keeps).
-fn settled(field: &DistanceField, r_max: f64) -> Vec<Node> {
+/// Windows start at the samples' `radii` ([`ten_sample_radii`]).
+fn settled(field: &DistanceField, radii: &[f64], r_max: f64) -> Vec<Node> {
     let each: Vec<Option<Node>> = field
         .points()
         .par_iter()
+        .zip(radii)
         .map_init(
             || (Vec::new(), Vec::new()),
-            |(idx, sel): &mut (Vec<u32>, Vec<Point>), &c| {
-                field.nearest_k(c, SHEET_SAMPLES, idx);
-                let mut r = idx
-                    .last()
-                    .map_or(0.0, |&j| dist(c, field.points()[j as usize]));
+            |(idx, sel): &mut (Vec<u32>, Vec<Point>), (&c, &r)| {
+                let mut r = r;
                 while r <= r_max {
                     let f = fit_within(field, c, r, idx, sel);
                     if sees_a_curve(&f, idx.len(), r) {
@@ -1178,7 +1184,7 @@ mod tests {
             let pts = noisy_circle(150, sigma, &mut seed);
             let field = DistanceField::new(&pts).unwrap();
             assert!(
-                window_cap(&field) > largest_window(&field),
+                window_cap(&field, &ten_sample_radii(&field)) > largest_window(&field),
                 "case {case}: not sparse"
             );
             let g = graph_curves(&field);
