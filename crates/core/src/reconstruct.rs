@@ -586,7 +586,14 @@ pub fn export_refined(
             };
             let moved: Vec<Polyline> = moved.into_iter().map(local).collect();
             let evidence: Vec<Point> = evidence.into_iter().map(|p| to_sensor(pose, p)).collect();
-            let keep = refined_curves_kept(&r.polylines, &moved, &own_returns, &evidence, bound);
+            let keep = refined_curves_kept(
+                &r.polylines,
+                &own_index,
+                &moved,
+                &own_returns,
+                &evidence,
+                bound,
+            );
             let refined_any = keep.iter().any(|&k| k);
             let eps = 1e-9 * at.len_to_data(prepared.diag);
             let moved = crate::repair::invariants::well_formed(
@@ -654,23 +661,23 @@ pub fn export_refined(
     })
 }
 
-/// Which refined curves a frame keeps, curve by curve (`own[k]` refined to
-/// `moved[k]`): a refined curve explains every return its own curve explains (within
-/// the accuracy bound `3 sigma + 2 hmin`), and fits the window's returns nearest its own
-/// curve (the frame's `own_returns` and the older frames' `evidence`, as the alignment
-/// placed them) at least as well: the sum of their distances, capped at the bound so
-/// that returns no curve explains weigh alike. Where the window fails either (a pose
+/// Which refined curves a frame keeps, curve by curve (`own[k]`, indexed by
+/// `own_index`, refined to `moved[k]`): a refined curve explains every return its own
+/// curve explains (within the accuracy bound `3 sigma + 2 hmin`), and fits the window's
+/// returns nearest its own curve (the frame's `own_returns` and the older frames'
+/// `evidence`, as the alignment placed them) at least as well: the sum of their
+/// distances, capped at the bound so that returns no curve explains weigh alike. Where the window fails either (a pose
 /// error the alignment did not catch, a scene that changed) that curve stays as the
 /// frame drew it.
 fn refined_curves_kept(
     own: &[Polyline],
+    own_index: &crate::index::SegmentIndex,
     moved: &[Polyline],
     own_returns: &[Point],
     evidence: &[Point],
     bound: f64,
 ) -> Vec<bool> {
     use rayon::prelude::*;
-    let own_index = crate::index::SegmentIndex::new(own);
     let moved_index: Vec<crate::index::SegmentIndex> = moved
         .iter()
         .map(|c| crate::index::SegmentIndex::new(std::slice::from_ref(c)))

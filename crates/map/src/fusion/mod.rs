@@ -65,7 +65,8 @@ pub(crate) struct View {
     ends: Vec<u8>,
     /// Its runs' returns, the evidence the refined curves are checked against.
     returns: Vec<Point>,
-    /// Its returns its own curves leave unexplained: where older curves may fill in.
+    /// Its returns its own curves leave unexplained, while it is the newest: where older
+    /// curves may fill in.
     unexplained: Vec<Point>,
     /// Its range noise.
     sigma: f64,
@@ -260,6 +261,8 @@ impl Window {
         // cm (median) from where a plain ICP puts them, a direct alignment 1.5 cm).
         let target = newest.surface();
         older.par_iter_mut().for_each(|v| {
+            // Only the newest view's unexplained returns are filled about.
+            v.unexplained = Vec::new();
             let pts: Vec<Point> = v.points().collect();
             v.to_newest = align::align(&pts, &target);
         });
@@ -341,12 +344,12 @@ impl Window {
 /// frame's own curves.
 fn filled(newest: &View, older: &[&View]) -> Vec<Polyline> {
     let tol = newest.tol;
-    let Ok(support) = kiddo::ImmutableKdTree::<f64, 2>::new_from_slice(&newest.unexplained) else {
-        return Vec::new();
-    };
     if newest.unexplained.is_empty() {
         return Vec::new();
     }
+    let Ok(support) = kiddo::ImmutableKdTree::<f64, 2>::new_from_slice(&newest.unexplained) else {
+        return Vec::new();
+    };
     let supported = |p: Point| {
         support
             .query(&p)
