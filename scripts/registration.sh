@@ -7,7 +7,9 @@
 # corrected poses themselves; each estimated trajectory scored against the corrected
 # one by `isoline eval --reference` (ATE after the best rigid alignment, RPE over 1 m
 # and 10 m); beam streams without a reference (*.ndjson.gz, real wheel odometry) are
-# mapped with their own poses and with --register. Rows: one a recording and way,
+# mapped with their own poses and with --register, read as taken at once and with their
+# beams' timing ([scan] time_increment, $TIME_INCREMENT seconds, default 0.1 s / 1024:
+# a Hokuyo URG-04LX). Rows: one a recording and way,
 # medians over the seeds. Then the daemon with `register = true` on seed 1's odometry,
 # single frames and refined over 10 (`accumulate = 10`), scored by `isoline eval
 # --frames`: the next scan's returns that see what a frame saw, placed by the input
@@ -22,6 +24,7 @@ seeds=${SEEDS:-1 2 3}
 [ "$quick" = 1 ] && seeds=1
 printf '[map]\nalign = true\n' > "$dir/align.toml"
 printf '[register]\nloops = false\n' > "$dir/noloops.toml"
+printf '[scan]\ntime_increment = %s\n' "${TIME_INCREMENT:-9.765625e-5}" > "$dir/timed.toml"
 : > "$dir/rows.tsv"
 run() { # NAME WAY INPUT REF [ARGS...]
   local name=$1 way=$2 input=$3 ref=$4; shift 4
@@ -55,6 +58,8 @@ for input in "$real"/*.ndjson.gz; do
   base=$(basename "$input" .ndjson.gz)
   run "$base" odometry "$input" ""
   run "$base" register "$input" "" --register
+  run "$base" odometry-timed "$input" "" -c "$dir/timed.toml"
+  run "$base" register-timed "$input" "" --register -c "$dir/timed.toml"
 done
 echo "| recording | poses | runs | ATE m | RPE 1 m: m, deg | RPE 10 m: m, deg | static returns within 5 cm | seen through | loops | CPU ms a scan (registration / all) |"
 echo "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|"

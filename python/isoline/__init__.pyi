@@ -154,4 +154,5 @@ def read_frames(
     world_frame: Optional[str] = None,
     errors: Literal["warn", "raise", "ignore"] = "warn",
     max_line_bytes: int = 16777216,
+    time_increment: Optional[float] = None,
 ) -> FrameReader: ...

@@ -156,6 +156,36 @@ def test_a_frame_id_is_kept_through_ndjson_and_given_to_constructors(binary, tmp
     assert isoline.Frame.from_points(np.zeros((3, 2))).frame_id is None
 
 
+def test_a_turning_sweep_is_read_corrected_by_its_timing(tmp_path):
+    # A sensor at the origin turning at 1 rad/s before a wall at x = 3: 201 beams over
+    # 100 degrees, 1 ms apart, so the last is taken 0.2 rad later than the first.
+    def record(t, timed):
+        a0, inc = math.radians(-50), math.radians(0.5)
+        ranges = [3.0 / math.cos(t + 1e-3 * i + a0 + i * inc) for i in range(201)]
+        rec = {"stream": "s", "frame": round(10 * t), "t": t, "pose": [0, 0, t],
+               "ranges": ranges, "angle_min": a0, "angle_increment": inc, "range_max": 20}
+        if timed:
+            rec["time_increment"] = 1e-3
+        return json.dumps(rec)
+
+    def off_wall(frame):
+        x, y, h = frame.pose
+        p = frame.points
+        return np.abs(x + np.cos(h) * p[:, 0] - np.sin(h) * p[:, 1] - 3.0).max()
+
+    timed, untimed = tmp_path / "timed.ndjson", tmp_path / "untimed.ndjson"
+    timed.write_text(record(0.0, True) + "\n" + record(0.1, True) + "\n")
+    untimed.write_text(record(0.0, False) + "\n" + record(0.1, False) + "\n")
+    # The first frame has no motion before it: as it came, its far beams 0.2 rad off.
+    first, second = list(isoline.read_frames(timed))
+    assert off_wall(first) > 0.1
+    assert off_wall(second) < 1e-9
+    assert off_wall(list(isoline.read_frames(untimed))[1]) > 0.1
+    assert off_wall(list(isoline.read_frames(untimed, time_increment=1e-3))[1]) < 1e-9
+    with pytest.raises(ValueError):
+        isoline.read_frames(untimed, time_increment=-1.0)
+
+
 def test_the_result_record_is_the_binarys(binary, tmp_path):
     (record,) = binary_records(binary, tmp_path, FIXTURES / "c-600-n001.ndjson")
     (frame,) = list(isoline.read_frames(FIXTURES / "c-600-n001.ndjson"))

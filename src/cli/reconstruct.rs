@@ -199,16 +199,18 @@ impl StatsSink {
     }
 }
 
-/// The configuration's parameters with the command line's overrides.
-fn params_of(a: &Args) -> Result<isoline_core::Params> {
-    let mut params = super::load_config(a.config.as_deref())?.params();
+/// The configuration's parameters with the command line's overrides, and its beam
+/// timing for frames that do not give theirs (`[scan] time_increment`).
+fn params_of(a: &Args) -> Result<(isoline_core::Params, Option<f64>)> {
+    let cfg = super::load_config(a.config.as_deref())?;
+    let mut params = cfg.params();
     if let Some(s) = a.scheme {
         params.solver.scheme = s;
     }
     if let Some(i) = a.init {
         params.solver.init = i;
     }
-    Ok(params)
+    Ok((params, cfg.scan.time_increment))
 }
 
 /// The run's outputs: the records' sink and, with `--stats`, the statistics'.
@@ -288,7 +290,9 @@ fn record_of(
 pub fn run(a: Args) -> Result<()> {
     use isoline_io::write::Format;
 
-    let params = &params_of(&a)?;
+    let (params, time_increment) = params_of(&a)?;
+    let params = &params;
+    let mut deskew = isoline_io::Deskew::new(time_increment);
     let (input, output, stats, only) = (
         a.input.as_path(),
         a.output.as_deref(),
@@ -308,7 +312,11 @@ pub fn run(a: Args) -> Result<()> {
     let mut held: Option<Done> = None;
     let (mut seen, mut failed) = (0u64, 0u64);
     let mut stop: Option<anyhow::Error> = None;
-    let read = isoline_io::for_each_item_capped(input, &bag, cap, |item| {
+    let read = isoline_io::for_each_item_capped(input, &bag, cap, |mut item| {
+        // Every frame, also those --frame passes over: its pose is the next one's motion.
+        if let Ok(f) = &mut item {
+            deskew.apply(f);
+        }
         let number = match &item {
             Ok(f) => Some(f.frame),
             Err(b) => b.frame,

@@ -60,6 +60,11 @@ pub struct Args {
     /// static scene.
     #[arg(long)]
     walker: Option<f64>,
+    /// Scenes: beams taken one after another over the sensor's turn while it drives on
+    /// (`--motion`), as a spinning scanner takes them; each frame carries its beams'
+    /// `time_increment`.
+    #[arg(long)]
+    sweep: bool,
     /// Random seed.
     #[arg(long, default_value_t = 1)]
     seed: u64,
@@ -186,6 +191,7 @@ fn scan(a: Args, scene: SceneKind) -> Result<()> {
     p.motion = a.motion;
     p.pose = a.pose;
     p.walker = a.walker;
+    p.sweep = a.sweep;
     p.seed = a.seed;
     let frames = lidar::simulate(&p).map_err(anyhow::Error::msg)?;
     let r7 = |x: f64| (x * 1e7).round() / 1e7;
@@ -198,6 +204,7 @@ fn scan(a: Args, scene: SceneKind) -> Result<()> {
             ranges: Some(f.ranges.clone()),
             angle_min: Some(f.angle_min),
             angle_increment: Some(f.angle_increment),
+            time_increment: (f.time_increment > 0.0).then_some(f.time_increment),
             range_min: Some(f.range_min),
             range_max: Some(f.range_max),
             pose: Some(f.pose.map(r7)),

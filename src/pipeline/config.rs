@@ -97,6 +97,9 @@ pub struct DaemonConfig {
     /// pose taken as odometry; records carry it as `registered_pose`, and refinement
     /// and the map place scans by it.
     pub register: Option<isoline_map::RegisterParams>,
+    /// Seconds between beams for frames that do not say (`[scan] time_increment`):
+    /// scanner frames are corrected for the sensor's motion during the sweep.
+    pub time_increment: Option<f64>,
     /// Reconstruction parameters.
     pub params: Params,
     /// The map of the run (`[map]` with `output`): every scan with a pose fused into
@@ -466,9 +469,11 @@ impl DaemonConfig {
         // What is left is the shared tables, which refuse any other key.
         let mut map = None;
         let mut register = None;
+        let mut time_increment = None;
         let params = match Config::from_table(t, name, "").map_err(Error::from) {
             Ok(c) => {
                 register = Some(c.register);
+                time_increment = c.scan.time_increment;
                 map = c.map.output.as_ref().map(|o| super::map::MapOutput {
                     params: c.map_params(),
                     paths: o.paths().iter().map(|p| resolve(base, p)).collect(),
@@ -552,6 +557,7 @@ impl DaemonConfig {
                 live,
                 live_linger,
                 metrics,
+                time_increment,
                 params,
                 map,
             }),

@@ -271,6 +271,7 @@ fn spawn_compute(
             },
             stop.clone(),
             cfg.poll,
+            cfg.time_increment,
             metrics.clone(),
         )?,
     )];

@@ -306,11 +306,13 @@ pub(crate) fn spawn_ingest(
     tx: Sender<Msg>,
     stop: Arc<AtomicBool>,
     poll: Duration,
+    time_increment: Option<f64>,
     metrics: Arc<Metrics>,
 ) -> Result<JoinHandle<()>> {
     spawn("ingest", move || {
         let depth = metrics.queue_depth.with_label_values(&["ingest"]);
-        let handle = |line: Line| -> bool {
+        let mut deskew = isoline_io::Deskew::new(time_increment);
+        let mut handle = |line: Line| -> bool {
             metrics.frames_in.inc();
             depth.set(rx.len() as i64);
             // The span covers the parsing, not the wait for room downstream.
@@ -320,7 +322,7 @@ pub(crate) fn spawn_ingest(
                 line = line.line,
                 queue = rx.len()
             )
-            .in_scope(|| parse_line(line));
+            .in_scope(|| parse_line(line, &mut deskew));
             tx.send(m).is_ok()
         };
         loop {
@@ -350,7 +352,7 @@ pub(crate) fn spawn_ingest(
 /// A line as a frame, or as a failed frame. A failed frame's stream and number are
 /// read from the line if it is JSON with them; none is made up, so an error record never
 /// claims a frame number that another record has. Its record names the line instead.
-fn parse_line(mut line: Line) -> Msg {
+fn parse_line(mut line: Line, deskew: &mut isoline_io::Deskew) -> Msg {
     let default_stream = line.default_stream.as_deref().map(str::to_string);
     let parsed = match (line.decoded.take(), &line.text) {
         (Some(item), _) => (*item).map_err(|b| (b.message, (b.stream, b.frame))),
@@ -365,14 +367,21 @@ fn parse_line(mut line: Line) -> Msg {
         }
     };
     let (stream, frame, pose, t, notes, work) = match parsed {
-        Ok(mut f) => (
-            f.stream.take().or(default_stream),
-            Some(f.frame),
-            f.pose,
-            f.t,
-            std::mem::take(&mut f.notes),
-            Work::Input(Box::new(f)),
-        ),
+        Ok(mut f) => {
+            // Keyed by the stream the record will carry.
+            if f.stream.is_none() {
+                f.stream.clone_from(&default_stream);
+            }
+            deskew.apply(&mut f);
+            (
+                f.stream.take().or(default_stream),
+                Some(f.frame),
+                f.pose,
+                f.t,
+                std::mem::take(&mut f.notes),
+                Work::Input(Box::new(f)),
+            )
+        }
         Err((message, (stream, frame))) => {
             tracing::warn!(error = %message, "bad input line");
             (
@@ -1116,6 +1125,48 @@ mod tests {
     }
 
     #[test]
+    fn ingest_corrects_each_clients_sweeps_by_its_own_motion() {
+        // A sensor at the origin turning at 1 rad/s before a wall at x = 3, its 201
+        // beams 1 ms apart; two TCP clients' frames interleaved, neither naming its
+        // stream: each is corrected by its own client's previous frame.
+        let line = |t: f64, client: &str, n| {
+            let (a0, inc) = (-50f64.to_radians(), 0.5f64.to_radians());
+            let ranges: Vec<f64> = (0..201)
+                .map(|i| 3.0 / (t + 1e-3 * f64::from(i) + a0 + f64::from(i) * inc).cos())
+                .collect();
+            let text = serde_json::json!({"frame": n, "t": t, "pose": [0.0, 0.0, t],
+                "ranges": ranges, "angle_min": a0, "angle_increment": inc,
+                "time_increment": 1e-3, "range_max": 20.0})
+            .to_string();
+            Line {
+                origin: "tcp".into(),
+                default_stream: Some(client.into()),
+                line: n,
+                text: Ok(text),
+                decoded: None,
+                arrived: Instant::now(),
+                receipt: None,
+            }
+        };
+        let off_wall = |m: &Msg| {
+            let Work::Input(f) = &m.work else { panic!() };
+            f.points
+                .iter()
+                .map(|&p| (isoline_core::geom::to_world(f.pose.unwrap(), p)[0] - 3.0).abs())
+                .fold(0.0, f64::max)
+        };
+        let mut deskew = isoline_io::Deskew::new(None);
+        let a0 = parse_line(line(0.0, "a", 1), &mut deskew);
+        let b0 = parse_line(line(0.05, "b", 1), &mut deskew);
+        let a1 = parse_line(line(0.1, "a", 2), &mut deskew);
+        let b1 = parse_line(line(0.15, "b", 2), &mut deskew);
+        // The first frame of each has no motion before it: as it came, 0.2 rad bent.
+        assert!(off_wall(&a0) > 0.1 && off_wall(&b0) > 0.1);
+        assert!(off_wall(&a1) < 1e-9 && off_wall(&b1) < 1e-9);
+        assert_eq!(a1.stream.as_deref(), Some("a"));
+    }
+
+    #[test]
     fn bad_lines_become_failed_frames_with_the_best_ids_available() {
         let line = |text: &str, n| Line {
             origin: "in.ndjson".into(),
@@ -1126,32 +1177,50 @@ mod tests {
             arrived: Instant::now(),
             receipt: None,
         };
-        let ok = parse_line(line(r#"{"stream":"s","frame":7,"points":[[0,0]]}"#, 1));
+        let ok = parse_line(
+            line(r#"{"stream":"s","frame":7,"points":[[0,0]]}"#, 1),
+            &mut isoline_io::Deskew::new(None),
+        );
         assert!(matches!(ok.work, Work::Input(_)) && ok.frame == Some(7));
-        let bad = parse_line(line(r#"{"stream":"s","frame":8,"points":[[0]]}"#, 2));
+        let bad = parse_line(
+            line(r#"{"stream":"s","frame":8,"points":[[0]]}"#, 2),
+            &mut isoline_io::Deskew::new(None),
+        );
         assert_eq!((bad.stream.as_deref(), bad.frame), (Some("s"), Some(8)));
         let Work::Failed(e) = &bad.work else { panic!() };
         assert!(e.contains("in.ndjson, line 2"), "{e}");
         // No frame number is made up: a guess could be a real frame's. What a cut line
         // says before its cut counts.
-        let cut = parse_line(line(r#"{"stream":"s","fra"#, 3));
+        let cut = parse_line(
+            line(r#"{"stream":"s","fra"#, 3),
+            &mut isoline_io::Deskew::new(None),
+        );
         assert_eq!(
             (cut.stream.as_deref(), cut.frame, cut.line),
             (Some("s"), None, 3)
         );
-        let cut = parse_line(line(r#"{"stream":"s\"t","frame":12,"points":[[0.1,"#, 3));
+        let cut = parse_line(
+            line(r#"{"stream":"s\"t","frame":12,"points":[[0.1,"#, 3),
+            &mut isoline_io::Deskew::new(None),
+        );
         assert_eq!((cut.stream.as_deref(), cut.frame), (Some("s\"t"), Some(12)));
-        let cut = parse_line(line(r#"{"frame":12"#, 3));
+        let cut = parse_line(
+            line(r#"{"frame":12"#, 3),
+            &mut isoline_io::Deskew::new(None),
+        );
         assert_eq!(cut.frame, None);
         let Work::Failed(e) = &cut.work else { panic!() };
         assert!(e.contains("line 3"), "{e}");
-        let huge = parse_line(line(r#"{"frame":18446744073709551615,"points":7}"#, 4));
+        let huge = parse_line(
+            line(r#"{"frame":18446744073709551615,"points":7}"#, 4),
+            &mut isoline_io::Deskew::new(None),
+        );
         assert_eq!(huge.frame, Some(u64::MAX));
         let invalid = Line {
             text: Err("the line is not valid UTF-8".into()),
             ..line("", 4)
         };
-        let m = parse_line(invalid);
+        let m = parse_line(invalid, &mut isoline_io::Deskew::new(None));
         let Work::Failed(e) = &m.work else { panic!() };
         assert!(e.contains("line 4") && e.contains("UTF-8"), "{e}");
     }

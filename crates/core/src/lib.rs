@@ -96,7 +96,9 @@ pub use reconstruct::{
 pub use refine::{RefineFrame, Refined, Refiner};
 pub use repair::strokes::Junction;
 pub use repair::Tolerances as RepairTolerances;
-pub use scan::{FreeSpace, LaserScan, RunReturns, Scan, ScanParams, MAX_BEAMS, SMOOTHING};
+pub use scan::{
+    velocity, FreeSpace, LaserScan, RunReturns, Scan, ScanParams, Sweep, MAX_BEAMS, SMOOTHING,
+};
 pub use stats::{StageMs, Stats, WindowStats};
 pub use stream::{Stream, StreamFrame};
 pub use warning::Warning;

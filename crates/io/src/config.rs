@@ -171,6 +171,11 @@ pub struct ScanConfig {
     /// At most this many consecutive beams without a return inside a run are dropouts.
     /// Default 2.
     pub dropout_beams: Option<usize>,
+    /// Seconds from one beam to the next, for frames of beams that do not say
+    /// (`time_increment` absent or 0): the scanner's period over its steps a turn (a
+    /// Hokuyo URG-04LX: 0.1 s / 1024). Frames are then corrected for the sensor's motion
+    /// during the sweep. Default: none, frames taken at once.
+    pub time_increment: Option<f64>,
 }
 
 impl ScanConfig {
@@ -182,7 +187,20 @@ impl ScanConfig {
         p.incidence_limit = self.incidence_limit.unwrap_or(d.incidence_limit);
         p.min_run = self.min_run.unwrap_or(d.min_run);
         p.dropout_beams = self.dropout_beams.unwrap_or(d.dropout_beams);
-        p.validate().map(|()| p)
+        let timing = match self.time_increment {
+            Some(t) if !(t.is_finite() && (0.0..=1.0).contains(&t)) => {
+                Some(format!("scan.time_increment = {t}: must be 0 to 1 second"))
+            }
+            _ => None,
+        };
+        match (p.validate(), timing) {
+            (Ok(()), None) => Ok(p),
+            (Ok(()), Some(t)) => Err(vec![t]),
+            (Err(mut e), t) => {
+                e.extend(t);
+                Err(e)
+            }
+        }
     }
 }
 
@@ -541,8 +559,12 @@ mod tests {
             ),
             (
                 "g.toml",
-                "[scan]\nmin_run = 0\nincidence_limit = 95\n",
-                &["scan.min_run = 0", "scan.incidence_limit = 95"],
+                "[scan]\nmin_run = 0\nincidence_limit = 95\ntime_increment = -1\n",
+                &[
+                    "scan.min_run = 0",
+                    "scan.incidence_limit = 95",
+                    "scan.time_increment = -1",
+                ],
             ),
             (
                 "r.toml",

@@ -48,6 +48,12 @@ pub struct FrameRecord {
     /// Beams: angle from one to the next, radians.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub angle_increment: Option<f64>,
+    /// Beams: seconds from one beam to the next, as a ROS `LaserScan`'s `time_increment`
+    /// (optional; absent or 0: taken at once). With the frame's time `t` and pose, and
+    /// the stream's previous frame's, each return is corrected for the sensor's motion
+    /// during the sweep.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub time_increment: Option<f64>,
     /// Beams: nearer returns are no returns (default 0).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub range_min: Option<f64>,

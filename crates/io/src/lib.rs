@@ -43,7 +43,7 @@ pub use error::{Error, Result};
 pub use ingest::{
     bag, carmen, for_each_item, for_each_item_capped, is_bag, is_compressed_frame_stream,
     is_frame_stream, is_recording, parse_frame, parse_points, read_frames, read_input, read_items,
-    read_points, ros, BadFrame, Frame, Item, MAX_FRAME_LINE_BYTES,
+    read_points, ros, BadFrame, Deskew, Frame, Item, MAX_FRAME_LINE_BYTES,
 };
 pub use record::reconstruct_frame;
 pub use tiles::DiskTiles;

@@ -776,7 +776,7 @@ impl Stream {
 /// What a reader thread sends: a frame, or why one could not be read, or why the
 /// file could not be read at all (the last message then).
 enum Read {
-    Item(isoline_io::Item),
+    Item(Box<isoline_io::Item>),
     Failed(isoline_io::Error),
 }
 
@@ -815,18 +815,20 @@ impl FrameReader {
                     self.warn_once(py)?;
                     return Err(io_error(e));
                 }
-                Some(Read::Item(Ok(frame))) => return Ok(Frame { inner: frame }),
-                Some(Read::Item(Err(bad))) => match self.errors.as_str() {
-                    "raise" => return Err(IsolineError::new_err(bad.message)),
-                    "warn" => {
-                        if let Ok(mut s) = self.skipped.lock() {
-                            s.0 += 1;
-                            if s.1.len() < MAX_SKIPPED_KEPT {
-                                s.1.push(bad.message);
+                Some(Read::Item(item)) => match *item {
+                    Ok(frame) => return Ok(Frame { inner: frame }),
+                    Err(bad) => match self.errors.as_str() {
+                        "raise" => return Err(IsolineError::new_err(bad.message)),
+                        "warn" => {
+                            if let Ok(mut s) = self.skipped.lock() {
+                                s.0 += 1;
+                                if s.1.len() < MAX_SKIPPED_KEPT {
+                                    s.1.push(bad.message);
+                                }
                             }
                         }
-                    }
-                    _ => {}
+                        _ => {}
+                    },
                 },
             }
         }
@@ -878,9 +880,13 @@ impl FrameReader {
 /// A message that cannot be a frame is skipped and counted, with one warning at the end
 /// (`errors="warn"`), raises `IsolineError` (`"raise"`), or is skipped silently
 /// (`"ignore"`). An NDJSON line longer than `max_line_bytes` (default 16 MiB) is such a
-/// message.
+/// message. Scanner frames with beam timing (a bag's `time_increment`, or
+/// `time_increment` seconds between beams for those that give none), a time and a pose
+/// are corrected for the sensor's motion during the sweep, as `isoline map` corrects
+/// them.
 #[pyfunction]
-#[pyo3(signature = (path, *, topics = None, odometry = None, world_frame = None, errors = "warn", max_line_bytes = isoline_io::MAX_FRAME_LINE_BYTES))]
+#[pyo3(signature = (path, *, topics = None, odometry = None, world_frame = None, errors = "warn", max_line_bytes = isoline_io::MAX_FRAME_LINE_BYTES, time_increment = None))]
+#[allow(clippy::too_many_arguments)]
 fn read_frames(
     path: PathBuf,
     topics: Option<Vec<String>>,
@@ -888,7 +894,13 @@ fn read_frames(
     world_frame: Option<String>,
     errors: &str,
     max_line_bytes: usize,
+    time_increment: Option<f64>,
 ) -> PyResult<FrameReader> {
+    if let Some(t) = time_increment.filter(|t| !(t.is_finite() && (0.0..=1.0).contains(t))) {
+        return Err(PyValueError::new_err(format!(
+            "time_increment = {t}: must be 0 to 1 second"
+        )));
+    }
     if !["warn", "raise", "ignore"].contains(&errors) {
         return Err(PyValueError::new_err(format!(
             "errors = {errors:?}: expected \"warn\", \"raise\" or \"ignore\""
@@ -915,7 +927,13 @@ fn read_frames(
         .name("isoline-read".into())
         .spawn(move || {
             // The Python side dropping the reader ends the thread at its next frame.
-            let each = |item| tx.send(Read::Item(item)).is_ok();
+            let mut deskew = isoline_io::Deskew::new(time_increment);
+            let each = |mut item: isoline_io::Item| {
+                if let Ok(f) = &mut item {
+                    deskew.apply(f);
+                }
+                tx.send(Read::Item(Box::new(item))).is_ok()
+            };
             let outcome = isoline_io::for_each_item_capped(&path, &opts, max_line_bytes, each);
             if let Err(e) = outcome {
                 let _ = tx.send(Read::Failed(e));

@@ -597,6 +597,12 @@ pub struct LidarParams {
     /// in the scene's static surfaces. The person walks through the sensor's path as if
     /// it were not there.
     pub walker: Option<f64>,
+    /// Beams taken one after another over the sensor's turn, as a spinning mirror takes
+    /// them (a turn every `1 / rate_hz` seconds, the beams evenly spaced over it), while
+    /// the sensor drives on along its path: each beam cast from where the sensor is at
+    /// its own time, and the frames carry their beams' timing (`time_increment`). Off:
+    /// every beam cast from the frame's pose, as if taken at once.
+    pub sweep: bool,
     /// Seed.
     pub seed: u64,
 }
@@ -614,6 +620,7 @@ impl LidarParams {
             motion: 0.0,
             pose: None,
             walker: None,
+            sweep: false,
             seed: 1,
         }
     }
@@ -666,6 +673,9 @@ pub struct ScanFrame {
     pub angle_min: f64,
     /// Angle between beams, radians.
     pub angle_increment: f64,
+    /// Seconds from one beam to the next (0: taken at once, without
+    /// [`LidarParams::sweep`]).
+    pub time_increment: f64,
     /// Nearest valid range.
     pub range_min: f64,
     /// Farthest valid range.
@@ -730,7 +740,6 @@ pub fn simulate(params: &LidarParams) -> Result<Vec<ScanFrame>, String> {
         } else {
             start
         };
-        let pos = [pose[0], pose[1]];
         let walker = params
             .walker
             .map(|v| scene.walker_at(v, k as f64 / sensor.rate_hz));
@@ -739,14 +748,26 @@ pub fn simulate(params: &LidarParams) -> Result<Vec<ScanFrame>, String> {
             .surfaces
             .extend(walker.map(|w| Surface::Post(w, WALKER_RADIUS)));
         let mut hits: Vec<Option<(usize, f64, f64)>> = Vec::with_capacity(n);
+        let mut at: Vec<Option<Point>> = Vec::with_capacity(n);
         let mut seen = Vec::with_capacity(n);
         let mut ranges = Vec::with_capacity(n);
         for i in 0..n {
-            let a = pose[2] + angle_min + i as f64 * step;
+            // Where the sensor is when beam i is taken: i steps of a turn after the first.
+            let beam_pose = if params.sweep && params.motion > 0.0 {
+                path.at(s0 + (k as f64 + i as f64 * step / TAU) * params.motion)
+            } else {
+                pose
+            };
+            let a = beam_pose[2] + angle_min + i as f64 * step;
+            let d = [a.cos(), a.sin()];
             let hit = scene
-                .cast(pos, [a.cos(), a.sin()])
+                .cast([beam_pose[0], beam_pose[1]], d)
                 .filter(|h| h.1 < sensor.range_max && h.1 >= sensor.range_min);
             hits.push(hit);
+            // The exact hit in the frame at its first beam's pose.
+            at.push(hit.map(|(_, t, _)| {
+                to_sensor(pose, [beam_pose[0] + t * d[0], beam_pose[1] + t * d[1]])
+            }));
             // Draw every random number on every beam, so that one beam's fate does not
             // shift the others'.
             let (drop, spurious, frac, e) = (
@@ -775,13 +796,18 @@ pub fn simulate(params: &LidarParams) -> Result<Vec<ScanFrame>, String> {
         for (s, r) in seen.iter_mut().zip(&ranges) {
             *s &= r.is_some();
         }
-        let truth = visible(&hits, &seen, angle_min, step, sensor.full_turn());
+        let truth = visible(&hits, &at, &seen, sensor.full_turn());
         frames.push(ScanFrame {
             frame: k as u64,
             t: k as f64 / sensor.rate_hz,
             pose,
             angle_min,
             angle_increment: step,
+            time_increment: if params.sweep {
+                step / (TAU * sensor.rate_hz)
+            } else {
+                0.0
+            },
             range_min: sensor.range_min,
             range_max: sensor.range_max,
             ranges,
@@ -798,22 +824,16 @@ pub fn simulate(params: &LidarParams) -> Result<Vec<ScanFrame>, String> {
 }
 
 /// The visible truth in the sensor frame from each beam's exact hit (surface, range,
-/// cosine of incidence): see the module doc.
+/// cosine of incidence) and where it lies (`at`, in the frame): see the module doc.
 fn visible(
     hits: &[Option<(usize, f64, f64)>],
+    at: &[Option<Point>],
     seen: &[bool],
-    angle_min: f64,
-    step: f64,
     full_turn: bool,
 ) -> Vec<Polyline> {
     let min_cos = TRUTH_INCIDENCE_DEG.to_radians().cos();
     let n = hits.len();
-    let point = |i: usize| {
-        hits[i].map(|(_, t, _)| {
-            let a = angle_min + i as f64 * step;
-            [t * a.cos(), t * a.sin()]
-        })
-    };
+    let point = |i: usize| at[i];
     let links = |i: usize, j: usize| match (hits[i], hits[j]) {
         (Some((si, _, ci)), Some((sj, _, cj))) => si == sj && ci >= min_cos && cj >= min_cos,
         _ => false,

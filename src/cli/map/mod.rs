@@ -156,8 +156,16 @@ pub fn run(mut a: Args) -> Result<()> {
         let mut params = cfg.register;
         params.max_range = params.max_range.min(map_params.max_range);
         Some(
-            register::run(&a.input, &bag, cap, params, &cfg.params(), &bar)
-                .with_context(|| format!("registering {}", a.input.display()))?,
+            register::run(
+                &a.input,
+                &bag,
+                cap,
+                params,
+                &cfg.params(),
+                cfg.scan.time_increment,
+                &bar,
+            )
+            .with_context(|| format!("registering {}", a.input.display()))?,
         )
     } else {
         None
@@ -176,7 +184,11 @@ pub fn run(mut a: Args) -> Result<()> {
     );
     let mut batch: Vec<Accepted> = Vec::with_capacity(BATCH);
     let mut failure: Option<anyhow::Error> = None;
-    let read = isoline_io::for_each_item_capped(&a.input, &bag, cap, |item| {
+    let mut deskew = isoline_io::Deskew::new(cfg.scan.time_increment);
+    let read = isoline_io::for_each_item_capped(&a.input, &bag, cap, |mut item| {
+        if let Ok(f) = &mut item {
+            deskew.apply(f);
+        }
         if let Some(scan) = run.accept(item) {
             batch.push(scan);
         }

@@ -54,13 +54,15 @@ pub struct Summary {
 }
 
 /// Registers every scan of `input` by its curves (reconstructed with `params_method`;
-/// frames without beams are passed over, as the map passes them over).
+/// frames without beams are passed over, as the map passes them over), each corrected
+/// for the motion during its sweep as the map's own pass corrects it.
 pub fn run(
     input: &Path,
     bag: &BagOptions,
     max_line: usize,
     params: RegisterParams,
     params_method: &isoline_core::Params,
+    time_increment: Option<f64>,
     bar: &indicatif::ProgressBar,
 ) -> Result<Registration> {
     let mut reg =
@@ -104,8 +106,10 @@ pub fn run(
     };
     // A file damaged part way gives poses to the scans before the damage; the map's own
     // pass reads them again and reports the damage.
+    let mut deskew = isoline_io::Deskew::new(time_increment);
     let _ = isoline_io::for_each_item_capped(input, bag, max_line, |item| {
-        if let Ok(f) = item {
+        if let Ok(mut f) = item {
+            deskew.apply(&mut f);
             if let Some(scan) = f.scan {
                 batch.push((scan, f.pose));
                 if batch.len() == BATCH {

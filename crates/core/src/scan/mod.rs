@@ -25,6 +25,9 @@ use crate::error::{Error, Result};
 use crate::field::{MeshParams, MetricField};
 use crate::geom::{add, dist, point_segment_dist2, sub, Placement, Point, Polyline};
 
+mod deskew;
+pub use deskew::{velocity, Sweep};
+
 /// The most beams a scan may have. 2D scanners have up to a few thousand (36,000 at a
 /// hundredth of a degree over a full turn); the bound keeps a forged message's beam
 /// count from deciding how much memory a frame takes.

@@ -301,6 +301,9 @@ pub fn scan_record(scan: &LaserScan, stream: String, frame: u64, t: f64) -> Fram
         ranges: Some(ranges),
         angle_min: Some(f64::from(scan.angle_min)),
         angle_increment: Some(f64::from(scan.angle_increment)),
+        // Drivers that do not time their beams write 0, as a frame taken at once.
+        time_increment: (scan.time_increment.is_finite() && scan.time_increment > 0.0)
+            .then(|| f64::from(scan.time_increment)),
         range_min: Some(lo),
         range_max: Some(hi),
         intensities,
@@ -577,6 +580,7 @@ impl<W: std::io::Write + std::io::Seek> BagWriter<W> {
                 .as_ref()
                 .map(|v| v.iter().map(|i| i.unwrap_or(0.0) as f32).collect())
                 .unwrap_or_default(),
+            time_increment: rec.time_increment.unwrap_or(0.0) as f32,
             ..Default::default()
         };
         self.put(self.scan, t, &ros::encode(&scan))
@@ -630,6 +634,7 @@ mod tests {
                 ranges: Some((0..40).map(|i| Some(2.0 + 0.01 * f64::from(i))).collect()),
                 angle_min: Some(-1.0),
                 angle_increment: Some(0.05),
+                time_increment: Some(2.5e-4),
                 range_max: Some(10.0),
                 ..Default::default()
             })
@@ -661,6 +666,10 @@ mod tests {
         let pose = f.pose.unwrap();
         assert!((pose[0] - 0.3).abs() < 1e-12 && (pose[2] - 0.03).abs() < 1e-12);
         assert!((f.t.unwrap() - 1.3).abs() < 1e-9);
+        // The beams' timing, as a float32 holds it.
+        let sweep = f.sweep.unwrap();
+        assert!((sweep.time_increment - 2.5e-4).abs() < 1e-10, "{sweep:?}");
+        assert_eq!(sweep.angle_increment, f64::from(0.05f32));
     }
 
     /// Whatever the bytes (flipped, cut, overwritten, lengths made huge), reading a bag

@@ -4,6 +4,7 @@
 
 pub mod bag;
 pub mod carmen;
+mod deskew;
 pub mod ros;
 
 use std::io::BufRead;
@@ -12,7 +13,9 @@ use std::path::Path;
 use crate::error::{Error, Result};
 use crate::format::FrameRecord;
 use isoline_core::geom::Point;
-use isoline_core::{LaserScan, Scan};
+use isoline_core::{LaserScan, Scan, Sweep};
+
+pub use deskew::Deskew;
 
 /// One validated input frame: its points and, for a frame seen from a sensor, its beams.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -32,6 +35,8 @@ pub struct Frame {
     pub scan: Option<Scan>,
     /// The pose of the frame's coordinates in a world frame.
     pub pose: Option<[f64; 3]>,
+    /// A scanner frame's beam timing (`time_increment` 0 when the input gives none).
+    pub sweep: Option<Sweep>,
     /// What the reader did to the frame's readings, for its result's warnings.
     pub notes: Vec<String>,
 }
@@ -59,6 +64,7 @@ impl Frame {
                 return Err(Error::scan(format!("t = {t} is not finite")));
             }
         }
+        let mut sweep = None;
         let scan = match &r.ranges {
             Some(ranges) => {
                 if !r.points.is_empty() {
@@ -78,6 +84,17 @@ impl Frame {
                         )));
                     }
                 }
+                let time_increment = r.time_increment.unwrap_or(0.0);
+                if !(time_increment.is_finite() && (0.0..=1.0).contains(&time_increment)) {
+                    return Err(Error::scan(format!(
+                        "time_increment = {time_increment}: must be 0 to 1 second"
+                    )));
+                }
+                sweep = Some(Sweep {
+                    angle_min: need(r.angle_min, "angle_min")?,
+                    angle_increment: need(r.angle_increment, "angle_increment")?,
+                    time_increment,
+                });
                 Some(Scan::from_laser(&LaserScan {
                     origin: r.origin.unwrap_or([0.0, 0.0]),
                     angle_min: need(r.angle_min, "angle_min")?,
@@ -88,7 +105,11 @@ impl Frame {
                 })?)
             }
             None => {
-                if r.angle_min.is_some() || r.angle_increment.is_some() || r.range_max.is_some() {
+                if r.angle_min.is_some()
+                    || r.angle_increment.is_some()
+                    || r.range_max.is_some()
+                    || r.time_increment.is_some()
+                {
                     return Err(Error::scan("beam fields without \"ranges\""));
                 }
                 match r.origin {
@@ -114,6 +135,7 @@ impl Frame {
             points,
             scan,
             pose: r.pose,
+            sweep,
             notes: r.notes.unwrap_or_default(),
         })
     }

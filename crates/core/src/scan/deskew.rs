@@ -1,0 +1,286 @@
+//! A sweep's beams brought to one instant: a scanner takes its beams one after another
+//! while it moves, so a frame read as if taken at once is bent by the motion during the
+//! sweep (a Hokuyo URG-04LX turning at 90 degrees a second turns 6 degrees over its
+//! 240-degree sweep, and its mount ahead of the axle moves sideways with the turn).
+//! Each return is moved into the frame's coordinates at the first beam's time, by the
+//! sensor's motion until its own, taken as constant over the sweep.
+
+use std::f64::consts::TAU;
+
+use super::{next_up, Scan};
+use crate::geom::{dist, sub, Point, Pose};
+
+/// When each beam of a sweep was taken, as a ROS `sensor_msgs/LaserScan` says it:
+/// beam `i`, at bearing `angle_min + i angle_increment`, `i time_increment` seconds
+/// after the first (the message's time stamp).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Sweep {
+    /// Bearing of the first beam taken, radians.
+    pub angle_min: f64,
+    /// Angle from one beam to the next, radians (negative for a clockwise sweep).
+    pub angle_increment: f64,
+    /// Seconds from one beam to the next.
+    pub time_increment: f64,
+}
+
+impl Sweep {
+    /// Seconds after the first beam that the beam at `bearing` was taken.
+    pub fn time(&self, bearing: f64) -> f64 {
+        (bearing - self.angle_min) / self.angle_increment * self.time_increment
+    }
+
+    /// Whether the timing is one a scan can be corrected by: finite, a step that is not
+    /// zero, and beams not taken backwards in time.
+    pub fn is_valid(&self) -> bool {
+        self.angle_min.is_finite()
+            && self.angle_increment.is_finite()
+            && self.angle_increment != 0.0
+            && self.time_increment.is_finite()
+            && self.time_increment >= 0.0
+    }
+}
+
+/// The velocity `[vx, vy, omega]` (metres and radians a second, in the coordinates of
+/// pose `to`) of a sensor that went from pose `from` to pose `to` in `dt` seconds at
+/// constant velocity; `None` unless `dt` is positive and everything finite.
+pub fn velocity(from: Pose, to: Pose, dt: f64) -> Option<[f64; 3]> {
+    if !(dt > 0.0 && dt.is_finite()) {
+        return None;
+    }
+    let (s, c) = to[2].sin_cos();
+    let (dx, dy) = (to[0] - from[0], to[1] - from[1]);
+    let turn = wrap(to[2] - from[2]);
+    let v = [(c * dx + s * dy) / dt, (c * dy - s * dx) / dt, turn / dt];
+    v.iter().all(|x| x.is_finite()).then_some(v)
+}
+
+impl Scan {
+    /// The scan as taken at its first beam's time by a sensor moving at `velocity`
+    /// (`[vx, vy, omega]`: metres and radians a second, in the frame's coordinates at
+    /// that time) during the sweep `sweep`: each return moved by the sensor's motion
+    /// until its beam's time, its bearing and range taken again from `origin`.
+    ///
+    /// A beam without a return keeps its range and turns with the sensor. Moved returns
+    /// may change order where a near return's bearing moves past a farther one's; the
+    /// beams are put back in bearing order (the corrected frame is what a sensor at the
+    /// first beam's pose would see, each surface where it was when its beam fell), and
+    /// over a full turn a beam that comes round onto the first ones' bearings is dropped
+    /// (it saw again what they saw). The scan is returned unchanged when the timing is
+    /// invalid or the motion would turn a beam past its neighbour (a sensor turning
+    /// faster than its own mirror).
+    pub fn deskewed(&self, sweep: &Sweep, velocity: [f64; 3]) -> Scan {
+        let [vx, vy, omega] = velocity;
+        if !sweep.is_valid() || !velocity.iter().all(|v| v.is_finite()) {
+            return self.clone();
+        }
+        // The turn over one beam's time against the angle between beams.
+        let per_beam = (omega * sweep.time_increment).abs();
+        if per_beam >= 0.5 * self.step || self.angles.is_empty() {
+            return self.clone();
+        }
+        let o = self.origin;
+        let mut beams: Vec<(f64, f64)> = self
+            .angles
+            .iter()
+            .zip(&self.ranges)
+            .map(|(&a, &r)| {
+                let t = sweep.time(a);
+                let turn = omega * t;
+                if r.is_nan() {
+                    return (a + turn, r);
+                }
+                // The return in the frame at time t, then in the frame at time 0: turned
+                // by the sensor's turn and moved by its motion since.
+                let (s, c) = (a + turn).sin_cos();
+                let (so, co) = turn.sin_cos();
+                let rel = [o[0] * co - o[1] * so, o[0] * so + o[1] * co];
+                let q: Point = [rel[0] + r * c + vx * t, rel[1] + r * s + vy * t];
+                let d = sub(q, o);
+                (d[1].atan2(d[0]), dist(q, o))
+            })
+            .collect();
+        // Bearings from atan2 lie in (-pi, pi]; each is brought next to its beam's own so
+        // that a sweep across the back keeps its order.
+        for (b, &a) in beams.iter_mut().zip(&self.angles) {
+            b.0 = a + wrap(b.0 - a);
+        }
+        beams.sort_by(|x, y| x.0.total_cmp(&y.0));
+        let first = beams[0].0;
+        beams.retain(|b| b.0 < first + TAU);
+        for i in 1..beams.len() {
+            if beams[i].0 <= beams[i - 1].0 {
+                beams[i].0 = next_up(beams[i - 1].0);
+            }
+        }
+        Scan {
+            origin: o,
+            angles: beams.iter().map(|b| b.0).collect(),
+            ranges: beams.iter().map(|b| b.1).collect(),
+            ..self.clone()
+        }
+    }
+}
+
+/// `a` wrapped into `(-pi, pi]`.
+fn wrap(a: f64) -> f64 {
+    let w = a.rem_euclid(TAU);
+    if w > std::f64::consts::PI {
+        w - TAU
+    } else {
+        w
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scan::LaserScan;
+
+    /// A square room 8 m wide seen by a sensor at `pose` in the room that sweeps
+    /// `beams` beams over 240 degrees counter-clockwise, `dt` seconds apart, while it
+    /// moves at `velocity` (in its frame at the first beam): each beam cast from where
+    /// the sensor is at its time.
+    fn swept(pose: [f64; 3], velocity: [f64; 3], beams: usize, dt: f64) -> (Scan, Sweep) {
+        let angle_min = -120f64.to_radians();
+        let inc = 240f64.to_radians() / (beams - 1) as f64;
+        let ranges: Vec<Option<f64>> = (0..beams)
+            .map(|i| {
+                let t = i as f64 * dt;
+                let (s, c) = pose[2].sin_cos();
+                let at = [
+                    pose[0] + (c * velocity[0] - s * velocity[1]) * t,
+                    pose[1] + (s * velocity[0] + c * velocity[1]) * t,
+                    pose[2] + velocity[2] * t,
+                ];
+                let b = at[2] + angle_min + i as f64 * inc;
+                let d = [b.cos(), b.sin()];
+                // The nearest of the four walls at x, y = +-4 along the ray.
+                [(0, 4.0), (0, -4.0), (1, 4.0), (1, -4.0)]
+                    .iter()
+                    .filter_map(|&(k, w): &(usize, f64)| {
+                        let t = (w - at[k]) / d[k];
+                        (t > 0.0).then_some(t)
+                    })
+                    .fold(None, |m: Option<f64>, t| Some(m.map_or(t, |m| m.min(t))))
+            })
+            .collect();
+        let scan = Scan::from_laser(&LaserScan {
+            origin: [0.0, 0.0],
+            angle_min,
+            angle_increment: inc,
+            ranges: &ranges,
+            range_min: 0.0,
+            range_max: 30.0,
+        })
+        .unwrap();
+        let sweep = Sweep {
+            angle_min,
+            angle_increment: inc,
+            time_increment: dt,
+        };
+        (scan, sweep)
+    }
+
+    /// The largest distance of a return of `scan` (placed at `pose`) from the room's
+    /// walls.
+    fn off_walls(scan: &Scan, pose: [f64; 3]) -> f64 {
+        scan.returns()
+            .iter()
+            .map(|&p| {
+                let w = crate::geom::to_world(pose, p);
+                (4.0 - w[0].abs()).abs().min((4.0 - w[1].abs()).abs())
+            })
+            .fold(0.0, f64::max)
+    }
+
+    #[test]
+    fn a_turning_sweep_lies_on_its_walls_once_corrected() {
+        // A Hokuyo URG-04LX's sweep (683 beams over 240 degrees in 67 ms) turning at
+        // 120 degrees a second about an axle 15 cm behind it, while driving at 0.6 m/s.
+        let omega = 120f64.to_radians();
+        let velocity = [0.6, 0.15 * omega, omega];
+        let pose = [0.5, -1.0, 0.3];
+        let (scan, sweep) = swept(pose, velocity, 683, 0.1 / 1024.0);
+        // Read as taken at once, the sweep's last returns lie where the sensor had
+        // turned 8 degrees since the first: far off the walls.
+        assert!(off_walls(&scan, pose) > 0.3, "{}", off_walls(&scan, pose));
+        let fixed = scan.deskewed(&sweep, velocity);
+        // Corrected, every return lies on its wall: the simulated sensor moves as the
+        // correction's model says (constant velocity in the first beam's frame), so what
+        // is left is rounding.
+        assert!(
+            off_walls(&fixed, pose) < 1e-9,
+            "{}",
+            off_walls(&fixed, pose)
+        );
+        assert_eq!(fixed.returns().len(), scan.returns().len());
+        assert!(fixed.angles.windows(2).all(|w| w[0] < w[1]));
+    }
+
+    #[test]
+    fn a_still_sensor_or_no_timing_leaves_the_scan_as_it_is() {
+        let (scan, sweep) = swept([0.0, 0.0, 0.0], [0.0; 3], 181, 1e-4);
+        let fixed = scan.deskewed(&sweep, [0.0; 3]);
+        assert_eq!(fixed.angles.len(), scan.angles.len());
+        for (a, b) in fixed.returns().iter().zip(scan.returns()) {
+            assert!(dist(*a, b) < 1e-12);
+        }
+        let untimed = Sweep {
+            time_increment: f64::NAN,
+            ..sweep
+        };
+        assert_eq!(scan.deskewed(&untimed, [1.0, 0.0, 1.0]), scan);
+        // A turn faster than the mirror's: no correction can be right.
+        assert_eq!(scan.deskewed(&sweep, [0.0, 0.0, 1e3]), scan);
+    }
+
+    #[test]
+    fn a_clockwise_sweep_is_corrected_the_same() {
+        // The same room swept clockwise: the beams come reversed, and the timing says
+        // the first beam taken is the last in bearing order.
+        let omega = -90f64.to_radians();
+        let velocity = [0.4, 0.0, omega];
+        let pose: [f64; 3] = [0.0, 1.0, -0.4];
+        let beams = 541;
+        let dt = 0.025 / 1440.0;
+        let angle_min = 120f64.to_radians();
+        let inc = -240f64.to_radians() / (beams - 1) as f64;
+        let ranges: Vec<Option<f64>> = (0..beams)
+            .map(|i| {
+                let t = i as f64 * dt;
+                let (s, c) = pose[2].sin_cos();
+                let at = [pose[0] + c * velocity[0] * t, pose[1] + s * velocity[0] * t];
+                let b = pose[2] + omega * t + angle_min + i as f64 * inc;
+                let d = [b.cos(), b.sin()];
+                [(0, 4.0), (0, -4.0), (1, 4.0), (1, -4.0)]
+                    .iter()
+                    .filter_map(|&(k, w): &(usize, f64)| {
+                        let t = (w - at[k]) / d[k];
+                        (t > 0.0).then_some(t)
+                    })
+                    .fold(None, |m: Option<f64>, t| Some(m.map_or(t, |m| m.min(t))))
+            })
+            .collect();
+        let scan = Scan::from_laser(&LaserScan {
+            origin: [0.0, 0.0],
+            angle_min,
+            angle_increment: inc,
+            ranges: &ranges,
+            range_min: 0.0,
+            range_max: 30.0,
+        })
+        .unwrap();
+        let sweep = Sweep {
+            angle_min,
+            angle_increment: inc,
+            time_increment: dt,
+        };
+        assert!(off_walls(&scan, pose) > 0.05);
+        let fixed = scan.deskewed(&sweep, velocity);
+        assert!(
+            off_walls(&fixed, pose) < 1e-9,
+            "{}",
+            off_walls(&fixed, pose)
+        );
+    }
+}
