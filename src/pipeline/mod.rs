@@ -283,6 +283,7 @@ fn spawn_compute(
                 to_distance,
                 policy,
                 register,
+                cfg.time_increment,
                 streams.clone(),
                 metrics.clone(),
             )?,

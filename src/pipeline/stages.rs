@@ -486,6 +486,7 @@ pub(crate) fn spawn_register(
     tx: Sender<Msg>,
     policy: Policy,
     params: RegisterParams,
+    time_increment: Option<f64>,
     streams: StreamBounds,
     metrics: Arc<Metrics>,
 ) -> Result<JoinHandle<()>> {
@@ -499,20 +500,39 @@ pub(crate) fn spawn_register(
             &metrics,
             |m, d| stage_span!("register", m, d),
             |m| {
-                let Work::Input(f) = &m.work else {
+                let key = m.key().to_string();
+                let (lease, pose) = (m.lease(), m.pose);
+                let Work::Input(f) = &mut m.work else {
                     return;
                 };
                 let Some(scan) = f.scan.as_ref() else {
                     return;
                 };
                 let registrar = state.seen(
-                    m.key(),
-                    m.lease(),
+                    &key,
+                    lease,
                     Instant::now(),
                     |_| true,
                     || Registrar::streaming(params).expect("validated with the configuration"),
                 );
-                m.registered = Some(registrar.push(scan, m.pose).pose);
+                // A scan with a pose was corrected for its sweep by ingest; one without is
+                // corrected here, by the motion registration gives.
+                let timing = match (pose, f.t, f.sweep) {
+                    (None, Some(t), Some(sweep)) => {
+                        Some((t, sweep.or_timing(time_increment.unwrap_or(0.0))))
+                    }
+                    _ => None,
+                };
+                let registered = match timing {
+                    Some((t, sweep)) => {
+                        let (r, fixed) = registrar.push_swept(scan, &sweep, t, None);
+                        f.points = fixed.returns();
+                        f.scan = Some(fixed);
+                        r.pose
+                    }
+                    None => registrar.push(scan, pose).pose,
+                };
+                m.registered = Some(registered);
             },
         )
     })

@@ -170,3 +170,62 @@ fn a_sweeping_scanners_frames_are_registered_once_corrected_for_the_sweep() {
         "{c1:?} against {s1:?}"
     );
 }
+
+/// An RPLIDAR A1's drive through the clutter scene without any pose (a handheld or a
+/// hobby robot's scanner): its 360-degree sweep takes the whole 100 ms between frames,
+/// and the motion to correct it by is only what registration itself gives
+/// (`Registrar::push_swept`).
+#[test]
+fn a_sweeping_scanner_without_poses_is_corrected_by_its_own_registration() {
+    let mut p = LidarParams::new(SceneKind::Clutter);
+    p.sensor = SensorModel::named("rplidar-a1").unwrap();
+    p.frames = 300;
+    p.motion = 0.05;
+    p.seed = 2;
+    p.sweep = true;
+    let frames = simulate(&p).unwrap();
+    let truth: Vec<Pose> = frames.iter().map(|f| f.pose).collect();
+    let mut swept = Registrar::new(RegisterParams::default()).unwrap();
+    let mut raw = Registrar::new(RegisterParams::default()).unwrap();
+    for f in &frames {
+        let sweep = isoline_core::Sweep {
+            angle_min: f.angle_min,
+            angle_increment: f.angle_increment,
+            time_increment: f.time_increment,
+        };
+        swept.push_swept(&scan(f), &sweep, f.t, None);
+        raw.push(&scan(f), None);
+    }
+    let (swept, raw) = (swept.finish(), raw.finish());
+    p.sweep = false;
+    let still = simulate(&p).unwrap();
+    let mut at_once = Registrar::new(RegisterParams::default()).unwrap();
+    for f in &still {
+        at_once.push(&scan(f), None);
+    }
+    let at_once = at_once.finish();
+    let (w1, r1, s1) = (
+        relative(&swept, &truth, 1.0),
+        relative(&raw, &truth, 1.0),
+        relative(&at_once, &truth, 1.0),
+    );
+    eprintln!(
+        "over 1 m: corrected {:.4} m {:.3} deg, raw {:.4} m {:.3} deg, at once {:.4} m {:.3} deg",
+        w1.translation,
+        w1.heading.to_degrees(),
+        r1.translation,
+        r1.heading.to_degrees(),
+        s1.translation,
+        s1.heading.to_degrees(),
+    );
+    // Read as taken at once, a sweep as long as the frame bends by a whole frame's turn.
+    assert!(w1.heading < 0.5 * r1.heading, "{w1:?} against {r1:?}");
+    // Corrected by its own estimates, what is added to the error of a scanner taking
+    // its beams at once is the estimated motion's over one frame: two estimates'
+    // difference (sqrt 2 of one's error), bending a sweep as long as the frame.
+    let bound = 1.0 + std::f64::consts::SQRT_2;
+    assert!(
+        w1.heading < bound * s1.heading && w1.translation < bound * s1.translation,
+        "{w1:?} against {s1:?}"
+    );
+}

@@ -120,6 +120,8 @@ struct Params {
     inner: isoline_core::Params,
     /// `[register]`: how a `Stream(register=True)` estimates poses.
     register: isoline_map::RegisterParams,
+    /// `[scan] time_increment`: the beams' timing for frames that do not give theirs.
+    time_increment: Option<f64>,
     text: String,
 }
 
@@ -132,6 +134,7 @@ impl Params {
         Ok(Params {
             inner: cfg.params(),
             register: cfg.register,
+            time_increment: cfg.scan.time_increment,
             text: toml.to_string(),
         })
     }
@@ -147,6 +150,7 @@ impl Params {
         Ok(Params {
             inner: cfg.params(),
             register: cfg.register,
+            time_increment: cfg.scan.time_increment,
             text,
         })
     }
@@ -635,6 +639,9 @@ struct Stream {
     next: u64,
     /// With `register=True`: the stream's pose stage (isoline-map).
     registrar: Option<isoline_map::Registrar>,
+    /// `[scan] time_increment` of the stream's parameters: the beams' timing of frames
+    /// that give none.
+    time_increment: Option<f64>,
     /// The refinement window's frames (`accumulate`).
     accumulate: usize,
     /// Whether the warning that a scan without a pose is not refined was given.
@@ -685,6 +692,7 @@ impl Stream {
             inner,
             next: 0,
             registrar,
+            time_increment: params.and_then(|p| p.time_increment),
             accumulate,
             warned_no_pose: std::sync::atomic::AtomicBool::new(false),
         })
@@ -738,11 +746,23 @@ impl Stream {
             f.t = t;
         }
         self.next = f.frame.saturating_add(1);
-        let (inner, registrar) = (&mut self.inner, &mut self.registrar);
+        let (inner, registrar, time_increment) =
+            (&mut self.inner, &mut self.registrar, self.time_increment);
         let outcome = py.detach(|| {
-            // Registered scans are placed by the estimate, as the daemon places them.
+            // Registered scans are placed by the estimate, as the daemon places them; one
+            // without a pose is corrected for its sweep by the motion registration gives,
+            // as the daemon's register stage corrects it.
             let registered = match (registrar.as_mut(), f.scan.as_ref()) {
-                (Some(r), Some(scan)) => Some(r.push(scan, f.pose).pose),
+                (Some(r), Some(scan)) => match (f.pose, f.t, f.sweep) {
+                    (None, Some(t), Some(sweep)) => {
+                        let sweep = sweep.or_timing(time_increment.unwrap_or(0.0));
+                        let (reg, fixed) = r.push_swept(scan, &sweep, t, None);
+                        f.points = fixed.returns();
+                        f.scan = Some(fixed);
+                        Some(reg.pose)
+                    }
+                    _ => Some(r.push(scan, f.pose).pose),
+                },
                 _ => None,
             };
             inner

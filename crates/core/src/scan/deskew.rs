@@ -29,6 +29,18 @@ impl Sweep {
         (bearing - self.angle_min) / self.angle_increment * self.time_increment
     }
 
+    /// The sweep, with `time_increment` for its beams' timing where it gives none (0).
+    pub fn or_timing(self, time_increment: f64) -> Sweep {
+        if self.time_increment > 0.0 {
+            self
+        } else {
+            Sweep {
+                time_increment,
+                ..self
+            }
+        }
+    }
+
     /// Whether the timing is one a scan can be corrected by: finite, a step that is not
     /// zero, and beams not taken backwards in time.
     pub fn is_valid(&self) -> bool {

@@ -4,7 +4,7 @@
 
 use std::collections::HashMap;
 
-use isoline_core::{Pose, Sweep};
+use isoline_core::Pose;
 
 use super::Frame;
 
@@ -53,14 +53,7 @@ impl Deskew {
         let (Some((t0, p0)), Some(scan), Some(sweep)) = (previous, &frame.scan, frame.sweep) else {
             return;
         };
-        let sweep = Sweep {
-            time_increment: if sweep.time_increment > 0.0 {
-                sweep.time_increment
-            } else {
-                self.default_time_increment
-            },
-            ..sweep
-        };
+        let sweep = sweep.or_timing(self.default_time_increment);
         if sweep.time_increment <= 0.0 || t - t0 > MAX_GAP {
             return;
         }
