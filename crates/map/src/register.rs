@@ -317,27 +317,81 @@ impl Registrar {
         t: f64,
         input: Option<Pose>,
     ) -> (Registered, Scan) {
-        /// A vehicle's velocity a second ago says little of it now.
-        const MAX_GAP: f64 = 1.0;
-        let fresh = |since: f64| since > 0.0 && since <= MAX_GAP;
-        let mut fixed = scan.clone();
-        if let [Some((t1, p1)), before] = self.timed {
-            if fresh(t - t1) && sweep.time_increment > 0.0 {
-                if let Some(v) = before
-                    .and_then(|(t0, p0)| isoline_core::velocity(p0, p1, t1 - t0))
-                    .filter(|_| fresh(t1 - before.map_or(0.0, |b| b.0)))
-                {
-                    fixed = scan.deskewed(sweep, v);
-                }
-                let first = self.estimate(&self.returns(&fixed), 1.0, input).pose;
-                if let Some(v) = isoline_core::velocity(p1, first, t - t1) {
-                    fixed = scan.deskewed(sweep, v);
-                }
-            }
-        }
+        let velocity = self.sweep_velocity(t, sweep, input, |v| {
+            (self.returns(&scan.deskewed(sweep, v)), 1.0)
+        });
+        let fixed = velocity.map_or_else(|| scan.clone(), |v| scan.deskewed(sweep, v));
         let r = self.push(&fixed, input);
         self.timed = [Some((t, r.pose)), self.timed[0]];
         (r, fixed)
+    }
+
+    /// [`Registrar::push_swept`] for a scan registered by its curves
+    /// ([`Registrar::push_curves`]), drawn from the scan as it came: the curves are
+    /// moved as the returns they run through would be ([`isoline_core::Sweep::unbend`]).
+    /// Returns the estimate and the velocity the curves were corrected by (`None`: left
+    /// as they came), which corrects the scan the same way ([`Scan::deskewed`]).
+    pub fn push_swept_curves(
+        &mut self,
+        scan: &Scan,
+        curves: &[Polyline],
+        sweep: &isoline_core::Sweep,
+        t: f64,
+        input: Option<Pose>,
+    ) -> (Registered, Option<[f64; 3]>) {
+        let unbent = |v: [f64; 3]| -> Vec<Polyline> {
+            curves
+                .iter()
+                .map(|c| Polyline {
+                    closed: c.closed,
+                    points: sweep.unbend(&c.points, scan.origin, v),
+                })
+                .collect()
+        };
+        let returns = self.in_range(scan).len();
+        let samples = |curves: &[Polyline]| {
+            let points = sample(curves, self.params.cell, self.params.max_range);
+            let weight = (returns as f64 / points.len().max(1) as f64).min(1.0);
+            (points, weight)
+        };
+        let velocity = self.sweep_velocity(t, sweep, input, |v| samples(&unbent(v)));
+        let (points, weight) = match velocity {
+            Some(v) => samples(&unbent(v)),
+            None => samples(curves),
+        };
+        let r = self.push_weighted(points, weight, input);
+        self.timed = [Some((t, r.pose)), self.timed[0]];
+        (r, velocity)
+    }
+
+    /// The velocity a scan taken at `t` by `sweep` is corrected by, from the scans
+    /// pushed before it with their times (`None` where the last is more than a second
+    /// old or the sweep is not timed): the motion between the last two corrects the
+    /// scan's `points` (as `corrected` gives them for a velocity) for a first estimate,
+    /// kept nowhere; the motion from the last scan to that estimate is the answer.
+    fn sweep_velocity(
+        &self,
+        t: f64,
+        sweep: &isoline_core::Sweep,
+        input: Option<Pose>,
+        corrected: impl Fn([f64; 3]) -> (Vec<Point>, f64),
+    ) -> Option<[f64; 3]> {
+        /// A vehicle's velocity a second ago says little of it now.
+        const MAX_GAP: f64 = 1.0;
+        let fresh = |since: f64| since > 0.0 && since <= MAX_GAP;
+        let [Some((t1, p1)), before] = self.timed else {
+            return None;
+        };
+        if !(fresh(t - t1) && sweep.is_valid() && sweep.time_increment > 0.0) {
+            return None;
+        }
+        let predicted = before
+            .filter(|&(t0, _)| fresh(t1 - t0))
+            .and_then(|(t0, p0)| isoline_core::velocity(p0, p1, t1 - t0))
+            .unwrap_or([0.0; 3]);
+        let (points, weight) = corrected(predicted);
+        let first = self.estimate(&points, weight, input).pose;
+        isoline_core::velocity(p1, first, t - t1)
     }
 
     /// Registers the next scan by its curves (its reconstruction, in its frame) rather

@@ -185,9 +185,25 @@ pub fn run(mut a: Args) -> Result<()> {
     let mut batch: Vec<Accepted> = Vec::with_capacity(BATCH);
     let mut failure: Option<anyhow::Error> = None;
     let mut deskew = isoline_io::Deskew::new(cfg.scan.time_increment);
+    // Scans without a pose that registration corrected for their sweep, corrected the
+    // same way here (in reading order, as registration read them).
+    let velocities = registration
+        .as_mut()
+        .map(|r| std::mem::take(&mut r.velocities))
+        .unwrap_or_default();
+    let mut scans_read = 0usize;
     let read = isoline_io::for_each_item_capped(&a.input, &bag, cap, |mut item| {
         if let Ok(f) = &mut item {
             deskew.apply(f);
+            if let (Some(scan), Some(sweep)) = (&f.scan, f.sweep) {
+                if let Some(Some(v)) = velocities.get(scans_read) {
+                    let sweep = sweep.or_timing(cfg.scan.time_increment.unwrap_or(0.0));
+                    let fixed = scan.deskewed(&sweep, *v);
+                    f.points = fixed.returns();
+                    f.scan = Some(fixed);
+                }
+            }
+            scans_read += usize::from(f.scan.is_some());
         }
         if let Some(scan) = run.accept(item) {
             batch.push(scan);

@@ -17,12 +17,25 @@ use super::BATCH;
 /// The estimated poses, one per scan in reading order, and what it took.
 pub struct Registration {
     pub poses: Vec<Pose>,
+    /// The velocity each scan without an input pose was corrected for its sweep by
+    /// (`Registrar::push_swept_curves`), in reading order; `None` for the others (those
+    /// with a pose were corrected as read, by it). The map's pass corrects each the
+    /// same way.
+    pub velocities: Vec<Option<[f64; 3]>>,
     /// Each scan's curves and noise estimate as this pass reconstructed them, in reading
     /// order, for the map's pass to fuse rather than reconstruct again; `None` where
     /// the reconstruction failed or the cache was full.
     pub curves: Vec<Option<Drawn>>,
     pub summary: Summary,
 }
+
+/// A scan as read for registration: its scan, input pose, and for one without a pose
+/// its time and beam timing.
+type Read = (
+    isoline_core::Scan,
+    Option<Pose>,
+    Option<(f64, isoline_core::Sweep)>,
+);
 
 /// A scan's reconstruction as the map fuses it: its curves and its noise estimate.
 pub type Drawn = (Vec<isoline_core::Polyline>, f64);
@@ -74,26 +87,43 @@ pub fn run(
     let (mut cache, mut cached) = (Vec::new(), 0usize);
     // Scans are reconstructed in parallel batches, then registered in order by their
     // curves (Registrar::push_curves).
-    let mut batch: Vec<(isoline_core::Scan, Option<Pose>)> = Vec::with_capacity(BATCH);
-    let mut run = |batch: &mut Vec<(isoline_core::Scan, Option<Pose>)>| {
+    let mut velocities: Vec<Option<[f64; 3]>> = Vec::new();
+    let mut batch: Vec<Read> = Vec::with_capacity(BATCH);
+    let mut run = |batch: &mut Vec<Read>| {
         let drawn: Vec<Option<Drawn>> = batch
             .par_iter()
-            .map(|(scan, _)| {
+            .map(|(scan, _, _)| {
                 isoline_core::reconstruct_scan(scan, params_method)
                     .ok()
                     .map(|r| (r.polylines, r.noise_estimate))
             })
             .collect();
-        for ((scan, pose), drawn) in batch.drain(..).zip(drawn) {
+        for ((scan, pose, timing), mut drawn) in batch.drain(..).zip(drawn) {
             without_pose += usize::from(pose.is_none());
             let curves = drawn.as_ref().map_or(&[][..], |d| &d.0[..]);
-            // A scan whose reconstruction drew nothing is registered by its returns.
-            let r = if curves.is_empty() {
-                reg.push(&scan, pose)
-            } else {
-                reg.push_curves(&scan, curves, pose)
+            // A scan whose reconstruction drew nothing is registered by its returns; one
+            // without a pose and with timing is corrected for its sweep by the motion
+            // registration gives, its curves with it.
+            let (r, velocity) = match timing {
+                Some((t, sweep)) if curves.is_empty() => {
+                    let (r, _) = reg.push_swept(&scan, &sweep, t, pose);
+                    (r, None)
+                }
+                Some((t, sweep)) => {
+                    let (r, v) = reg.push_swept_curves(&scan, curves, &sweep, t, pose);
+                    (r, v.map(|v| (v, sweep)))
+                }
+                None if curves.is_empty() => (reg.push(&scan, pose), None),
+                None => (reg.push_curves(&scan, curves, pose), None),
             };
             let vertices: usize = curves.iter().map(|c| c.points.len()).sum();
+            // The map's pass fuses the curves with the scan corrected as they were.
+            if let (Some((v, sweep)), Some(d)) = (velocity, drawn.as_mut()) {
+                for c in &mut d.0 {
+                    c.points = sweep.unbend(&c.points, scan.origin, v);
+                }
+            }
+            velocities.push(velocity.map(|(v, _)| v));
             cache.push(drawn.filter(|_| cached + vertices <= CACHED_VERTICES));
             if cache.last().is_some_and(Option::is_some) {
                 cached += vertices;
@@ -110,8 +140,14 @@ pub fn run(
     let _ = isoline_io::for_each_item_capped(input, bag, max_line, |item| {
         if let Ok(mut f) = item {
             deskew.apply(&mut f);
+            let timing = match (f.pose, f.t, f.sweep) {
+                (None, Some(t), Some(sweep)) => {
+                    Some((t, sweep.or_timing(time_increment.unwrap_or(0.0))))
+                }
+                _ => None,
+            };
             if let Some(scan) = f.scan {
-                batch.push((scan, f.pose));
+                batch.push((scan, f.pose, timing));
                 if batch.len() == BATCH {
                     run(&mut batch);
                 }
@@ -129,8 +165,16 @@ pub fn run(
         let mid = shares.len() / 2;
         *shares.select_nth_unstable_by(mid, f64::total_cmp).1
     };
+    // A scan without timing or a pose to correct it by keeps the velocity None: only
+    // pose-less timed scans are corrected here.
+    let velocities = if velocities.iter().any(Option::is_some) {
+        velocities
+    } else {
+        Vec::new()
+    };
     Ok(Registration {
         poses,
+        velocities,
         curves: cache,
         summary: Summary {
             scans: n,

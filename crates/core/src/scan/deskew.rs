@@ -41,6 +41,34 @@ impl Sweep {
         }
     }
 
+    /// Points the sweep saw (in the frame's coordinates, seen from `origin`: a scan's
+    /// returns, or curves drawn through them), each where it lies at the first beam's
+    /// time for a sensor moving at `velocity` ([`Scan::deskewed`]): taken when the beam
+    /// at its bearing was. Unchanged where the timing or the velocity is not valid.
+    pub fn unbend(&self, points: &[Point], origin: Point, velocity: [f64; 3]) -> Vec<Point> {
+        if !self.is_valid() || !velocity.iter().all(|v| v.is_finite()) {
+            return points.to_vec();
+        }
+        points
+            .iter()
+            .map(|&p| {
+                let d = sub(p, origin);
+                // The bearing within the turn the sweep goes round from its first beam.
+                let from = d[1].atan2(d[0]) - self.angle_min;
+                let turned = if self.angle_increment > 0.0 {
+                    from.rem_euclid(TAU)
+                } else {
+                    -(-from).rem_euclid(TAU)
+                };
+                moved(
+                    p,
+                    turned / self.angle_increment * self.time_increment,
+                    velocity,
+                )
+            })
+            .collect()
+    }
+
     /// Whether the timing is one a scan can be corrected by: finite, a step that is not
     /// zero, and beams not taken backwards in time.
     pub fn is_valid(&self) -> bool {
@@ -81,7 +109,7 @@ impl Scan {
     /// invalid or the motion would turn a beam past its neighbour (a sensor turning
     /// faster than its own mirror).
     pub fn deskewed(&self, sweep: &Sweep, velocity: [f64; 3]) -> Scan {
-        let [vx, vy, omega] = velocity;
+        let omega = velocity[2];
         if !sweep.is_valid() || !velocity.iter().all(|v| v.is_finite()) {
             return self.clone();
         }
@@ -101,12 +129,8 @@ impl Scan {
                 if r.is_nan() {
                     return (a + turn, r);
                 }
-                // The return in the frame at time t, then in the frame at time 0: turned
-                // by the sensor's turn and moved by its motion since.
-                let (s, c) = (a + turn).sin_cos();
-                let (so, co) = turn.sin_cos();
-                let rel = [o[0] * co - o[1] * so, o[0] * so + o[1] * co];
-                let q: Point = [rel[0] + r * c + vx * t, rel[1] + r * s + vy * t];
+                let (s, c) = a.sin_cos();
+                let q = moved([o[0] + r * c, o[1] + r * s], t, velocity);
                 let d = sub(q, o);
                 (d[1].atan2(d[0]), dist(q, o))
             })
@@ -131,6 +155,13 @@ impl Scan {
             ..self.clone()
         }
     }
+}
+
+/// Point `p` seen `t` seconds after the first beam, in the frame at that time: turned
+/// by the sensor's turn since and moved by its motion since.
+fn moved(p: Point, t: f64, [vx, vy, omega]: [f64; 3]) -> Point {
+    let (s, c) = (omega * t).sin_cos();
+    [c * p[0] - s * p[1] + vx * t, s * p[0] + c * p[1] + vy * t]
 }
 
 /// `a` wrapped into `(-pi, pi]`.
@@ -227,6 +258,36 @@ mod tests {
         );
         assert_eq!(fixed.returns().len(), scan.returns().len());
         assert!(fixed.angles.windows(2).all(|w| w[0] < w[1]));
+    }
+
+    #[test]
+    fn points_the_sweep_saw_are_unbent_as_its_returns_are() {
+        let omega = 120f64.to_radians();
+        let velocity = [0.6, 0.15 * omega, omega];
+        let pose = [0.5, -1.0, 0.3];
+        let (scan, sweep) = swept(pose, velocity, 683, 0.1 / 1024.0);
+        // Midpoints of neighbouring returns: curve vertices between beams.
+        let returns = scan.returns();
+        let mids: Vec<Point> = returns
+            .windows(2)
+            .map(|w| [0.5 * (w[0][0] + w[1][0]), 0.5 * (w[0][1] + w[1][1])])
+            .collect();
+        let fixed = sweep.unbend(&returns, scan.origin, velocity);
+        for (a, b) in fixed.iter().zip(scan.deskewed(&sweep, velocity).returns()) {
+            assert!(dist(*a, b) < 1e-9, "{a:?} {b:?}");
+        }
+        let room = |p: Point| {
+            let w = crate::geom::to_world(pose, p);
+            (4.0 - w[0].abs()).abs().min((4.0 - w[1].abs()).abs())
+        };
+        // A midpoint across a corner lies off the walls by the corner's chord; those
+        // between two returns on one wall lie on it once unbent.
+        let on = sweep
+            .unbend(&mids, scan.origin, velocity)
+            .iter()
+            .filter(|&&p| room(p) < 1e-3)
+            .count();
+        assert!(on + 8 >= mids.len(), "{on} of {}", mids.len());
     }
 
     #[test]
