@@ -517,17 +517,10 @@ pub(crate) fn spawn_register(
                 );
                 // A scan with a pose was corrected for its sweep by ingest; one without is
                 // corrected here, by the motion registration gives.
-                let timing = match (pose, f.t, f.sweep) {
-                    (None, Some(t), Some(sweep)) => {
-                        Some((t, sweep.or_timing(time_increment.unwrap_or(0.0))))
-                    }
-                    _ => None,
-                };
-                let registered = match timing {
+                let registered = match f.unposed_sweep(time_increment) {
                     Some((t, sweep)) => {
                         let (r, fixed) = registrar.push_swept(scan, &sweep, t, None);
-                        f.points = fixed.returns();
-                        f.scan = Some(fixed);
+                        f.replace_scan(fixed);
                         r.pose
                     }
                     None => registrar.push(scan, pose).pose,

@@ -753,15 +753,13 @@ impl Stream {
             // without a pose is corrected for its sweep by the motion registration gives,
             // as the daemon's register stage corrects it.
             let registered = match (registrar.as_mut(), f.scan.as_ref()) {
-                (Some(r), Some(scan)) => match (f.pose, f.t, f.sweep) {
-                    (None, Some(t), Some(sweep)) => {
-                        let sweep = sweep.or_timing(time_increment.unwrap_or(0.0));
+                (Some(r), Some(scan)) => match f.unposed_sweep(time_increment) {
+                    Some((t, sweep)) => {
                         let (reg, fixed) = r.push_swept(scan, &sweep, t, None);
-                        f.points = fixed.returns();
-                        f.scan = Some(fixed);
+                        f.replace_scan(fixed);
                         Some(reg.pose)
                     }
-                    _ => Some(r.push(scan, f.pose).pose),
+                    None => Some(r.push(scan, f.pose).pose),
                 },
                 _ => None,
             };

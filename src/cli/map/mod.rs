@@ -195,13 +195,13 @@ pub fn run(mut a: Args) -> Result<()> {
     let read = isoline_io::for_each_item_capped(&a.input, &bag, cap, |mut item| {
         if let Ok(f) = &mut item {
             deskew.apply(f);
-            if let (Some(scan), Some(sweep)) = (&f.scan, f.sweep) {
-                if let Some(Some(v)) = velocities.get(scans_read) {
-                    let sweep = sweep.or_timing(cfg.scan.time_increment.unwrap_or(0.0));
-                    let fixed = scan.deskewed(&sweep, *v);
-                    f.points = fixed.returns();
-                    f.scan = Some(fixed);
-                }
+            if let (Some((_, sweep)), Some(Some(v)), Some(scan)) = (
+                f.unposed_sweep(cfg.scan.time_increment),
+                velocities.get(scans_read),
+                f.scan.as_ref(),
+            ) {
+                let fixed = scan.deskewed(&sweep, *v);
+                f.replace_scan(fixed);
             }
             scans_read += usize::from(f.scan.is_some());
         }

@@ -140,12 +140,7 @@ pub fn run(
     let _ = isoline_io::for_each_item_capped(input, bag, max_line, |item| {
         if let Ok(mut f) = item {
             deskew.apply(&mut f);
-            let timing = match (f.pose, f.t, f.sweep) {
-                (None, Some(t), Some(sweep)) => {
-                    Some((t, sweep.or_timing(time_increment.unwrap_or(0.0))))
-                }
-                _ => None,
-            };
+            let timing = f.unposed_sweep(time_increment);
             if let Some(scan) = f.scan {
                 batch.push((scan, f.pose, timing));
                 if batch.len() == BATCH {

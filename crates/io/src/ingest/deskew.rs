@@ -61,8 +61,7 @@ impl Deskew {
             return;
         };
         let fixed = scan.deskewed(&sweep, velocity);
-        frame.points = fixed.returns();
-        frame.scan = Some(fixed);
+        frame.replace_scan(fixed);
     }
 }
 

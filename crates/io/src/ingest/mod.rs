@@ -42,6 +42,25 @@ pub struct Frame {
 }
 
 impl Frame {
+    /// A scanner frame's time and beam timing when it has no pose, for registration to
+    /// correct it by the motion it estimates (`isoline_map::Registrar::push_swept`);
+    /// `default_time_increment` seconds between beams where the frame gives none.
+    pub fn unposed_sweep(&self, default_time_increment: Option<f64>) -> Option<(f64, Sweep)> {
+        match (self.pose, self.t, self.sweep, &self.scan) {
+            (None, Some(t), Some(sweep), Some(_)) => {
+                Some((t, sweep.or_timing(default_time_increment.unwrap_or(0.0))))
+            }
+            _ => None,
+        }
+    }
+
+    /// The frame with `scan` for its scan (corrected for its sweep), and its points the
+    /// scan's returns.
+    pub fn replace_scan(&mut self, scan: Scan) {
+        self.points = scan.returns();
+        self.scan = Some(scan);
+    }
+
     /// A frame of points with no sensor.
     pub fn of_points(frame: u64, points: Vec<Point>) -> Frame {
         Frame {
