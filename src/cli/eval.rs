@@ -172,11 +172,14 @@ fn run_map(a: &Args) -> Result<()> {
     let mut seen: std::collections::HashSet<(i64, i64)> = Default::default();
     let (mut scans, mut unplaced) = (0u64, 0u64);
     let mut failure = None;
+    // The scans as the map command read them: corrected for their sweeps.
+    let mut deskew = isoline_io::Deskew::new(None);
     isoline_io::for_each_item(frames_path, &a.bag_options, |item| {
-        let Ok(f) = item else {
+        let Ok(mut f) = item else {
             unplaced += 1;
             return true;
         };
+        deskew.apply(&mut f);
         let (Some(scan), Some(pose)) = (&f.scan, f.pose) else {
             unplaced += 1;
             return true;
@@ -285,7 +288,13 @@ fn run_without_truth(a: &Args) -> Result<()> {
     if !(tol.is_finite() && tol > 0.0) {
         bail!("--tolerance {tol}: must be a positive number");
     }
-    let frames = isoline_io::read_items(frames_path, &a.bag_options)?;
+    let mut frames = isoline_io::read_items(frames_path, &a.bag_options)?;
+    // The scans as the reconstruction read them: corrected for their sweeps (frames
+    // that carry their beams' timing, by their input poses).
+    let mut deskew = isoline_io::Deskew::new(None);
+    for f in frames.iter_mut().flatten() {
+        deskew.apply(f);
+    }
     let scans: std::collections::HashMap<(Option<String>, u64), &isoline_core::Scan> = frames
         .iter()
         .flatten()

@@ -325,6 +325,38 @@ fn sweeps_without_poses_are_corrected_in_both_passes() {
     assert!(timed_map >= raw_map, "{timed_map} / {raw_map}");
 }
 
+/// `isoline eval --frames` scores a frame's curves against the next scans as the
+/// reconstruction read them: corrected for their sweeps, as `reconstruct` corrected the
+/// frame's own.
+#[test]
+fn the_next_scan_is_scored_corrected_for_its_sweep() {
+    let dir = tempfile::tempdir().unwrap();
+    let (frames, out) = (dir.path().join("f.ndjson"), dir.path().join("r.ndjson"));
+    ok(&[
+        "synth",
+        "clutter",
+        "--sensor",
+        "rplidar-a1",
+        "--frames",
+        "40",
+        "--motion",
+        "0.05",
+        "--seed",
+        "2",
+        "--sweep",
+        "-o",
+        p(&frames),
+    ]);
+    ok(&["reconstruct", p(&frames), "-o", p(&out)]);
+    let e: serde_json::Value =
+        serde_json::from_slice(&ok(&["eval", p(&out), "--frames", p(&frames)]).stdout).unwrap();
+    let d = e["next_scan_by_input_pose"].as_f64().unwrap();
+    // The next scan's returns lie about the walls by the range noise (a mean of 0.8 cm
+    // for its 1 cm) and the curves' own error; read bent by a whole frame's turn
+    // (0.1 rad of a 360-degree sweep), twice as far.
+    assert!(d < 0.015, "{e}");
+}
+
 /// Chromium from the system's packages (scripts/deps.sh browser installs it), or
 /// `$ISOLINE_CHROMIUM`; `None` where neither is, unless `ISOLINE_REQUIRE_BROWSER` is set
 /// (scripts/test.sh sets it, so that CI cannot pass without the browser's test).
