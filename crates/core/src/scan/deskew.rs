@@ -106,8 +106,9 @@ impl Scan {
     /// first beam's pose would see, each surface where it was when its beam fell), and
     /// over a full turn a beam that comes round onto the first ones' bearings is dropped
     /// (it saw again what they saw). The scan is returned unchanged when the timing is
-    /// invalid or the motion would turn a beam past its neighbour (a sensor turning
-    /// faster than its own mirror).
+    /// invalid, the motion would turn a beam past its neighbour (a sensor turning
+    /// faster than its own mirror), or it would carry a return beyond `range_max` (a
+    /// jump in the poses the motion came from).
     pub fn deskewed(&self, sweep: &Sweep, velocity: [f64; 3]) -> Scan {
         let omega = velocity[2];
         if !sweep.is_valid() || !velocity.iter().all(|v| v.is_finite()) {
@@ -139,6 +140,15 @@ impl Scan {
         // that a sweep across the back keeps its order.
         for (b, &a) in beams.iter_mut().zip(&self.angles) {
             b.0 = a + wrap(b.0 - a);
+        }
+        // A return carried out of the scanner's reach (or to no finite place) came from
+        // a motion no sensor makes in one sweep, a jump in the input's poses: the scan is
+        // kept as it came rather than given returns it could not have had.
+        if beams
+            .iter()
+            .any(|b| !b.0.is_finite() || b.1 >= self.range_max || b.1.is_infinite())
+        {
+            return self.clone();
         }
         beams.sort_by(|x, y| x.0.total_cmp(&y.0));
         let first = beams[0].0;
@@ -305,6 +315,10 @@ mod tests {
         assert_eq!(scan.deskewed(&untimed, [1.0, 0.0, 1.0]), scan);
         // A turn faster than the mirror's: no correction can be right.
         assert_eq!(scan.deskewed(&sweep, [0.0, 0.0, 1e3]), scan);
+        // A jump in the input's poses (ten kilometres a second): the returns would be
+        // carried out of the scanner's reach.
+        assert_eq!(scan.deskewed(&sweep, [1e4, 0.0, 0.0]), scan);
+        assert_eq!(scan.deskewed(&sweep, [f64::MAX, 0.0, 0.0]), scan);
     }
 
     #[test]
