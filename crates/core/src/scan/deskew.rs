@@ -107,8 +107,8 @@ impl Scan {
     /// over a full turn a beam that comes round onto the first ones' bearings is dropped
     /// (it saw again what they saw). The scan is returned unchanged when the timing is
     /// invalid, the motion would turn a beam past its neighbour (a sensor turning
-    /// faster than its own mirror), or it would carry a return beyond `range_max` (a
-    /// jump in the poses the motion came from).
+    /// faster than its own mirror), or it would carry the sensor farther than
+    /// `range_max` over the sweep (a jump in the poses the motion came from).
     pub fn deskewed(&self, sweep: &Sweep, velocity: [f64; 3]) -> Scan {
         let omega = velocity[2];
         if !sweep.is_valid() || !velocity.iter().all(|v| v.is_finite()) {
@@ -141,12 +141,19 @@ impl Scan {
         for (b, &a) in beams.iter_mut().zip(&self.angles) {
             b.0 = a + wrap(b.0 - a);
         }
-        // A return carried out of the scanner's reach (or to no finite place) came from
-        // a motion no sensor makes in one sweep, a jump in the input's poses: the scan is
-        // kept as it came rather than given returns it could not have had.
-        if beams
+        // A sensor carried farther over one sweep than it sees (or to no finite place)
+        // is no motion a sensor makes, but a jump in the poses the motion came from: the
+        // scan is kept as it came rather than given returns it could not have had. A
+        // return near the reach may be carried a little past it by a true motion.
+        let longest = self
+            .angles
             .iter()
-            .any(|b| !b.0.is_finite() || b.1 >= self.range_max || b.1.is_infinite())
+            .map(|&a| sweep.time(a).abs())
+            .fold(0.0, f64::max);
+        let travel = velocity[0].hypot(velocity[1]) * longest;
+        if !travel.is_finite()
+            || travel >= self.range_max
+            || beams.iter().any(|b| !b.0.is_finite() || b.1.is_infinite())
         {
             return self.clone();
         }
@@ -315,8 +322,8 @@ mod tests {
         assert_eq!(scan.deskewed(&untimed, [1.0, 0.0, 1.0]), scan);
         // A turn faster than the mirror's: no correction can be right.
         assert_eq!(scan.deskewed(&sweep, [0.0, 0.0, 1e3]), scan);
-        // A jump in the input's poses (ten kilometres a second): the returns would be
-        // carried out of the scanner's reach.
+        // A jump in the input's poses (ten kilometres a second): the sensor would be
+        // carried beyond its reach within the sweep.
         assert_eq!(scan.deskewed(&sweep, [1e4, 0.0, 0.0]), scan);
         assert_eq!(scan.deskewed(&sweep, [f64::MAX, 0.0, 0.0]), scan);
     }
