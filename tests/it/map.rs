@@ -185,6 +185,15 @@ fn the_configuration_names_the_map_when_the_command_line_does_not() {
     assert!(err.contains("give -o MAP"), "{err}");
 }
 
+/// A frame record's time and pose as a line of a TUM trajectory (the simulator's poses
+/// as the reference `isoline eval --reference` reads).
+fn tum_line(frame: &serde_json::Value) -> String {
+    let pose: [f64; 3] = serde_json::from_value(frame["pose"].clone()).unwrap();
+    let t = frame["t"].as_f64().unwrap();
+    let (s, c) = (pose[2] / 2.0).sin_cos();
+    format!("{t} {} {} 0 0 0 {s} {c}\n", pose[0], pose[1])
+}
+
 /// `--register` on frames whose poses were removed: every scan registered from the
 /// returns alone, the trajectory written as TUM and scored against the simulator's
 /// poses by `isoline eval --reference`, and the map scored by the estimated poses.
@@ -197,15 +206,7 @@ fn frames_without_poses_are_registered_from_their_returns() {
     let (mut stripped, mut reference) = (String::new(), String::from("# t x y z qx qy qz qw\n"));
     for l in text.lines() {
         let mut v: serde_json::Value = serde_json::from_str(l).unwrap();
-        let pose: [f64; 3] = serde_json::from_value(v["pose"].clone()).unwrap();
-        let t = v["t"].as_f64().unwrap();
-        reference += &format!(
-            "{t} {} {} 0 0 0 {} {}\n",
-            pose[0],
-            pose[1],
-            (pose[2] / 2.0).sin(),
-            (pose[2] / 2.0).cos()
-        );
+        reference += &tum_line(&v);
         v.as_object_mut().unwrap().remove("pose");
         stripped += &(v.to_string() + "\n");
     }
@@ -271,10 +272,7 @@ fn sweeps_without_poses_are_corrected_in_both_passes() {
     let mut reference = String::from("# t x y z qx qy qz qw\n");
     for l in text.lines() {
         let mut v: serde_json::Value = serde_json::from_str(l).unwrap();
-        let pose: [f64; 3] = serde_json::from_value(v["pose"].clone()).unwrap();
-        let t = v["t"].as_f64().unwrap();
-        let (s, c) = (pose[2] / 2.0).sin_cos();
-        reference += &format!("{t} {} {} 0 0 0 {s} {c}\n", pose[0], pose[1]);
+        reference += &tum_line(&v);
         let o = v.as_object_mut().unwrap();
         o.remove("pose");
         timed += &(serde_json::Value::Object(o.clone()).to_string() + "\n");

@@ -390,6 +390,16 @@ impl Sym2 {
 /// radians, counter-clockwise), as scanners' odometry gives it.
 pub type Pose = [f64; 3];
 
+/// Angle `theta` wrapped into `(-pi, pi]`.
+pub fn wrap(theta: f64) -> f64 {
+    let t = theta.rem_euclid(std::f64::consts::TAU);
+    if t > std::f64::consts::PI {
+        t - std::f64::consts::TAU
+    } else {
+        t
+    }
+}
+
 /// `p` (world) in the frame at `pose`.
 pub fn to_sensor(pose: Pose, p: Point) -> Point {
     let (s, c) = pose[2].sin_cos();

@@ -7,15 +7,7 @@ use nalgebra::{Matrix3, Vector3};
 /// A 3x3 covariance (or information) of a pose, in the order `x, y, theta`.
 pub type Cov3 = Matrix3<f64>;
 
-/// `theta` wrapped into `(-pi, pi]`.
-pub fn wrap(theta: f64) -> f64 {
-    let t = theta.rem_euclid(std::f64::consts::TAU);
-    if t > std::f64::consts::PI {
-        t - std::f64::consts::TAU
-    } else {
-        t
-    }
-}
+pub use isoline_core::geom::wrap;
 
 /// `a` then `b`: the pose `b` (given in the frame at `a`) in `a`'s frame's parent.
 pub fn compose(a: Pose, b: Pose) -> Pose {

@@ -123,14 +123,9 @@ fn a_sweeping_scanners_frames_are_registered_once_corrected_for_the_sweep() {
     let mut raw = Registrar::new(RegisterParams::default()).unwrap();
     for (k, f) in frames.iter().enumerate() {
         let scan = scan(f);
-        let sweep = isoline_core::Sweep {
-            angle_min: f.angle_min,
-            angle_increment: f.angle_increment,
-            time_increment: f.time_increment,
-        };
         let fixed = match k.checked_sub(1) {
             Some(j) => isoline_core::velocity(odom[j], odom[k], f.t - frames[j].t)
-                .map_or_else(|| scan.clone(), |v| scan.deskewed(&sweep, v)),
+                .map_or_else(|| scan.clone(), |v| scan.deskewed(&f.sweep(), v)),
             None => scan.clone(),
         };
         corrected.push(&fixed, Some(odom[k]));
@@ -188,12 +183,7 @@ fn a_sweeping_scanner_without_poses_is_corrected_by_its_own_registration() {
     let mut swept = Registrar::new(RegisterParams::default()).unwrap();
     let mut raw = Registrar::new(RegisterParams::default()).unwrap();
     for f in &frames {
-        let sweep = isoline_core::Sweep {
-            angle_min: f.angle_min,
-            angle_increment: f.angle_increment,
-            time_increment: f.time_increment,
-        };
-        swept.push_swept(&scan(f), &sweep, f.t, None);
+        swept.push_swept(&scan(f), &f.sweep(), f.t, None);
         raw.push(&scan(f), None);
     }
     let (swept, raw) = (swept.finish(), raw.finish());

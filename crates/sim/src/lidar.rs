@@ -693,6 +693,16 @@ pub struct ScanFrame {
 pub use isoline_core::geom::{to_sensor, to_world};
 
 impl ScanFrame {
+    /// When the frame's beams were taken (`time_increment` 0 without
+    /// [`LidarParams::sweep`]).
+    pub fn sweep(&self) -> isoline_core::Sweep {
+        isoline_core::Sweep {
+            angle_min: self.angle_min,
+            angle_increment: self.angle_increment,
+            time_increment: self.time_increment,
+        }
+    }
+
     /// The frame as the core's scan (beams from the sensor at the origin).
     pub fn scan(&self) -> Result<isoline_core::Scan, isoline_core::Error> {
         isoline_core::Scan::from_laser(&isoline_core::LaserScan {

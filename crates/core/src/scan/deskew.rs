@@ -8,7 +8,7 @@
 use std::f64::consts::TAU;
 
 use super::{next_up, Scan};
-use crate::geom::{dist, sub, Point, Pose};
+use crate::geom::{dist, sub, wrap, Point, Pose};
 
 /// When each beam of a sweep was taken, as a ROS `sensor_msgs/LaserScan` says it:
 /// beam `i`, at bearing `angle_min + i angle_increment`, `i time_increment` seconds
@@ -181,16 +181,6 @@ fn moved(p: Point, t: f64, [vx, vy, omega]: [f64; 3]) -> Point {
     [c * p[0] - s * p[1] + vx * t, s * p[0] + c * p[1] + vy * t]
 }
 
-/// `a` wrapped into `(-pi, pi]`.
-fn wrap(a: f64) -> f64 {
-    let w = a.rem_euclid(TAU);
-    if w > std::f64::consts::PI {
-        w - TAU
-    } else {
-        w
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -201,8 +191,26 @@ mod tests {
     /// moves at `velocity` (in its frame at the first beam): each beam cast from where
     /// the sensor is at its time.
     fn swept(pose: [f64; 3], velocity: [f64; 3], beams: usize, dt: f64) -> (Scan, Sweep) {
-        let angle_min = -120f64.to_radians();
-        let inc = 240f64.to_radians() / (beams - 1) as f64;
+        swept_over(
+            pose,
+            velocity,
+            beams,
+            dt,
+            -120f64.to_radians(),
+            240f64.to_radians(),
+        )
+    }
+
+    /// The same room swept from `angle_min` through `span` radians (negative: clockwise).
+    fn swept_over(
+        pose: [f64; 3],
+        velocity: [f64; 3],
+        beams: usize,
+        dt: f64,
+        angle_min: f64,
+        span: f64,
+    ) -> (Scan, Sweep) {
+        let inc = span / (beams - 1) as f64;
         let ranges: Vec<Option<f64>> = (0..beams)
             .map(|i| {
                 let t = i as f64 * dt;
@@ -335,40 +343,14 @@ mod tests {
         let omega = -90f64.to_radians();
         let velocity = [0.4, 0.0, omega];
         let pose: [f64; 3] = [0.0, 1.0, -0.4];
-        let beams = 541;
-        let dt = 0.025 / 1440.0;
-        let angle_min = 120f64.to_radians();
-        let inc = -240f64.to_radians() / (beams - 1) as f64;
-        let ranges: Vec<Option<f64>> = (0..beams)
-            .map(|i| {
-                let t = i as f64 * dt;
-                let (s, c) = pose[2].sin_cos();
-                let at = [pose[0] + c * velocity[0] * t, pose[1] + s * velocity[0] * t];
-                let b = pose[2] + omega * t + angle_min + i as f64 * inc;
-                let d = [b.cos(), b.sin()];
-                [(0, 4.0), (0, -4.0), (1, 4.0), (1, -4.0)]
-                    .iter()
-                    .filter_map(|&(k, w): &(usize, f64)| {
-                        let t = (w - at[k]) / d[k];
-                        (t > 0.0).then_some(t)
-                    })
-                    .fold(None, |m: Option<f64>, t| Some(m.map_or(t, |m| m.min(t))))
-            })
-            .collect();
-        let scan = Scan::from_laser(&LaserScan {
-            origin: [0.0, 0.0],
-            angle_min,
-            angle_increment: inc,
-            ranges: &ranges,
-            range_min: 0.0,
-            range_max: 30.0,
-        })
-        .unwrap();
-        let sweep = Sweep {
-            angle_min,
-            angle_increment: inc,
-            time_increment: dt,
-        };
+        let (scan, sweep) = swept_over(
+            pose,
+            velocity,
+            541,
+            0.025 / 1440.0,
+            120f64.to_radians(),
+            -240f64.to_radians(),
+        );
         assert!(off_walls(&scan, pose) > 0.05);
         let fixed = scan.deskewed(&sweep, velocity);
         assert!(
