@@ -18,6 +18,7 @@ percentile, and the share of pairs beyond three deviations.
 Usage: drift-calibration.py [--keyframe M] [--drift DEG_PER_M] NOLOOPS.tum...
 """
 import math
+import os
 import sys
 
 
@@ -30,6 +31,11 @@ def tum(path):
         _, x, y, _, _, _, qz, qw = map(float, line.split()[:8])
         rows.append((x, y, 2.0 * math.atan2(qz, qw)))
     return rows
+
+
+def reference(path):
+    """The reference trajectory scripts/registration.sh writes beside `path`."""
+    return path.replace("-register-noloops.tum", ".ref.tum")
 
 
 def wrap(a):
@@ -54,12 +60,23 @@ def main():
             sys.exit(__doc__)
     if not args:
         sys.exit(__doc__)
+    # Only the trajectories scripts/registration.sh has made, with their references.
+    missing = [a for a in args if not (os.path.exists(a) and os.path.exists(reference(a)))]
+    if missing:
+        print(
+            f"no trajectory or no reference for {', '.join(missing)}: "
+            "run ISOLINE_REAL=DIR scripts/registration.sh first",
+            file=sys.stderr,
+        )
+        args = [a for a in args if a not in missing]
+        if not args:
+            # As the scripts that need recordings do: a quick run has nothing to do.
+            sys.exit(0 if os.environ.get("QUICK") == "1" else 1)
     per_edge = drift * keyframe + 0.1
     print("| trajectory | path apart | pairs | heading error RMS | 99th percentile | beyond 3 σ |")
     print("|---|---|---:|---:|---:|---:|")
     for est_path in args:
-        ref_path = est_path.replace("-register-noloops.tum", ".ref.tum")
-        est, ref = tum(est_path), tum(ref_path)
+        est, ref = tum(est_path), tum(reference(est_path))
         n = min(len(est), len(ref))
         path = [0.0]
         for i in range(1, n):
