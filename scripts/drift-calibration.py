@@ -21,16 +21,7 @@ import math
 import os
 import sys
 
-
-def tum(path):
-    """A TUM trajectory's rows as (x, y, heading)."""
-    rows = []
-    for line in open(path):
-        if not line.strip() or line.startswith("#"):
-            continue
-        _, x, y, _, _, _, qz, qw = map(float, line.split()[:8])
-        rows.append((x, y, 2.0 * math.atan2(qz, qw)))
-    return rows
+import tum
 
 
 def reference(path):
@@ -76,7 +67,7 @@ def main():
     print("| trajectory | path apart | pairs | heading error RMS | 99th percentile | beyond 3 σ |")
     print("|---|---|---:|---:|---:|---:|")
     for est_path in args:
-        est, ref = tum(est_path), tum(reference(est_path))
+        est, ref = tum.read(est_path), tum.read(reference(est_path))
         n = min(len(est), len(ref))
         path = [0.0]
         for i in range(1, n):

@@ -19,6 +19,8 @@ import math
 import statistics
 import sys
 
+import tum
+
 
 def frames(path):
     opener = gzip.open if path.endswith(".gz") else open
@@ -26,16 +28,6 @@ def frames(path):
         for line in f:
             if line.strip():
                 yield json.loads(line)
-
-
-def trajectory(path):
-    out = []
-    for line in open(path):
-        if line.startswith("#") or not line.strip():
-            continue
-        _, x, y, _, _, _, qz, qw = map(float, line.split())
-        out.append((x, y, 2 * math.atan2(qz, qw)))
-    return out
 
 
 def walls(frame, heading):
@@ -70,7 +62,7 @@ def walls(frame, heading):
 
 
 def main():
-    path, traj = sys.argv[1], trajectory(sys.argv[2])
+    path, traj = sys.argv[1], tum.read(sys.argv[2])
     start = int(sys.argv[3])
     step = int(sys.argv[4]) if len(sys.argv) > 4 else 10
     skip = int(sys.argv[5]) if len(sys.argv) > 5 else 0

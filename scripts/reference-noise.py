@@ -26,6 +26,8 @@ import sys
 import numpy as np
 from scipy.spatial import cKDTree
 
+import tum
+
 # Returns used: within 20 m (a SICK's far returns are sparse and grazing).
 MAX_RANGE = 20.0
 # The ICP's pairing reach and the robust kernel's scale, metres: the returns' noise
@@ -87,10 +89,7 @@ def icp(source, target, x, rounds=30):
 
 def main():
     frames = [json.loads(l) for l in open(sys.argv[1]) if l.startswith("{")]
-    est = [
-        (float(w[1]), float(w[2]), 2 * math.atan2(float(w[6]), float(w[7])))
-        for w in (l.split() for l in open(sys.argv[2]) if not l.startswith("#"))
-    ]
+    est = tum.read(sys.argv[2])
     if len(est) != len(frames):
         sys.exit(f"{len(frames)} frames but {len(est)} poses")
     # Each step three ways; None where the ICP failed.
