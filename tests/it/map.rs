@@ -252,21 +252,7 @@ fn frames_without_poses_are_registered_from_their_returns() {
 fn sweeps_without_poses_are_corrected_in_both_passes() {
     let dir = tempfile::tempdir().unwrap();
     let frames = dir.path().join("f.ndjson");
-    ok(&[
-        "synth",
-        "clutter",
-        "--sensor",
-        "rplidar-a1",
-        "--frames",
-        "200",
-        "--motion",
-        "0.05",
-        "--seed",
-        "2",
-        "--sweep",
-        "-o",
-        p(&frames),
-    ]);
+    synth_sweeping_rplidar(&frames, 200);
     let text = std::fs::read_to_string(&frames).unwrap();
     let (mut timed, mut untimed) = (String::new(), String::new());
     let mut reference = String::from("# t x y z qx qy qz qw\n");
@@ -323,6 +309,26 @@ fn sweeps_without_poses_are_corrected_in_both_passes() {
     assert!(timed_map >= raw_map, "{timed_map} / {raw_map}");
 }
 
+/// `count` frames of an RPLIDAR A1 sweeping through the clutter scene (`synth --sweep`:
+/// each beam cast from where the sensor is at its time), written to `frames`.
+fn synth_sweeping_rplidar(frames: &std::path::Path, count: usize) {
+    ok(&[
+        "synth",
+        "clutter",
+        "--sensor",
+        "rplidar-a1",
+        "--frames",
+        &count.to_string(),
+        "--motion",
+        "0.05",
+        "--seed",
+        "2",
+        "--sweep",
+        "-o",
+        p(frames),
+    ]);
+}
+
 /// `isoline eval --frames` scores a frame's curves against the next scans as the
 /// reconstruction read them: corrected for their sweeps, as `reconstruct` corrected the
 /// frame's own.
@@ -330,21 +336,7 @@ fn sweeps_without_poses_are_corrected_in_both_passes() {
 fn the_next_scan_is_scored_corrected_for_its_sweep() {
     let dir = tempfile::tempdir().unwrap();
     let (frames, out) = (dir.path().join("f.ndjson"), dir.path().join("r.ndjson"));
-    ok(&[
-        "synth",
-        "clutter",
-        "--sensor",
-        "rplidar-a1",
-        "--frames",
-        "40",
-        "--motion",
-        "0.05",
-        "--seed",
-        "2",
-        "--sweep",
-        "-o",
-        p(&frames),
-    ]);
+    synth_sweeping_rplidar(&frames, 40);
     ok(&["reconstruct", p(&frames), "-o", p(&out)]);
     let e: serde_json::Value =
         serde_json::from_slice(&ok(&["eval", p(&out), "--frames", p(&frames)]).stdout).unwrap();

@@ -261,14 +261,20 @@ mod tests {
             .fold(0.0, f64::max)
     }
 
-    #[test]
-    fn a_turning_sweep_lies_on_its_walls_once_corrected() {
-        // A Hokuyo URG-04LX's sweep (683 beams over 240 degrees in 67 ms) turning at
-        // 120 degrees a second about an axle 15 cm behind it, while driving at 0.6 m/s.
+    /// A Hokuyo URG-04LX's sweep (683 beams over 240 degrees in 67 ms) turning at 120
+    /// degrees a second about an axle 15 cm behind it, while driving at 0.6 m/s: its
+    /// first beam's pose, the velocity, the scan and its timing.
+    fn turning_urg() -> (Pose, [f64; 3], Scan, Sweep) {
         let omega = 120f64.to_radians();
         let velocity = [0.6, 0.15 * omega, omega];
         let pose = [0.5, -1.0, 0.3];
         let (scan, sweep) = swept(pose, velocity, 683, 0.1 / 1024.0);
+        (pose, velocity, scan, sweep)
+    }
+
+    #[test]
+    fn a_turning_sweep_lies_on_its_walls_once_corrected() {
+        let (pose, velocity, scan, sweep) = turning_urg();
         // Read as taken at once, the sweep's last returns lie where the sensor had
         // turned 8 degrees since the first: far off the walls.
         assert!(off_walls(&scan, pose) > 0.3, "{}", off_walls(&scan, pose));
@@ -287,10 +293,7 @@ mod tests {
 
     #[test]
     fn points_the_sweep_saw_are_unbent_as_its_returns_are() {
-        let omega = 120f64.to_radians();
-        let velocity = [0.6, 0.15 * omega, omega];
-        let pose = [0.5, -1.0, 0.3];
-        let (scan, sweep) = swept(pose, velocity, 683, 0.1 / 1024.0);
+        let (pose, velocity, scan, sweep) = turning_urg();
         // Midpoints of neighbouring returns: curve vertices between beams.
         let returns = scan.returns();
         let mids: Vec<Point> = returns
