@@ -28,14 +28,9 @@ const PARALLEL: f64 = 0.866;
 const MAX_SHEETS: usize = 32;
 /// A sheet with fewer samples is a cluster of outliers, not a curve.
 const MIN_SHEET: usize = 12;
-/// The largest sum of a closed sheet's unit normals, as a fraction of their number.
+/// The largest sum of a closed sheet's unit normals, each weighed by its sample's share
+/// of the curve ([`arc_lengths`]), as a fraction of the sheet's length.
 const CLOSURE: f64 = 0.1;
-/// The largest sum of a sheet's unit normals, as a fraction of their number, that a
-/// sheet with no ends may reach by the sampling's chance and still close. On a circle
-/// sampled at random the unit normals' sum is a random walk: its 99th percentile is
-/// 0.09 of their number at 442 samples and 0.21 at 100 (simulated, clean), past
-/// [`CLOSURE`]; noisy fits' errors, alike over a window, add to it.
-const RING_CLOSURE: f64 = 0.2;
 /// Open sheets' ends are joined across gaps up to this many times the reach of a fit.
 const JOIN_REACH: f64 = 4.0;
 /// Nearest samples of its own sheet a sample is linked to when a sheet's ends are
@@ -138,9 +133,18 @@ pub fn orient(field: &DistanceField, sigma: f64) -> Option<Vec<(Point, Point)>> 
         .into_iter()
         .filter(|s| s.len() >= MIN_SHEET)
         .collect();
-    let (sheets, rings) =
-        join_open_sheets(&tree, &mut normals, &edges, sheets, &turned, reach, sigma);
-    outward(pts, &mut normals, &sheets, &rings)?;
+    let lengths = arc_lengths(pts, &normals, &edges, reach);
+    let sheets = join_open_sheets(
+        &tree,
+        &mut normals,
+        &lengths,
+        &edges,
+        sheets,
+        &turned,
+        reach,
+        sigma,
+    );
+    outward(pts, &mut normals, &lengths, &sheets)?;
     // In the tree's order, which a field built from them keeps.
     let mut kept: Vec<usize> = sheets.into_iter().flatten().collect();
     kept.sort_unstable();
@@ -163,6 +167,61 @@ fn median_reach(tree: &DistanceField, k: usize) -> f64 {
         .collect();
     let mid = radii.len() / 2;
     *radii.select_nth_unstable_by(mid, f64::total_cmp).1
+}
+
+/// Each sample's share of the length of the curve it lies on, in units of the median
+/// share: half the way to the next sample along its tangent on either side, among
+/// those it has an edge to along its sheet (see [`sheet_edges`]), each way at most
+/// `reach` (the fits' neighbour radius), or the one side's whole way at an end. The
+/// closure and the flux below are integrals along the curve (`∮ n ds = 0`,
+/// `∮ (p - c) · n ds = 2 A`); summed over the samples they must weigh each by the
+/// length it stands for, the midpoint rule's weights. Unweighted, a closed curve
+/// sampled five times as densely along one side as along the other has unit normals
+/// that sum to a third of their number, as an open stroke's do. The bound: across a gap
+/// wider than the neighbourhoods, the samples at its end are not ordered along the
+/// curve (a noisy end, or a cluster of them, each with its edge across), and each
+/// would claim the gap; bounded, a gap counts as it did unweighted, by its chord.
+fn arc_lengths(pts: &[Point], normals: &[Point], edges: &[(u32, u32)], reach: f64) -> Vec<f64> {
+    let n = pts.len();
+    let (mut ahead, mut behind) = (vec![f64::INFINITY; n], vec![f64::INFINITY; n]);
+    for &(i, j) in edges {
+        for (a, b) in [(i as usize, j as usize), (j as usize, i as usize)] {
+            let along = dot(sub(pts[b], pts[a]), tangent(normals[a]));
+            if along > 0.0 {
+                ahead[a] = ahead[a].min(along);
+            } else if along < 0.0 {
+                behind[a] = behind[a].min(-along);
+            }
+        }
+    }
+    let mut lengths: Vec<f64> = ahead
+        .iter()
+        .zip(&behind)
+        .map(|(&a, &b)| (a.min(reach), b.min(reach)))
+        .map(|(a, b)| match (a.is_finite(), b.is_finite()) {
+            (true, true) => 0.5 * (a + b),
+            (true, false) => a,
+            (false, true) => b,
+            (false, false) => f64::NAN,
+        })
+        .collect();
+    let mut known: Vec<f64> = lengths.iter().copied().filter(|l| l.is_finite()).collect();
+    let median = if known.is_empty() {
+        0.0
+    } else {
+        let mid = known.len() / 2;
+        *known.select_nth_unstable_by(mid, f64::total_cmp).1
+    };
+    // A sample with no edge (a sheet of its own) and coincident samples count as the
+    // median one; with nothing to go by, each counts alike.
+    for l in &mut lengths {
+        *l = if median > 0.0 && l.is_finite() {
+            *l / median
+        } else {
+            1.0
+        };
+    }
+    lengths
 }
 
 /// The edges (`i < j`) along the sheets of the points of `tree`: each sample to those of
@@ -649,18 +708,26 @@ impl Forest {
     }
 }
 
-/// Whether `normals` sum to more than [`CLOSURE`] of their number over `sheet`: an open
-/// curve's, whose unit normals sum to its chord.
-fn is_open(normals: &[Point], sheet: &[usize]) -> bool {
-    is_open_by(normals, sheet, CLOSURE)
+/// Whether `normals`, each weighed by its sample's share of the curve (`lengths`, see
+/// [`arc_lengths`]), sum to more than [`CLOSURE`] of the sheet's length over `sheet`:
+/// an open curve's, whose unit normals integrate to its chord.
+fn is_open(normals: &[Point], lengths: &[f64], sheet: &[usize]) -> bool {
+    is_open_by(normals, lengths, sheet, CLOSURE)
 }
 
-/// Whether `normals` sum to more than `closure` of their number over `sheet`.
-fn is_open_by(normals: &[Point], sheet: &[usize], closure: f64) -> bool {
-    let total = sheet.iter().fold([0.0, 0.0], |a, &i| {
-        [a[0] + normals[i][0], a[1] + normals[i][1]]
-    });
-    dot(total, total).sqrt() > closure * sheet.len() as f64
+/// Whether `normals` weighed by `lengths` sum to more than `closure` of the length of
+/// `sheet`.
+fn is_open_by(normals: &[Point], lengths: &[f64], sheet: &[usize], closure: f64) -> bool {
+    let total = weighed_sum(normals, lengths, sheet);
+    let length: f64 = sheet.iter().map(|&i| lengths[i]).sum();
+    dot(total, total).sqrt() > closure * length
+}
+
+/// The sum over `sheet` of `normals` weighed by `lengths`.
+fn weighed_sum(normals: &[Point], lengths: &[f64], sheet: &[usize]) -> Point {
+    sheet
+        .iter()
+        .fold([0.0, 0.0], |a, &i| add(a, scale(normals[i], lengths[i])))
 }
 
 /// One end of an open sheet: where it leaves the data, which way, and whether the
@@ -680,9 +747,7 @@ struct End {
 /// apart along [`Links`]) are paired where two are each other's nearest end within
 /// [`JOIN_REACH`] `reach` facing it; a pair turns one sheet so that the curve runs out
 /// of one end and into the other. Only when every end pairs, consistently, are the
-/// sheets joined, and then judged closed or not by [`outward`] as any other. Returned
-/// with the sheets: which are rings, closed although their normals sum past
-/// [`CLOSURE`] (by less than [`RING_CLOSURE`]), since they have no ends.
+/// sheets joined, and then judged closed or not by [`outward`] as any other.
 ///
 /// A long sheet with a short gap has normals that sum to less than [`CLOSURE`] of their
 /// number, as a closed one's do, so its ends are not looked for at first. Where the open
@@ -690,15 +755,17 @@ struct End {
 /// part with its two ends where both are ends (see [`Links::has_ends`]): a disc whose inlet's
 /// wall has a gap where it meets the disc's circle leaves the inlet's walls and its bay
 /// an open sheet whose other end faces the long one's.
+#[allow(clippy::too_many_arguments)]
 fn join_open_sheets(
     tree: &DistanceField,
     normals: &mut [Point],
+    lengths: &[f64],
     edges: &[(u32, u32)],
     sheets: Vec<Vec<usize>>,
     turned: &Turned,
     reach: f64,
     sigma: f64,
-) -> (Vec<Vec<usize>>, Vec<bool>) {
+) -> Vec<Vec<usize>> {
     let links = Links::new(tree, edges, &sheets);
     let mut along = vec![f64::INFINITY; tree.points().len()];
     // Each sheet's two farthest samples, and whether both are ends (which the normals'
@@ -715,31 +782,23 @@ fn join_open_sheets(
         links: &links,
         far: &far,
         ends: &ends,
+        lengths,
     };
     let all: Vec<usize> = (0..sheets.len()).collect();
     let mut turned_back = false;
-    let (parent, rings, open) = loop {
-        // Open by their normals, though by less than [`RING_CLOSURE`], but with no
-        // ends: rings, whose normals sum past a closed curve's by the sampling's chance.
-        let rings: Vec<bool> = (0..sheets.len())
-            .map(|s| {
-                is_open(normals, &sheets[s])
-                    && !is_open_by(normals, &sheets[s], RING_CLOSURE)
-                    && !ends[s]
-            })
-            .collect();
+    let (parent, open) = loop {
         let open: Vec<usize> = (0..sheets.len())
-            .filter(|&s| is_open(normals, &sheets[s]) && !rings[s])
+            .filter(|&s| is_open(normals, lengths, &sheets[s]))
             .collect();
         // None open, but two or more whose farthest samples are ends: a wall cut twice,
         // nearly a turn of a spiral apart, leaves two sheets whose normals both sum as a
         // closed curve's, and each, taken for closed, would be turned outward on its
         // own. They take part in the pairing over every sheet.
         if open.is_empty() && ends.iter().filter(|&&e| e).count() < 2 {
-            return (sheets, rings);
+            return sheets;
         }
-        // A ring's farthest samples may yet be ends that the test above missed: where
-        // the open sheets' ends do not all pair, it takes part with them.
+        // Where the open sheets' ends do not all pair, every sheet whose farthest
+        // samples are ends takes part with them.
         let paired =
             pair_ends(tree, normals, &sheet_ends, &sheets, &open, reach, sigma).or_else(|first| {
                 pair_ends(tree, normals, &sheet_ends, &sheets, &all, reach, sigma).map_err(
@@ -750,7 +809,7 @@ fn join_open_sheets(
                 )
             });
         match paired {
-            Ok(parent) => break (parent, rings, open.len()),
+            Ok(parent) => break (parent, open.len()),
             // A sheet whose two ends face each other across a gap but where the curve
             // runs out of both (or into both) has a stretch between them turned the
             // wrong way: where a gap breaks the sheet, that stretch meets the rest at
@@ -759,16 +818,16 @@ fn join_open_sheets(
             // vote, across the gap, and the sheet must close (`turn_back_between`);
             // once.
             Err(Unpaired::SameWay(s, a, b)) if !turned_back => {
-                if !turn_back_between(tree.points(), normals, turned, &sheets[s], (a, b)) {
-                    return (sheets, rings);
+                if !turn_back_between(tree.points(), normals, lengths, turned, &sheets[s], (a, b)) {
+                    return sheets;
                 }
                 turned_back = true;
             }
-            Err(_) => return (sheets, rings),
+            Err(_) => return sheets,
         }
     };
     tracing::debug!(open, "orientation: open sheets joined across gaps");
-    merge_sheets(sheets, normals, &parent, &rings)
+    merge_sheets(sheets, normals, &parent)
 }
 
 /// Turns back the stretch of `sheet` between its ends `a` and `b` (whose curve runs out
@@ -778,19 +837,25 @@ fn join_open_sheets(
 fn turn_back_between(
     pts: &[Point],
     normals: &mut [Point],
+    lengths: &[f64],
     turned: &Turned,
     sheet: &[usize],
     (a, b): (usize, usize),
 ) -> bool {
     let forest = &turned.forest;
     let gain = forest.gains(&turned.votes, |i, j| runs(pts, normals, i, j));
-    let sums = forest.subtree_sums(normals);
-    let total = sheet.iter().fold([0.0, 0.0], |t, &i| add(t, normals[i]));
+    let weighed: Vec<Point> = normals
+        .iter()
+        .zip(lengths)
+        .map(|(&n, &l)| scale(n, l))
+        .collect();
+    let sums = forest.subtree_sums(&weighed);
+    let total = weighed_sum(normals, lengths, sheet);
     let left = |v: usize| {
         let after = sub(total, scale(sums[v], 2.0));
         dot(after, after).sqrt()
     };
-    let bound = CLOSURE * sheet.len() as f64;
+    let bound = CLOSURE * sheet.iter().map(|&i| lengths[i]).sum::<f64>();
     let Some(v) = forest
         .path(a, b)
         .into_iter()
@@ -810,14 +875,12 @@ fn turn_back_between(
 }
 
 /// The `sheets` merged by their pairing `parent` (each sheet's root and whether it
-/// turns to it), its normals turned; and which merged sheets are rings: a ring joined
-/// to another sheet was open after all, and the joined sheet must close.
+/// turns to it), its normals turned.
 fn merge_sheets(
     sheets: Vec<Vec<usize>>,
     normals: &mut [Point],
     parent: &[(usize, bool)],
-    rings: &[bool],
-) -> (Vec<Vec<usize>>, Vec<bool>) {
+) -> Vec<Vec<usize>> {
     let mut merged: Vec<Vec<usize>> = Vec::new();
     let mut slot = vec![usize::MAX; sheets.len()];
     for (s, sheet) in sheets.into_iter().enumerate() {
@@ -833,16 +896,7 @@ fn merge_sheets(
         }
         merged[slot[root]].extend(sheet);
     }
-    let mut members = vec![0usize; merged.len()];
-    for &(root, _) in parent {
-        members[slot[root]] += 1;
-    }
-    let mut ring = vec![false; merged.len()];
-    for s in 0..rings.len() {
-        let k = slot[parent[s].0];
-        ring[k] = rings[s] && members[k] == 1;
-    }
-    (merged, ring)
+    merged
 }
 
 /// The pairs of `ends` (indices, the smaller first) that face each other within
@@ -922,14 +976,14 @@ fn pair_ends(
         sheet_ends.links.farthest(sheet, other, &mut along);
         let b = end_of(pts, normals, s, sheet, other, &along, span);
         let (Some(a), Some(b)) = (a, b) else {
-            if is_open(normals, sheet) {
+            if is_open(normals, sheet_ends.lengths, sheet) {
                 return Err(Unpaired::Left);
             }
             continue;
         };
         // A sheet closed by its normals has no ends where the samples round its
         // farthest lie on both sides of them (see `Links::has_ends`).
-        if !is_open(normals, sheet) && !sheet_ends.ends[s] {
+        if !is_open(normals, sheet_ends.lengths, sheet) && !sheet_ends.ends[s] {
             continue;
         }
         ends.extend([a, b]);
@@ -1027,6 +1081,8 @@ struct SheetEnds<'a> {
     links: &'a Links,
     far: &'a [(usize, usize)],
     ends: &'a [bool],
+    /// Each sample's share of its curve ([`arc_lengths`]).
+    lengths: &'a [f64],
 }
 
 /// The samples' links along their sheets, to find a sheet's ends by: its edges, and
@@ -1148,18 +1204,18 @@ impl Links {
     }
 }
 
-/// Turns each sheet of `sheets` outward, or `None` when one does not close (a ring, by
-/// `rings`, does) or there are none or more than [`MAX_SHEETS`]. Closed: the unit
-/// normals of a closed curve sum to nothing (their integral along it vanishes), an open
-/// stroke's to its chord. Outward:
-/// the flux of the position, `sum (p - c) . n`, is twice the enclosed area over the
-/// spacing, positive for outward normals; a sheet inside an odd number of others bounds
-/// a hole, and turns the other way.
+/// Turns each sheet of `sheets` outward, or `None` when one does not close or there are
+/// none or more than [`MAX_SHEETS`]. Closed: the unit
+/// normals of a closed curve, each weighed by its sample's share of the curve
+/// (`lengths`), sum to nothing (their integral along it vanishes), an open stroke's to
+/// its chord. Outward: the flux of the position, `sum l (p - c) . n`, is twice the
+/// enclosed area, positive for outward normals; a sheet inside an odd number of others
+/// bounds a hole, and turns the other way.
 fn outward(
     pts: &[Point],
     normals: &mut [Point],
+    lengths: &[f64],
     sheets: &[Vec<usize>],
-    rings: &[bool],
 ) -> Option<()> {
     if sheets.is_empty() || sheets.len() > MAX_SHEETS {
         tracing::debug!(sheets = sheets.len(), "orientation: no sheets, or too many");
@@ -1171,19 +1227,23 @@ fn outward(
             [a[0] + v[0], a[1] + v[1]]
         })
     };
-    for (s, &ring) in sheets.iter().zip(rings) {
-        if !ring && is_open(normals, s) {
-            let total = sum(s, &|i| normals[i]);
+    for s in sheets {
+        let length: f64 = s.iter().map(|&i| lengths[i]).sum();
+        if is_open(normals, lengths, s) {
+            let total = weighed_sum(normals, lengths, s);
             tracing::debug!(
                 samples = s.len(),
-                open = dot(total, total).sqrt() / s.len() as f64,
+                open = dot(total, total).sqrt() / length,
                 "orientation: a sheet does not close"
             );
             return None;
         }
-        let c = sum(s, &|i| pts[i]);
-        let c = [c[0] / s.len() as f64, c[1] / s.len() as f64];
-        let flux: f64 = s.iter().map(|&i| dot(sub(pts[i], c), normals[i])).sum();
+        let c = sum(s, &|i| scale(pts[i], lengths[i]));
+        let c = scale(c, 1.0 / length.max(f64::MIN_POSITIVE));
+        let flux: f64 = s
+            .iter()
+            .map(|&i| lengths[i] * dot(sub(pts[i], c), normals[i]))
+            .sum();
         if flux < 0.0 {
             for &i in s.iter() {
                 normals[i] = [-normals[i][0], -normals[i][1]];
@@ -1623,7 +1683,7 @@ mod tests {
     /// sampling cut one wall twice, nearly a whole turn apart, so its samples fall into
     /// two sheets (136 and 777 samples) whose normals both sum to less than a tenth of
     /// their number, as a closed curve's do. Each was taken for closed, and the turn,
-    /// turned outward as a ring is, pointed into the material (the spiral came out as 5
+    /// turned outward on its own, pointed into the material (the spiral came out as 5
     /// curves). Both have ends, so they are paired across the gaps; every normal points
     /// out of the material.
     #[test]
@@ -1647,24 +1707,46 @@ mod tests {
         }
     }
 
-    /// A circle of radius 0.3 sampled 1.6 times as densely on one half as on the other
-    /// (247 and 153 samples): its unit normals sum to 0.15 of their number, past
-    /// [`CLOSURE`], as a noisy ring's may by chance, but round each of its farthest
-    /// samples lie samples on both sides. It is a ring, closed, every normal pointing
-    /// out of it; without the ring, no orientation.
+    /// A circle of radius 0.3 whose 600 samples crowd on one side, their density
+    /// `3 + 2 cos θ` (five times as dense at θ = 0 as at π): its unit normals sum to a
+    /// third of their number (`∫ cos θ (3 + 2 cos θ) dθ / ∫ (3 + 2 cos θ) dθ`), as an
+    /// open stroke's do, but weighed by the length each sample stands for they
+    /// integrate to nothing, as a closed curve's must: it closes, every normal pointing
+    /// out of it.
     #[test]
-    fn a_ring_whose_normals_sum_past_closure_by_its_sampling_is_closed() {
+    fn a_circle_sampled_five_times_as_densely_on_one_side_closes() {
         use std::f64::consts::PI;
-        let circle: Vec<Point> = (0..247)
-            .map(|i| PI * (i as f64 + 0.5) / 247.0)
-            .chain((0..153).map(|i| PI + PI * (i as f64 + 0.5) / 153.0))
-            .map(|a| [0.3 * a.cos(), 0.3 * a.sin()])
+        let n = 600;
+        // θ where the samples' cumulative density `(3 θ + 2 sin θ) / 6 π` is (i + ½) / n,
+        // by Newton's method from the uniform guess.
+        let circle: Vec<Point> = (0..n)
+            .map(|i| {
+                let target = 6.0 * PI * (i as f64 + 0.5) / n as f64;
+                let mut a = target / 3.0;
+                for _ in 0..50 {
+                    a -= (3.0 * a + 2.0 * a.sin() - target) / (3.0 + 2.0 * a.cos());
+                }
+                [0.3 * a.cos(), 0.3 * a.sin()]
+            })
             .collect();
         let normals: Vec<Point> = circle.iter().map(|&p| scale(p, 1.0 / 0.3)).collect();
-        let all: Vec<usize> = (0..circle.len()).collect();
-        assert!(is_open(&normals, &all) && !is_open_by(&normals, &all, RING_CLOSURE));
-        let oriented = orient(&DistanceField::new(&circle).unwrap(), 0.0).unwrap();
-        assert_eq!(oriented.len(), circle.len());
+        let all: Vec<usize> = (0..n).collect();
+        let alike = vec![1.0; n];
+        assert!(is_open_by(&normals, &alike, &all, 0.3));
+        let field = DistanceField::new(&circle).unwrap();
+        // The field keeps the samples in its own order: the normals follow them there.
+        let pts = field.points();
+        let normals: Vec<Point> = pts.iter().map(|&p| scale(p, 1.0 / 0.3)).collect();
+        let reach = median_reach(&field, FIT_NEIGHBOURS);
+        let lengths = arc_lengths(
+            pts,
+            &normals,
+            &sheet_edges(&field, &normals, 0.0, reach),
+            reach,
+        );
+        assert!(!is_open_by(&normals, &lengths, &all, 0.01));
+        let oriented = orient(&field, 0.0).expect("a closed circle is oriented");
+        assert_eq!(oriented.len(), n);
         for (p, n) in oriented {
             assert!(dot(p, n) > 0.0, "{p:?} {n:?}");
         }
