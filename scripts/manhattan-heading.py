@@ -13,21 +13,12 @@ Usage: manhattan-heading.py FRAMES.ndjson[.gz] TRAJECTORY.tum FROM [STEP] [SKIP]
 start.)
 """
 import cmath
-import gzip
-import json
 import math
 import statistics
 import sys
 
+import ndjson
 import tum
-
-
-def frames(path):
-    opener = gzip.open if path.endswith(".gz") else open
-    with opener(path, "rt") as f:
-        for line in f:
-            if line.strip():
-                yield json.loads(line)
 
 
 def walls(frame, heading):
@@ -66,7 +57,7 @@ def main():
     start = int(sys.argv[3])
     step = int(sys.argv[4]) if len(sys.argv) > 4 else 10
     skip = int(sys.argv[5]) if len(sys.argv) > 5 else 0
-    all_frames = [f for f in frames(path) if "ranges" in f][skip:]
+    all_frames = [f for f in ndjson.frames(path) if "ranges" in f][skip:]
     first = walls(all_frames[0], traj[0][2])
     base = math.degrees(cmath.phase(first) / 4) if first else 0.0
     out = []
