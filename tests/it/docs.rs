@@ -140,7 +140,9 @@ fn run(dir: &Path, page: &Path, command: &str) {
         | ["python" | "pip" | "scripts/python.sh", ..]
         // Install Debian packages (and build a C++ driver, or a Python environment with
         // fontTools): measurements run by hand.
-        | ["scripts/cgal-peer.sh" | "scripts/glyphs.sh" | "scripts/kiss-peer.sh", ..] => return,
+        | ["scripts/cgal-peer.sh" | "scripts/glyphs.sh" | "scripts/kiss-peer.sh", ..]
+        // The glyphs' Python environment, which scripts/glyphs.sh makes.
+        | [".tools/glyphs/bin/python", ..] => return,
         ["cargo", "run", "--release", "--", rest @ ..] | ["isoline", rest @ ..] => {
             let mut c = Command::new(bin);
             c.args(rest);
