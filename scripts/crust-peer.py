@@ -13,11 +13,12 @@ every edge ("missed"), the share of the edges' length farther than the bound fro
 truth ("off the truth"), and the graph's independent cycles (a stroke has none; a
 closed outline one). isoline's own curves are scored the same way beside it.
 
-sigma is the case's true noise with --oracle, else estimated as the median over the
-samples of the smaller principal deviation of their 16 nearest (a plain estimate,
-thrown off by corners and crossings).
+sigma is the noise isoline measured on the case (its record's `stats.noise`); with
+--oracle the case's true noise; with --plain the median over the samples of the
+smaller principal deviation of their 16 nearest (a plain estimate, thrown off by
+corners and crossings).
 
-Usage: crust-peer.py DIR [--oracle]   (DIR: scripts/glyphs.sh's output directory)
+Usage: crust-peer.py DIR [--oracle | --plain]   (DIR: scripts/glyphs.sh's output directory)
 """
 import collections
 import json
@@ -115,7 +116,7 @@ def main():
     args = [a for a in sys.argv[1:] if not a.startswith("--")]
     if len(args) != 1:
         sys.exit(__doc__)
-    d, oracle = args[0], "--oracle" in sys.argv
+    d, oracle, plain = args[0], "--oracle" in sys.argv, "--plain" in sys.argv
     if not os.path.isdir(d):
         print(f"no {d}: run scripts/glyphs.sh first", file=sys.stderr)
         sys.exit(0 if os.environ.get("QUICK") == "1" else 1)
@@ -138,7 +139,12 @@ def main():
             kept = cKDTree(np.array(lone)).query(P)[0] > 1e-12
             if kept.sum() >= 10:
                 P = P[kept]
-        sigma = c["sigma"] if oracle else noise(P)
+        if oracle:
+            sigma = c["sigma"]
+        elif plain or "noise" not in rec["stats"]:
+            sigma = noise(P)
+        else:
+            sigma = rec["stats"]["noise"]
         Q = projected(P, sigma)
         edges = crust(Q)
         segs = [{"closed": False, "points": [Q[a].tolist(), Q[b].tolist()]} for a, b in edges]

@@ -476,3 +476,20 @@ fn bad_frames_get_error_records_and_a_failing_exit_code() {
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains("bad.xy") && err.contains("line 2"), "{err}");
 }
+
+/// A point cloud's record says the noise it measured, the sigma of its accuracy bound:
+/// the median residual of local fits, which for Gaussian scatter across a curve whose
+/// bend the fits' window resolves lies between 0.8 and 1.05 sigma (the window's edge
+/// cuts the tails, the fit takes a few degrees of freedom; the core's
+/// `the_noise_estimate_does_not_fall_as_the_density_rises` measures that band on a
+/// line). A scan's record gives its `range_noise` instead.
+#[test]
+fn a_point_clouds_stats_give_the_noise_it_measured() {
+    let dir = tempfile::tempdir().unwrap();
+    for (sigma, seed) in [(0.002, 1), (0.005, 2), (0.01, 3)] {
+        let (s, _) = circle_run(dir.path(), 2000, sigma, seed);
+        let ratio = s["noise"].as_f64().expect("a cloud reports its noise") / sigma;
+        assert!((0.8..=1.05).contains(&ratio), "sigma {sigma}: {ratio}");
+        assert!(s.get("range_noise").is_none(), "{s}");
+    }
+}

@@ -989,6 +989,10 @@ fn frame_stats(
             .scan
             .as_ref()
             .map(|a| at.len_to_data(a.scales.noise)),
+        noise: prepared
+            .scan
+            .is_none()
+            .then(|| at.len_to_data(adapted.noise_estimate)),
         explained: fit.explained,
         fit_p90: fit.p90.is_finite().then_some(fit.p90),
         cold_fallback: solved.start == crate::levelset::Start::Fallback,

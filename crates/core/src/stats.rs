@@ -89,6 +89,10 @@ pub struct Stats {
     /// Scan frames: the range noise used (configured, or estimated from the returns).
     #[cfg_attr(feature = "serde", serde(skip_serializing_if = "Option::is_none"))]
     pub range_noise: Option<f64>,
+    /// Point clouds: the noise estimated from the samples (the median residual of
+    /// local fits), the `sigma` of the accuracy bound `3 sigma + 2 hmin`.
+    #[cfg_attr(feature = "serde", serde(skip_serializing_if = "Option::is_none"))]
+    pub noise: Option<f64>,
     /// The share of the points within `3 sigma + 2 hmin` of a curve.
     pub explained: f64,
     /// The 90th percentile of the points' distances to the curves; `None` without
