@@ -51,16 +51,9 @@ def crust(P):
 def cycles(n, edges):
     """Independent cycles of the graph: edges that close a loop in a union-find."""
     parent = list(range(n))
-
-    def find(x):
-        while parent[x] != x:
-            parent[x] = parent[parent[x]]
-            x = parent[x]
-        return x
-
     count = 0
     for a, b in edges:
-        ra, rb = find(a), find(b)
+        ra, rb = glyphs.root(parent, a), glyphs.root(parent, b)
         if ra == rb:
             count += 1
         else:

@@ -360,16 +360,21 @@ def densify(pls, step):
     return np.concatenate(out)
 
 
+def root(parent, i):
+    """The root of `i` in the union-find forest `parent`, halving the path on the way."""
+    while parent[i] != i:
+        parent[i] = parent[parent[i]]
+        i = parent[i]
+    return i
+
+
 def components(pls, link):
     """Connected pieces of a drawing: curves within `link` of each other are one."""
     n = len(pls)
     parent = list(range(n))
 
     def find(i):
-        while parent[i] != i:
-            parent[i] = parent[parent[i]]
-            i = parent[i]
-        return i
+        return root(parent, i)
 
     # Points every half link along each curve: two curves within `link` have a pair
     # of them within 1.5 link.
