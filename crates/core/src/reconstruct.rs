@@ -763,7 +763,7 @@ fn export_with(
     // Where the graph finds no curve either, the points fill an area.
     let by_graph = scan_analysis.is_none() && prepared.metric.curve_share < AREA_SHARE;
     let graphed = by_graph.then(|| {
-        let g = crate::cloud::graph_curves(&prepared.metric.field);
+        let g = crate::cloud::graph_curves(&prepared.metric.field, adapted.noise_estimate);
         let polylines: Vec<Polyline> = g
             .polylines
             .into_iter()
