@@ -763,7 +763,11 @@ fn export_with(
     // Where the graph finds no curve either, the points fill an area.
     let by_graph = scan_analysis.is_none() && prepared.metric.curve_share < AREA_SHARE;
     let graphed = by_graph.then(|| {
-        let g = crate::cloud::graph_curves(&prepared.metric.field, adapted.noise_estimate);
+        let g = crate::cloud::graph_curves(
+            &prepared.metric.field,
+            adapted.noise_estimate,
+            3.0 * adapted.noise_estimate + 2.0 * hmin,
+        );
         let polylines: Vec<Polyline> = g
             .polylines
             .into_iter()
