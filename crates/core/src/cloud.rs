@@ -132,9 +132,12 @@ pub struct Graphed {
 /// radius that holds ten samples up to [`window_cap`], or at that radius where it is
 /// larger and its samples lie within `bound` of their fit.
 pub fn graph_curves(field: &DistanceField, noise: f64, bound: f64) -> Graphed {
-    let thinned = thinned(field, noise);
-    let field = thinned.as_ref().unwrap_or(field);
     let radii = ten_sample_radii(field);
+    let thinned = thinned(field, &radii, noise);
+    let (field, radii) = match &thinned {
+        Some(kept) => (kept, ten_sample_radii(kept)),
+        None => (field, radii),
+    };
     let nodes = settled(field, &radii, window_cap(field, &radii), bound);
     // Windows pass by chance in scattered points, at the edges of the area they fill.
     if nodes.len() < 2 || (nodes.len() as f64) < AREA_SHARE * field.points().len() as f64 {
@@ -168,16 +171,13 @@ pub fn graph_curves(field: &DistanceField, noise: f64, bound: f64) -> Graphed {
 /// noise sets, but they cost every window's fit: without it the simulator's strokes with
 /// 100,000 samples at a noise of 2% of the box took 16 s in this stage, with it 1.6 s. `None` where the samples are sparser than that
 /// (every glyph of the corpus), or there is no noise to thin to.
-fn thinned(field: &DistanceField, noise: f64) -> Option<DistanceField> {
-    let radii = ten_sample_radii(field);
+/// `radii` are the samples' [`ten_sample_radii`].
+fn thinned(field: &DistanceField, radii: &[f64], noise: f64) -> Option<DistanceField> {
     // No noise (or none measured, NaN) leaves nothing to thin to.
     if radii.is_empty() || noise.is_nan() || noise <= 0.0 {
         return None;
     }
-    let mut sorted = radii;
-    let mid = sorted.len() / 2;
-    let typical = *sorted.select_nth_unstable_by(mid, f64::total_cmp).1;
-    let keep = (typical / (0.5 * noise)).powi(2);
+    let keep = (typical(radii) / (0.5 * noise)).powi(2);
     if keep.is_nan() || keep >= 1.0 {
         return None;
     }
@@ -209,14 +209,17 @@ fn thinned(field: &DistanceField, noise: f64) -> Option<DistanceField> {
 /// of step 2 anyway.
 /// `radii` are the samples' [`ten_sample_radii`].
 fn window_cap(field: &DistanceField, radii: &[f64]) -> f64 {
-    let mut radii = radii.to_vec();
-    let typical = if radii.is_empty() {
-        0.0
-    } else {
-        let mid = radii.len() / 2;
-        *radii.select_nth_unstable_by(mid, f64::total_cmp).1
-    };
-    largest_window(field).max(SPARSER * typical)
+    largest_window(field).max(SPARSER * typical(radii))
+}
+
+/// A typical sample's ten-sample radius: the median of `radii` (0 for none).
+fn typical(radii: &[f64]) -> f64 {
+    if radii.is_empty() {
+        return 0.0;
+    }
+    let mut sorted = radii.to_vec();
+    let mid = sorted.len() / 2;
+    *sorted.select_nth_unstable_by(mid, f64::total_cmp).1
 }
 
 /// Per sample, the radius that holds its [`SHEET_SAMPLES`] nearest: where its window
@@ -1057,6 +1060,17 @@ mod tests {
         graph_curves(field, sigma, 3.0 * sigma + 0.002)
     }
 
+    /// That `g` is one closed loop, every vertex within `bound` of the circle of radius
+    /// 0.3 round (0.5, 0.5) that [`noisy_circle`] samples.
+    fn one_loop_on_the_circle(g: &Graphed, bound: f64, case: usize) {
+        assert_eq!(g.polylines.len(), 1, "case {case}");
+        assert!(g.polylines[0].closed, "case {case}");
+        for &p in &g.polylines[0].points {
+            let off = (dist(p, [0.5, 0.5]) - 0.3).abs();
+            assert!(off <= bound, "case {case}: {p:?} {off} > {bound}");
+        }
+    }
+
     /// A deterministic pseudo-random sequence in [0, 1).
     fn lcg(seed: &mut u64) -> f64 {
         *seed = seed
@@ -1175,16 +1189,13 @@ mod tests {
     /// not thinned.
     #[test]
     fn dense_noisy_samples_are_thinned_to_half_the_noise() {
-        let median = |f: &DistanceField| {
-            let mut r = ten_sample_radii(f);
-            let mid = r.len() / 2;
-            *r.select_nth_unstable_by(mid, f64::total_cmp).1
-        };
+        let median = |f: &DistanceField| typical(&ten_sample_radii(f));
         let sigma = 0.01;
         let field = DistanceField::new(&noisy_circle(60_000, sigma, &mut 7)).unwrap();
         let n = field.points().len() as f64;
         let before = median(&field);
-        let kept = thinned(&field, sigma).expect("dense samples are thinned");
+        let kept =
+            thinned(&field, &ten_sample_radii(&field), sigma).expect("dense samples are thinned");
         let p = (before / (0.5 * sigma)).powi(2);
         let m = kept.points().len() as f64;
         assert!(
@@ -1199,8 +1210,8 @@ mod tests {
             0.5 * sigma
         );
         let sparse = DistanceField::new(&noisy_circle(500, sigma, &mut 7)).unwrap();
-        assert!(thinned(&sparse, sigma).is_none());
-        assert!(thinned(&field, 0.0).is_none());
+        assert!(thinned(&sparse, &ten_sample_radii(&sparse), sigma).is_none());
+        assert!(thinned(&field, &ten_sample_radii(&field), 0.0).is_none());
     }
 
     /// A noisy circle closes: its tree misses one edge, and the ends face each other.
@@ -1291,14 +1302,8 @@ mod tests {
                 "case {case}: not sparse"
             );
             let g = graph(&field, sigma);
-            assert_eq!(g.polylines.len(), 1, "case {case}");
-            assert!(g.polylines[0].closed, "case {case}");
             // Within the accuracy bound of the truth: three deviations and a spacing.
-            let bound = 3.0 * sigma + std::f64::consts::TAU * 0.3 / 150.0;
-            for &p in &g.polylines[0].points {
-                let off = (dist(p, [0.5, 0.5]) - 0.3).abs();
-                assert!(off <= bound, "case {case}: {p:?} {off} > {bound}");
-            }
+            one_loop_on_the_circle(&g, 3.0 * sigma + std::f64::consts::TAU * 0.3 / 150.0, case);
         }
     }
 
@@ -1324,14 +1329,8 @@ mod tests {
                 })
                 .collect();
             let g = graph(&DistanceField::new(&pts).unwrap(), sigma);
-            assert_eq!(g.polylines.len(), 1, "case {case}");
-            assert!(g.polylines[0].closed, "case {case}");
             // Three deviations and the sparse half's spacing, about 0.008.
-            let bound = 3.0 * sigma + std::f64::consts::PI * 0.3 / 120.0;
-            for &p in &g.polylines[0].points {
-                let off = (dist(p, [0.5, 0.5]) - 0.3).abs();
-                assert!(off <= bound, "case {case}: {p:?} {off} > {bound}");
-            }
+            one_loop_on_the_circle(&g, 3.0 * sigma + std::f64::consts::PI * 0.3 / 120.0, case);
         }
     }
 
